@@ -1,0 +1,765 @@
+//! pest grammar → AST with spans. Syntax errors become [`ParseError::Syntax`] with a readable
+//! list of what was expected; parsing never panics.
+
+use crate::ast::*;
+use crate::diag::ParseError;
+use crate::span::Span;
+use pest::Parser;
+use pest::iterators::Pair;
+use std::rc::Rc;
+
+#[derive(pest_derive::Parser)]
+#[grammar = "grammar.pest"]
+struct RecipeParser;
+
+type P<'a> = Pair<'a, Rule>;
+
+/// Parses one file. `base` is the file's global offset in the source map.
+pub fn parse_recipe(text: &str, file: crate::FileId, base: usize) -> Result<Module, ParseError> {
+    let mut pairs =
+        RecipeParser::parse(Rule::recipe, text).map_err(|e| syntax_error(e, text, base))?;
+    let b = Builder { base };
+    let recipe = pairs.next().expect("recipe rule always produces one pair");
+    let stmts = recipe
+        .into_inner()
+        .filter(|p| p.as_rule() != Rule::EOI)
+        .map(|p| b.stmt(p))
+        .collect();
+    Ok(Module { file, stmts })
+}
+
+/// What one line of the REPL holds: statements, or a bare expression to print.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ReplInput {
+    Stmts(Vec<Stmt>),
+    Expr(Expr),
+}
+
+/// Parses REPL input: statements, or one expression whose value is to be shown.
+pub fn parse_repl(text: &str, base: usize) -> Result<ReplInput, ParseError> {
+    let mut pairs =
+        RecipeParser::parse(Rule::repl_input, text).map_err(|e| syntax_error(e, text, base))?;
+    let b = Builder { base };
+    let input = pairs.next().expect("repl_input always produces one pair");
+    let mut stmts = Vec::new();
+    for p in input.into_inner() {
+        match p.as_rule() {
+            Rule::EOI => {}
+            Rule::expr => return Ok(ReplInput::Expr(b.expr(p))),
+            _ => stmts.push(b.stmt(p)),
+        }
+    }
+    Ok(ReplInput::Stmts(stmts))
+}
+
+/// True when `text` ends inside an open bracket, brace or string, so the REPL should read
+/// another line before parsing.
+pub fn is_incomplete(text: &str) -> bool {
+    let mut depth = 0i32;
+    let mut in_str = false;
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '"' => in_str = !in_str,
+            '/' if !in_str && chars.peek() == Some(&'/') => {
+                for c in chars.by_ref() {
+                    if c == '\n' {
+                        break;
+                    }
+                }
+            }
+            '(' | '[' | '{' if !in_str => depth += 1,
+            ')' | ']' | '}' if !in_str => depth -= 1,
+            _ => {}
+        }
+    }
+    depth > 0 || in_str
+}
+
+struct Builder {
+    base: usize,
+}
+
+impl Builder {
+    fn span(&self, p: &P) -> Span {
+        let s = p.as_span();
+        Span::new(self.base + s.start(), self.base + s.end())
+    }
+
+    fn ident(&self, p: P) -> Ident {
+        Ident {
+            name: p.as_str().to_string(),
+            span: self.span(&p),
+        }
+    }
+
+    fn string(&self, p: P) -> StrLit {
+        let span = self.span(&p);
+        let value = p
+            .into_inner()
+            .next()
+            .map(|i| i.as_str().to_string())
+            .unwrap_or_default();
+        StrLit { value, span }
+    }
+
+    fn block(&self, p: P) -> Vec<Stmt> {
+        p.into_inner().map(|s| self.stmt(s)).collect()
+    }
+
+    fn settings(&self, p: P) -> Vec<Setting> {
+        p.into_inner().map(|s| self.setting(s)).collect()
+    }
+
+    fn setting(&self, p: P) -> Setting {
+        let span = self.span(&p);
+        let mut it = p.into_inner();
+        let key = self.ident(it.next().expect("setting has a key"));
+        let value = it.next().map(|e| self.expr(e));
+        Setting { key, value, span }
+    }
+
+    fn stmt(&self, p: P) -> Stmt {
+        let span = self.span(&p);
+        let rule = p.as_rule();
+        let mut it = p.into_inner().filter(|p| !is_keyword(p.as_rule()));
+        let mut next = || it.next().expect("grammar guarantees this child");
+        let kind = match rule {
+            Rule::machine_stmt => {
+                let target = next();
+                StmtKind::Machine(match target.as_rule() {
+                    Rule::string => MachineRef::Path(self.string(target)),
+                    _ => MachineRef::Named(self.ident(target)),
+                })
+            }
+            Rule::limits_stmt => StmtKind::Limits(
+                std::iter::from_fn(|| it.next())
+                    .map(|g| {
+                        let mut gi = g.into_inner();
+                        let axis = self.ident(gi.next().expect("limit group has an axis"));
+                        LimitGroup {
+                            axis,
+                            settings: gi.map(|s| self.setting(s)).collect(),
+                        }
+                    })
+                    .collect(),
+            ),
+            Rule::let_stmt => {
+                let name = self.ident(next());
+                let second = next();
+                let (ty, value) = if second.as_rule() == Rule::type_name {
+                    (Some(self.type_name(second)), self.expr(next()))
+                } else {
+                    (None, self.expr(second))
+                };
+                StmtKind::Let { name, ty, value }
+            }
+            Rule::fn_stmt => {
+                let name = self.ident(next());
+                let mut params = Vec::new();
+                let mut ret = None;
+                let mut body = Vec::new();
+                for c in std::iter::from_fn(|| it.next()) {
+                    match c.as_rule() {
+                        Rule::param => {
+                            let mut pi = c.into_inner();
+                            let name = self.ident(pi.next().expect("param has a name"));
+                            let ty = pi.next().map(|t| self.type_name(t));
+                            params.push(Param { name, ty });
+                        }
+                        Rule::type_name => ret = Some(self.type_name(c)),
+                        Rule::block => body = self.block(c),
+                        _ => {}
+                    }
+                }
+                StmtKind::Fn(Rc::new(FnDef {
+                    name,
+                    params,
+                    ret,
+                    body,
+                }))
+            }
+            Rule::import_stmt => StmtKind::Import(self.string(next())),
+            Rule::use_stmt => {
+                let t = next();
+                StmtKind::Use(match t.as_rule() {
+                    Rule::string => self.string(t),
+                    _ => StrLit {
+                        value: t.as_str().to_string(),
+                        span: self.span(&t),
+                    },
+                })
+            }
+            Rule::if_stmt => {
+                let cond = self.expr(next());
+                let then = self.block(next());
+                let els = it.next().map(|e| match e.as_rule() {
+                    Rule::if_stmt => vec![self.stmt(e)],
+                    _ => self.block(e),
+                });
+                StmtKind::If { cond, then, els }
+            }
+            Rule::for_stmt => {
+                let var = self.ident(next());
+                let iter_p = next();
+                let iter = if iter_p.as_rule() == Rule::range {
+                    let mut ri = iter_p.into_inner();
+                    let start = self.expr(ri.next().expect("range start"));
+                    let op = ri.next().expect("range op");
+                    let end = self.expr(ri.next().expect("range end"));
+                    ForIter::Range {
+                        start,
+                        end,
+                        inclusive: op.as_str() == "..=",
+                    }
+                } else {
+                    ForIter::Expr(self.expr(iter_p))
+                };
+                let body = self.block(next());
+                StmtKind::For { var, iter, body }
+            }
+            Rule::return_stmt => StmtKind::Return(it.next().map(|e| self.expr(e))),
+            Rule::laser_stmt => {
+                let c = next();
+                StmtKind::Laser(match c.as_rule() {
+                    Rule::settings => LaserStmt::Settings(self.settings(c)),
+                    _ if c.as_str() == "on" => LaserStmt::On,
+                    _ => LaserStmt::Off,
+                })
+            }
+            Rule::pulse_stmt => match it.next() {
+                Some(c) if c.as_rule() == Rule::settings => {
+                    StmtKind::Pulse(PulseStmt::Settings(self.settings(c)))
+                }
+                Some(c) if c.as_rule() == Rule::pulse_interval => {
+                    // `pulse interval X` is shorthand for `pulse { interval X }`.
+                    let cspan = self.span(&c);
+                    let mut ci = c.into_inner();
+                    let kw = ci.next().expect("interval keyword");
+                    let key = Ident {
+                        name: "interval".into(),
+                        span: self.span(&kw),
+                    };
+                    let value = ci.next().map(|e| self.expr(e));
+                    StmtKind::Pulse(PulseStmt::Settings(vec![Setting {
+                        key,
+                        value,
+                        span: cspan,
+                    }]))
+                }
+                _ => StmtKind::Pulse(PulseStmt::Off),
+            },
+            Rule::planner_stmt => StmtKind::Planner(self.settings(next())),
+            Rule::move_stmt => {
+                let kind = match next().as_str() {
+                    "by" => MoveKind::By,
+                    _ => MoveKind::To,
+                };
+                let target = self.expr(next());
+                let speed = match it.next() {
+                    Some(e) => MoveSpeed::At(self.expr(e)),
+                    None => MoveSpeed::Rapid,
+                };
+                StmtKind::Move {
+                    kind,
+                    target,
+                    speed,
+                }
+            }
+            Rule::follow_stmt => {
+                let path = self.expr(next());
+                let speed = self.expr(next());
+                let settings = it.next().map(|s| self.settings(s)).unwrap_or_default();
+                StmtKind::Follow {
+                    path,
+                    speed,
+                    settings,
+                }
+            }
+            Rule::dwell_stmt => StmtKind::Dwell(self.expr(next())),
+            Rule::mcode_stmt => {
+                let code = self.expr(next());
+                let comment = it.next().map(|s| self.string(s));
+                StmtKind::MCode { code, comment }
+            }
+            Rule::event_stmt => StmtKind::Event(self.ident(next())),
+            Rule::scan_stmt => {
+                let kind = self.ident(next());
+                let region = self.expr(next());
+                let settings = it.next().map(|s| self.settings(s)).unwrap_or_default();
+                StmtKind::Scan {
+                    kind,
+                    region,
+                    settings,
+                }
+            }
+            Rule::call_stmt => StmtKind::Expr(self.expr(next())),
+            other => unreachable!("not a statement rule: {other:?}"),
+        };
+        Stmt { kind, span }
+    }
+
+    fn type_name(&self, p: P) -> Ident {
+        self.ident(p.into_inner().next().expect("type_name holds an ident"))
+    }
+
+    fn expr(&self, p: P) -> Expr {
+        let span = self.span(&p);
+        match p.as_rule() {
+            Rule::expr => self.expr(p.into_inner().next().expect("expr has one child")),
+            Rule::or_expr | Rule::and_expr | Rule::sum | Rule::product | Rule::cmp_expr => {
+                let mut it = p.into_inner();
+                let mut lhs = self.expr(it.next().expect("binary chain has a first operand"));
+                while let Some(op) = it.next() {
+                    let rhs = self.expr(it.next().expect("operator has a right operand"));
+                    let op = match op.as_str() {
+                        "+" => BinOp::Add,
+                        "-" => BinOp::Sub,
+                        "*" => BinOp::Mul,
+                        "/" => BinOp::Div,
+                        "%" => BinOp::Rem,
+                        "==" => BinOp::Eq,
+                        "!=" => BinOp::Ne,
+                        "<" => BinOp::Lt,
+                        "<=" => BinOp::Le,
+                        ">" => BinOp::Gt,
+                        ">=" => BinOp::Ge,
+                        "and" => BinOp::And,
+                        _ => BinOp::Or,
+                    };
+                    let span = lhs.span.to(rhs.span);
+                    lhs = Expr {
+                        kind: ExprKind::Binary {
+                            op,
+                            lhs: Box::new(lhs),
+                            rhs: Box::new(rhs),
+                        },
+                        span,
+                    };
+                }
+                lhs
+            }
+            Rule::unary => {
+                let children: Vec<P> = p.into_inner().collect();
+                let (ops, operand) = children.split_at(children.len() - 1);
+                let mut e = self.expr(operand[0].clone());
+                for op in ops.iter().rev() {
+                    let op = if op.as_str() == "-" {
+                        UnOp::Neg
+                    } else {
+                        UnOp::Not
+                    };
+                    e = Expr {
+                        kind: ExprKind::Unary {
+                            op,
+                            expr: Box::new(e),
+                        },
+                        span,
+                    };
+                }
+                e
+            }
+            Rule::postfix => {
+                let mut it = p.into_inner();
+                let mut e = self.expr(it.next().expect("postfix has a primary"));
+                for suffix in it {
+                    let s_span = e.span.to(self.span(&suffix));
+                    let inner = suffix.clone().into_inner().next().expect("suffix body");
+                    e = match suffix.as_rule() {
+                        Rule::field => Expr {
+                            kind: ExprKind::Field {
+                                expr: Box::new(e),
+                                field: self.ident(inner),
+                            },
+                            span: s_span,
+                        },
+                        _ => Expr {
+                            kind: ExprKind::Index {
+                                expr: Box::new(e),
+                                index: Box::new(self.expr(inner)),
+                            },
+                            span: s_span,
+                        },
+                    };
+                }
+                e
+            }
+            Rule::quantity => {
+                let mut it = p.into_inner();
+                let n = it.next().expect("quantity has a number");
+                let u = it.next().expect("quantity has a unit");
+                Expr {
+                    kind: ExprKind::Number {
+                        value: parse_number(n.as_str()),
+                        unit: Some((u.as_str().to_string(), self.span(&u))),
+                    },
+                    span,
+                }
+            }
+            Rule::number => Expr {
+                kind: ExprKind::Number {
+                    value: parse_number(p.as_str()),
+                    unit: None,
+                },
+                span,
+            },
+            Rule::kw_true => Expr {
+                kind: ExprKind::Bool(true),
+                span,
+            },
+            Rule::kw_false => Expr {
+                kind: ExprKind::Bool(false),
+                span,
+            },
+            Rule::string => Expr {
+                kind: ExprKind::Str(self.string(p).value),
+                span,
+            },
+            Rule::ident => Expr {
+                kind: ExprKind::Var(p.as_str().to_string()),
+                span,
+            },
+            Rule::paren => {
+                let mut items: Vec<Expr> = p.into_inner().map(|e| self.expr(e)).collect();
+                if items.len() == 1 {
+                    // Parentheses only group; keep the outer span for diagnostics.
+                    let mut e = items.remove(0);
+                    e.span = span;
+                    e
+                } else {
+                    Expr {
+                        kind: ExprKind::Point(items),
+                        span,
+                    }
+                }
+            }
+            Rule::list => Expr {
+                kind: ExprKind::List(p.into_inner().map(|e| self.expr(e)).collect()),
+                span,
+            },
+            Rule::call => {
+                let mut it = p.into_inner();
+                let callee = it.next().expect("call has a callee");
+                let callee = Ident {
+                    name: callee.as_str().to_string(),
+                    span: self.span(&callee),
+                };
+                let args = self.args(it.next().expect("call has arguments"));
+                Expr {
+                    kind: ExprKind::Call { callee, args },
+                    span,
+                }
+            }
+            Rule::profile_expr => {
+                let mut it = p.into_inner().filter(|c| c.as_rule() != Rule::kw_profile);
+                let kind = self.ident(it.next().expect("profile has a kind"));
+                let mut args = Vec::new();
+                let mut flags = Vec::new();
+                for c in it {
+                    match c.as_rule() {
+                        Rule::call_args => args = self.args(c),
+                        Rule::profile_flag => flags.push(self.ident(c)),
+                        _ => args.push(Arg {
+                            name: None,
+                            value: self.expr(c),
+                        }),
+                    }
+                }
+                Expr {
+                    kind: ExprKind::Profile { kind, args, flags },
+                    span,
+                }
+            }
+            other => unreachable!("not an expression rule: {other:?}"),
+        }
+    }
+
+    fn args(&self, p: P) -> Vec<Arg> {
+        p.into_inner()
+            .map(|a| {
+                let mut it = a.into_inner();
+                let first = it.next().expect("arg has content");
+                match it.next() {
+                    Some(value) => Arg {
+                        name: Some(self.ident(first)),
+                        value: self.expr(value),
+                    },
+                    None => Arg {
+                        name: None,
+                        value: self.expr(first),
+                    },
+                }
+            })
+            .collect()
+    }
+}
+
+fn parse_number(s: &str) -> f64 {
+    // The grammar admits only valid float syntax; an absurd exponent parses to infinity, which
+    // the checker reports.
+    s.parse().unwrap_or(f64::NAN)
+}
+
+fn is_keyword(r: Rule) -> bool {
+    matches!(
+        r,
+        Rule::kw_machine
+            | Rule::kw_limits
+            | Rule::kw_let
+            | Rule::kw_fn
+            | Rule::kw_import
+            | Rule::kw_use
+            | Rule::kw_if
+            | Rule::kw_else
+            | Rule::kw_for
+            | Rule::kw_in
+            | Rule::kw_return
+            | Rule::kw_laser
+            | Rule::kw_pulse
+            | Rule::kw_planner
+            | Rule::kw_move
+            | Rule::kw_rapid
+            | Rule::kw_at
+            | Rule::kw_follow
+            | Rule::kw_dwell
+            | Rule::kw_mcode
+            | Rule::kw_event
+            | Rule::kw_scan
+            | Rule::kw_interval
+    )
+}
+
+/// The words a user reads in "expected ..." lists.
+fn rule_name(r: Rule) -> Option<&'static str> {
+    Some(match r {
+        Rule::EOI => "end of input",
+        Rule::expr
+        | Rule::or_expr
+        | Rule::and_expr
+        | Rule::cmp_expr
+        | Rule::sum
+        | Rule::product
+        | Rule::unary
+        | Rule::postfix => "an expression",
+        Rule::ident | Rule::callee => "a name",
+        Rule::number | Rule::quantity => "a number",
+        Rule::unit | Rule::unit_atom => "a unit",
+        Rule::string => "a string",
+        Rule::settings => "`{ key value, ... }`",
+        Rule::setting => "a setting (`key value`)",
+        Rule::limit_group => "an axis group (`x: v 200 mm/s, a 2 m/s^2`)",
+        Rule::block => "a block `{ ... }`",
+        Rule::call_args => "arguments `( ... )`",
+        Rule::arg => "an argument",
+        Rule::list => "a list `[ ... ]`",
+        Rule::paren => "`(`",
+        Rule::cmp_op => "a comparison",
+        Rule::add_op | Rule::mul_op => "an operator",
+        Rule::range | Rule::range_op => "a range `a..b`",
+        Rule::type_name => "a type name",
+        Rule::param => "a parameter",
+        Rule::field => "`.field`",
+        Rule::index => "`[index]`",
+        Rule::move_kind => "`to` or `by`",
+        Rule::laser_onoff => "`on` or `off`",
+        Rule::pulse_interval => "`interval`",
+        Rule::profile_flag => "`closed`, `cw` or `ccw`",
+        Rule::profile_expr => "`profile`",
+        Rule::kw_machine
+        | Rule::kw_limits
+        | Rule::kw_let
+        | Rule::kw_fn
+        | Rule::kw_import
+        | Rule::kw_use
+        | Rule::kw_if
+        | Rule::kw_for
+        | Rule::kw_return
+        | Rule::kw_laser
+        | Rule::kw_pulse
+        | Rule::kw_planner
+        | Rule::kw_move
+        | Rule::kw_follow
+        | Rule::kw_dwell
+        | Rule::kw_mcode
+        | Rule::kw_event
+        | Rule::kw_scan
+        | Rule::call_stmt
+        | Rule::machine_stmt
+        | Rule::limits_stmt
+        | Rule::let_stmt
+        | Rule::fn_stmt
+        | Rule::import_stmt
+        | Rule::use_stmt
+        | Rule::if_stmt
+        | Rule::for_stmt
+        | Rule::return_stmt
+        | Rule::laser_stmt
+        | Rule::pulse_stmt
+        | Rule::planner_stmt
+        | Rule::move_stmt
+        | Rule::follow_stmt
+        | Rule::dwell_stmt
+        | Rule::mcode_stmt
+        | Rule::event_stmt
+        | Rule::scan_stmt => "a statement",
+        Rule::kw_else => "`else`",
+        Rule::kw_in => "`in`",
+        Rule::kw_to => "`to`",
+        Rule::kw_by => "`by`",
+        Rule::kw_at => "`at`",
+        Rule::kw_rapid => "`rapid`",
+        Rule::kw_true | Rule::kw_false => "`true` or `false`",
+        Rule::kw_interval => "`interval`",
+        Rule::kw_on | Rule::kw_off => "`on` or `off`",
+        Rule::kw_not => "`not`",
+        Rule::kw_and | Rule::kw_or => "`and` or `or`",
+        Rule::kw_profile => "`profile`",
+        Rule::kw_closed | Rule::kw_cw | Rule::kw_ccw => "`closed`, `cw` or `ccw`",
+        _ => return None,
+    })
+}
+
+fn syntax_error(e: pest::error::Error<Rule>, text: &str, base: usize) -> ParseError {
+    use pest::error::{ErrorVariant, InputLocation};
+    let (start, end) = match e.location {
+        InputLocation::Pos(p) => (p, p),
+        InputLocation::Span((s, e)) => (s, e),
+    };
+    // Point at the offending token, not at an empty position, when there is one.
+    let tok_end = if end > start {
+        end
+    } else {
+        text[start..]
+            .char_indices()
+            .find(|(_, c)| c.is_whitespace() || "()[]{},;".contains(*c))
+            .map(|(i, _)| start + i.max(text[start..].chars().next().map_or(0, char::len_utf8)))
+            .unwrap_or(text.len())
+    };
+    let found = text[start..tok_end].trim();
+    let found = if found.is_empty() {
+        if start >= text.len() {
+            "end of input".to_string()
+        } else {
+            "a line break".to_string()
+        }
+    } else {
+        format!("`{found}`")
+    };
+    let mut expected: Vec<&str> = match &e.variant {
+        ErrorVariant::ParsingError { positives, .. } => {
+            positives.iter().filter_map(|r| rule_name(*r)).collect()
+        }
+        ErrorVariant::CustomError { .. } => Vec::new(),
+    };
+    expected.sort();
+    expected.dedup();
+    let list = match expected.len() {
+        0 => "something else".to_string(),
+        1 => expected[0].to_string(),
+        n => format!("{} or {}", expected[..n - 1].join(", "), expected[n - 1]),
+    };
+    let help = if found == "`=`" && expected.contains(&"a comparison") {
+        Some("`=` only binds names in `let`; compare with `==`".to_string())
+    } else if expected.contains(&"a unit") || found.starts_with("`mm") {
+        Some("a unit follows its number on the same line: `20 mm/s`".to_string())
+    } else {
+        None
+    };
+    ParseError::Syntax {
+        message: format!("expected {list}, found {found}"),
+        span: Span::new(base + start, base + tok_end),
+        label: format!("expected {list}"),
+        help,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(src: &str) -> Module {
+        parse_recipe(src, crate::FileId(0), 0).unwrap_or_else(|e| panic!("{e:?}"))
+    }
+
+    #[test]
+    fn sketch_from_the_brief_parses() {
+        let m = parse(
+            "machine xy_table
+             limits { x: v 200 mm/s, a 2 m/s^2; y: v 200 mm/s, a 2 m/s^2 }
+             let pitch = 0.2 mm
+             let part = profile polyline [(0, 0), (40 mm, 0), (40 mm, 20 mm), (0, 20 mm)] closed
+             let path = offset(part, 1.5 mm)
+             laser { power 40 W, spot 50 um }
+             follow path at 20 mm/s
+             for i in 0..3 { move to (0, i * pitch) rapid }",
+        );
+        assert_eq!(m.stmts.len(), 8);
+        match &m.stmts[1].kind {
+            StmtKind::Limits(g) => {
+                assert_eq!(g.len(), 2);
+                assert_eq!(g[0].axis.name, "x");
+                assert_eq!(g[0].settings[1].key.name, "a");
+            }
+            k => panic!("{k:?}"),
+        }
+        match &m.stmts[3].kind {
+            StmtKind::Let { value, .. } => match &value.kind {
+                ExprKind::Profile { kind, args, flags } => {
+                    assert_eq!(kind.name, "polyline");
+                    assert_eq!(args.len(), 1);
+                    assert_eq!(flags[0].name, "closed");
+                }
+                k => panic!("{k:?}"),
+            },
+            k => panic!("{k:?}"),
+        }
+    }
+
+    #[test]
+    fn a_unit_must_share_the_line_with_its_number() {
+        let m = parse("let n = 3\nlaser { power 40 W }");
+        assert_eq!(m.stmts.len(), 2);
+        match &m.stmts[0].kind {
+            StmtKind::Let { value, .. } => {
+                assert_eq!(
+                    value.kind,
+                    ExprKind::Number {
+                        value: 3.0,
+                        unit: None
+                    }
+                )
+            }
+            k => panic!("{k:?}"),
+        }
+    }
+
+    #[test]
+    fn precedence_and_spans() {
+        let m = parse("let x = 1 mm + 2 mm * 3");
+        let StmtKind::Let { value, .. } = &m.stmts[0].kind else {
+            panic!()
+        };
+        let ExprKind::Binary { op, rhs, .. } = &value.kind else {
+            panic!()
+        };
+        assert_eq!(*op, BinOp::Add);
+        assert_eq!((rhs.span.start, rhs.span.end), (15, 23));
+    }
+
+    #[test]
+    fn syntax_errors_name_what_was_expected() {
+        let e = parse_recipe("let = 3", crate::FileId(0), 0).unwrap_err();
+        let ParseError::Syntax { message, span, .. } = e else {
+            panic!()
+        };
+        assert!(message.contains("expected a name"), "{message}");
+        assert_eq!(span.start, 4);
+    }
+
+    #[test]
+    fn incomplete_input_is_detected() {
+        assert!(is_incomplete("fn f() {"));
+        assert!(is_incomplete("let a = [1,"));
+        assert!(!is_incomplete("let a = [1, 2] // [ "));
+    }
+}

@@ -1,0 +1,445 @@
+//! What the language knows by name: builtin functions, profile constructors, statement
+//! settings and type names — with their documentation. This table is the one source of truth
+//! for the checker, the evaluator's argument binding, completion and `lase doc`.
+//!
+//! Nothing here knows a machine: axis names in `limits` and event names are checked against
+//! the machine at evaluation.
+
+use crate::units::Dim;
+
+/// The type of a parameter or setting.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum PTy {
+    /// A number of this dimension (a literal `0` fits any).
+    Dim(Dim),
+    /// Either of two dimensions (e.g. a linear or an angular speed).
+    Either(Dim, Dim),
+    /// Any number.
+    AnyNum,
+    Point,
+    Profile,
+    /// A list of points.
+    Points,
+    List,
+    Bool,
+    Str,
+    /// One word of a fixed set, written as a bare name (`ramp scurve`).
+    Word(&'static [&'static str]),
+    /// A flag: a setting with no value.
+    Flag,
+}
+
+impl PTy {
+    pub fn describe(self) -> String {
+        match self {
+            PTy::Dim(d) => crate::check::Ty::Num(d).describe(),
+            PTy::Either(a, b) => format!(
+                "{} or {}",
+                crate::check::Ty::Num(a).describe(),
+                crate::check::Ty::Num(b).describe()
+            ),
+            PTy::AnyNum => "a number".into(),
+            PTy::Point => "a point".into(),
+            PTy::Profile => "a profile".into(),
+            PTy::Points => "a list of points".into(),
+            PTy::List => "a list".into(),
+            PTy::Bool => "a bool".into(),
+            PTy::Str => "a string".into(),
+            PTy::Word(w) => format!("one of {}", w.join(", ")),
+            PTy::Flag => "nothing (a flag)".into(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub ty: PTy,
+    pub required: bool,
+}
+
+const fn req(name: &'static str, ty: PTy) -> ParamSpec {
+    ParamSpec {
+        name,
+        ty,
+        required: true,
+    }
+}
+
+const fn opt(name: &'static str, ty: PTy) -> ParamSpec {
+    ParamSpec {
+        name,
+        ty,
+        required: false,
+    }
+}
+
+/// What a builtin returns.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Ret {
+    Dim(Dim),
+    Point,
+    Profile,
+    Points,
+    /// The dimension of the first argument (abs, min, max).
+    SameAsFirst,
+    /// The square root of the first argument's dimension.
+    SqrtOfFirst,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct Builtin {
+    pub name: &'static str,
+    pub params: &'static [ParamSpec],
+    pub ret: Ret,
+    pub doc: &'static str,
+}
+
+const L: PTy = PTy::Dim(Dim::LENGTH);
+const ANG: PTy = PTy::Dim(Dim::ANGLE);
+const NUM: PTy = PTy::Dim(Dim::NONE);
+
+pub const BUILTINS: &[Builtin] = &[
+    Builtin {
+        name: "offset",
+        params: &[req("profile", PTy::Profile), req("distance", L)],
+        ret: Ret::Profile,
+        doc: "The equidistant curve C0 = C ± d·n. For a closed profile a positive distance \
+              grows it outward; for an open one it moves to the left of the direction of \
+              travel. A distance larger than a concave radius of the profile folds the \
+              offset over itself: lase reports it instead of emitting a self-intersecting path.",
+    },
+    Builtin {
+        name: "reverse",
+        params: &[req("profile", PTy::Profile)],
+        ret: Ret::Profile,
+        doc: "The same profile traversed the other way.",
+    },
+    Builtin {
+        name: "translate",
+        params: &[req("profile", PTy::Profile), req("by", PTy::Point)],
+        ret: Ret::Profile,
+        doc: "The profile moved by a vector.",
+    },
+    Builtin {
+        name: "rotate",
+        params: &[
+            req("profile", PTy::Profile),
+            req("angle", ANG),
+            opt("about", PTy::Point),
+        ],
+        ret: Ret::Profile,
+        doc: "The profile turned counter-clockwise by `angle` about a point (the origin by default).",
+    },
+    Builtin {
+        name: "length",
+        params: &[req("profile", PTy::Profile)],
+        ret: Ret::Dim(Dim::LENGTH),
+        doc: "The arc length of a profile.",
+    },
+    Builtin {
+        name: "start",
+        params: &[req("profile", PTy::Profile)],
+        ret: Ret::Point,
+        doc: "The first point of a profile.",
+    },
+    Builtin {
+        name: "end",
+        params: &[req("profile", PTy::Profile)],
+        ret: Ret::Point,
+        doc: "The last point of a profile (its start, when closed).",
+    },
+    Builtin {
+        name: "point_at",
+        params: &[req("profile", PTy::Profile), req("s", L)],
+        ret: Ret::Point,
+        doc: "The point at arc length `s` from the profile's start.",
+    },
+    Builtin {
+        name: "polar",
+        params: &[req("radius", L), req("angle", ANG)],
+        ret: Ret::Point,
+        doc: "The point (r·cos a, r·sin a).",
+    },
+    Builtin {
+        name: "distance",
+        params: &[req("a", PTy::Point), req("b", PTy::Point)],
+        ret: Ret::Dim(Dim::LENGTH),
+        doc: "The straight-line distance between two points.",
+    },
+    Builtin {
+        name: "sqrt",
+        params: &[req("x", PTy::AnyNum)],
+        ret: Ret::SqrtOfFirst,
+        doc: "Square root; the dimension is halved (sqrt of mm^2 is mm).",
+    },
+    Builtin {
+        name: "abs",
+        params: &[req("x", PTy::AnyNum)],
+        ret: Ret::SameAsFirst,
+        doc: "Absolute value.",
+    },
+    Builtin {
+        name: "min",
+        params: &[req("a", PTy::AnyNum), req("b", PTy::AnyNum)],
+        ret: Ret::SameAsFirst,
+        doc: "The smaller of two quantities of one dimension.",
+    },
+    Builtin {
+        name: "max",
+        params: &[req("a", PTy::AnyNum), req("b", PTy::AnyNum)],
+        ret: Ret::SameAsFirst,
+        doc: "The larger of two quantities of one dimension.",
+    },
+    Builtin {
+        name: "sin",
+        params: &[req("angle", ANG)],
+        ret: Ret::Dim(Dim::NONE),
+        doc: "Sine of an angle.",
+    },
+    Builtin {
+        name: "cos",
+        params: &[req("angle", ANG)],
+        ret: Ret::Dim(Dim::NONE),
+        doc: "Cosine of an angle.",
+    },
+    Builtin {
+        name: "tan",
+        params: &[req("angle", ANG)],
+        ret: Ret::Dim(Dim::NONE),
+        doc: "Tangent of an angle.",
+    },
+    Builtin {
+        name: "atan2",
+        params: &[req("y", PTy::AnyNum), req("x", PTy::AnyNum)],
+        ret: Ret::Dim(Dim::ANGLE),
+        doc: "The angle of the vector (x, y); both of one dimension.",
+    },
+    Builtin {
+        name: "floor",
+        params: &[req("x", NUM)],
+        ret: Ret::Dim(Dim::NONE),
+        doc: "Largest whole number not above x.",
+    },
+    Builtin {
+        name: "ceil",
+        params: &[req("x", NUM)],
+        ret: Ret::Dim(Dim::NONE),
+        doc: "Smallest whole number not below x.",
+    },
+    Builtin {
+        name: "round",
+        params: &[req("x", NUM)],
+        ret: Ret::Dim(Dim::NONE),
+        doc: "Nearest whole number.",
+    },
+    Builtin {
+        name: "len",
+        params: &[req("list", PTy::List)],
+        ret: Ret::Dim(Dim::NONE),
+        doc: "Number of items in a list.",
+    },
+];
+
+/// Names bound in every recipe.
+pub const CONSTANTS: &[(&str, f64, &str)] = &[
+    ("pi", std::f64::consts::PI, "π, a plain number."),
+    ("tau", std::f64::consts::TAU, "2π, a plain number."),
+];
+
+pub fn builtin(name: &str) -> Option<&'static Builtin> {
+    BUILTINS.iter().find(|b| b.name == name)
+}
+
+/// A profile constructor: `profile KIND ...`.
+#[derive(Debug, Clone, Copy)]
+pub struct ProfileKind {
+    pub name: &'static str,
+    pub params: &'static [ParamSpec],
+    pub flags: &'static [&'static str],
+    pub doc: &'static str,
+    /// Known but not built yet: the checker says so instead of "unknown".
+    pub unsupported: bool,
+}
+
+pub const PROFILE_KINDS: &[ProfileKind] = &[
+    ProfileKind {
+        name: "polyline",
+        params: &[req("points", PTy::Points)],
+        flags: &["closed"],
+        doc: "Straight segments through the points, in order; `closed` joins the last to the first.",
+        unsupported: false,
+    },
+    ProfileKind {
+        name: "line",
+        params: &[req("from", PTy::Point), req("to", PTy::Point)],
+        flags: &[],
+        doc: "One straight segment.",
+        unsupported: false,
+    },
+    ProfileKind {
+        name: "arc",
+        params: &[
+            req("center", PTy::Point),
+            req("radius", L),
+            req("start", ANG),
+            req("end", ANG),
+        ],
+        flags: &["cw", "ccw"],
+        doc: "A circular arc from angle `start` to `end` about `center` (counter-clockwise unless `cw`).",
+        unsupported: false,
+    },
+    ProfileKind {
+        name: "circle",
+        params: &[req("center", PTy::Point), req("radius", L), opt("start", ANG)],
+        flags: &["cw", "ccw"],
+        doc: "A full circle, starting at angle `start` (0 by default), counter-clockwise unless `cw`.",
+        unsupported: false,
+    },
+    ProfileKind {
+        name: "rect",
+        params: &[req("corner", PTy::Point), req("width", L), req("height", L)],
+        flags: &[],
+        doc: "A closed axis-aligned rectangle from its lower-left corner, counter-clockwise.",
+        unsupported: false,
+    },
+    ProfileKind {
+        name: "spline",
+        params: &[req("points", PTy::Points)],
+        flags: &["closed"],
+        doc: "Cubic B-spline interpolating measured points.",
+        unsupported: true,
+    },
+    ProfileKind {
+        name: "cam",
+        params: &[],
+        flags: &[],
+        doc: "Disc cam from base radius and lift.",
+        unsupported: true,
+    },
+    ProfileKind {
+        name: "dxf",
+        params: &[],
+        flags: &[],
+        doc: "Contour imported from a DXF file.",
+        unsupported: true,
+    },
+    ProfileKind {
+        name: "svg",
+        params: &[],
+        flags: &[],
+        doc: "Contour imported from SVG path data.",
+        unsupported: true,
+    },
+];
+
+pub fn profile_kind(name: &str) -> Option<&'static ProfileKind> {
+    PROFILE_KINDS.iter().find(|k| k.name == name)
+}
+
+/// A setting inside a statement's `{ ... }`.
+#[derive(Debug, Clone, Copy)]
+pub struct SettingSpec {
+    pub key: &'static str,
+    pub ty: PTy,
+    pub doc: &'static str,
+}
+
+const fn set(key: &'static str, ty: PTy, doc: &'static str) -> SettingSpec {
+    SettingSpec { key, ty, doc }
+}
+
+pub const LASER_SETTINGS: &[SettingSpec] = &[
+    set("power", PTy::Dim(Dim::POWER), "Laser power while the beam is on."),
+    set("spot", L, "Spot diameter on the surface."),
+];
+
+pub const FOLLOW_SETTINGS: &[SettingSpec] = &[
+    set("power", PTy::Dim(Dim::POWER), "Laser power for this path only."),
+    set("spot", L, "Spot diameter for this path only."),
+];
+
+pub const PULSE_SETTINGS: &[SettingSpec] = &[
+    set(
+        "interval",
+        PTy::Either(Dim::LENGTH, Dim::TIME),
+        "A length fires a pulse every so far along the lit path (position-synchronized); a \
+         time fires on a timer.",
+    ),
+    set("rate", PTy::Dim(Dim::FREQUENCY), "Pulse repetition rate (timer mode)."),
+    set("width", PTy::Dim(Dim::TIME), "Pulse width."),
+    set("energy", PTy::Dim(Dim::ENERGY), "Energy per pulse."),
+];
+
+pub const RAMPS: &[&str] = &["trapezoid", "scurve"];
+
+pub const PLANNER_SETTINGS: &[SettingSpec] = &[
+    set(
+        "ramp",
+        PTy::Word(RAMPS),
+        "Velocity profile: `trapezoid` (constant acceleration) or `scurve` (jerk-limited, 7 phases).",
+    ),
+    set(
+        "corner",
+        L,
+        "Junction deviation: how far the path may cut a corner's apex, which sets the corner speed.",
+    ),
+    set(
+        "tolerance",
+        L,
+        "Chord tolerance used when arcs and curves are split into straight moves.",
+    ),
+    set(
+        "lookahead",
+        NUM,
+        "How many moves the planner looks ahead when streaming (the offline plan sees all).",
+    ),
+];
+
+pub const LIMIT_SETTINGS: &[SettingSpec] = &[
+    set(
+        "v",
+        PTy::Either(Dim::SPEED, Dim::ANGULAR_SPEED),
+        "Maximum axis speed.",
+    ),
+    set(
+        "a",
+        PTy::Either(Dim::ACCEL, Dim::ANGULAR_ACCEL),
+        "Maximum axis acceleration.",
+    ),
+    set(
+        "j",
+        PTy::Either(Dim::JERK, Dim::ANGULAR_JERK),
+        "Maximum axis jerk (used by `ramp scurve`).",
+    ),
+];
+
+/// The type names usable in annotations.
+pub const TYPE_NAMES: &[&str] = &[
+    "number",
+    "length",
+    "time",
+    "angle",
+    "power",
+    "speed",
+    "accel",
+    "acceleration",
+    "jerk",
+    "angular_speed",
+    "angular_accel",
+    "frequency",
+    "energy",
+    "bool",
+    "string",
+    "point",
+    "profile",
+    "list",
+];
+
+/// Statement keywords, for completion and docs.
+pub const KEYWORDS: &[&str] = &[
+    "machine", "limits", "let", "fn", "import", "use", "if", "else", "for", "in", "return",
+    "laser", "pulse", "planner", "move", "to", "by", "rapid", "at", "follow", "dwell", "mcode",
+    "event", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw", "ccw",
+    "on", "off", "interval",
+];

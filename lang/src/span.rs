@@ -1,0 +1,197 @@
+//! Source files and spans.
+//!
+//! Every file of a recipe (the main file and each import) lives in one [`SourceMap`] and owns a
+//! range of one global offset space, as rustc's source map does. A [`Span`] is a range in that
+//! space, so it names its file without carrying one, the process program can carry spans as
+//! two integers, and the whole map is handed to miette once as the source of every diagnostic.
+
+use miette::{MietteSpanContents, SourceCode, SourceSpan, SpanContents};
+use serde::{Deserialize, Serialize};
+
+/// A byte range in the global offset space of a [`SourceMap`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub struct Span {
+    pub start: u32,
+    pub end: u32,
+}
+
+impl Span {
+    pub fn new(start: usize, end: usize) -> Span {
+        Span {
+            start: start as u32,
+            end: end.max(start) as u32,
+        }
+    }
+
+    /// The smallest span covering both.
+    pub fn to(self, other: Span) -> Span {
+        Span {
+            start: self.start.min(other.start),
+            end: self.end.max(other.end),
+        }
+    }
+
+    pub fn len(self) -> usize {
+        (self.end - self.start) as usize
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.start == self.end
+    }
+}
+
+impl From<Span> for SourceSpan {
+    fn from(s: Span) -> SourceSpan {
+        SourceSpan::new((s.start as usize).into(), s.len())
+    }
+}
+
+/// Index of a file in a [`SourceMap`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+pub struct FileId(pub u32);
+
+#[derive(Debug, Clone)]
+struct SourceFile {
+    name: String,
+    text: String,
+    base: usize,
+}
+
+/// All source text of one recipe: the main file and its imports.
+#[derive(Debug, Clone, Default)]
+pub struct SourceMap {
+    files: Vec<SourceFile>,
+}
+
+/// A 1-based line and column (in characters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LineCol {
+    pub line: usize,
+    pub col: usize,
+}
+
+impl SourceMap {
+    pub fn new() -> SourceMap {
+        SourceMap::default()
+    }
+
+    /// Adds a file; its offsets start one past the end of the previous file so that no offset
+    /// (not even an end-of-file span) is shared by two files.
+    pub fn add(&mut self, name: impl Into<String>, text: impl Into<String>) -> FileId {
+        let base = self
+            .files
+            .last()
+            .map(|f| f.base + f.text.len() + 1)
+            .unwrap_or(0);
+        self.files.push(SourceFile {
+            name: name.into(),
+            text: text.into(),
+            base,
+        });
+        FileId(self.files.len() as u32 - 1)
+    }
+
+    pub fn name(&self, file: FileId) -> &str {
+        &self.files[file.0 as usize].name
+    }
+
+    pub fn text(&self, file: FileId) -> &str {
+        &self.files[file.0 as usize].text
+    }
+
+    /// The global offset of the first byte of `file`.
+    pub fn base(&self, file: FileId) -> usize {
+        self.files[file.0 as usize].base
+    }
+
+    pub fn files(&self) -> impl Iterator<Item = FileId> + '_ {
+        (0..self.files.len() as u32).map(FileId)
+    }
+
+    /// Finds a file by name (used to avoid importing one file twice).
+    pub fn find(&self, name: &str) -> Option<FileId> {
+        self.files
+            .iter()
+            .position(|f| f.name == name)
+            .map(|i| FileId(i as u32))
+    }
+
+    /// The file a global offset falls in.
+    pub fn file_of(&self, offset: usize) -> Option<FileId> {
+        let i = self.files.partition_point(|f| f.base <= offset);
+        if i == 0 {
+            return None;
+        }
+        let f = &self.files[i - 1];
+        (offset <= f.base + f.text.len()).then_some(FileId(i as u32 - 1))
+    }
+
+    /// The source text a span covers.
+    pub fn snippet(&self, span: Span) -> &str {
+        match self.file_of(span.start as usize) {
+            Some(id) => {
+                let f = &self.files[id.0 as usize];
+                let s = span.start as usize - f.base;
+                let e = (span.end as usize - f.base).min(f.text.len());
+                f.text.get(s..e).unwrap_or("")
+            }
+            None => "",
+        }
+    }
+
+    /// File, line and column of a span's start.
+    pub fn locate(&self, span: Span) -> Option<(FileId, LineCol)> {
+        let id = self.file_of(span.start as usize)?;
+        let f = &self.files[id.0 as usize];
+        let local = span.start as usize - f.base;
+        let before = &f.text[..local.min(f.text.len())];
+        let line = before.matches('\n').count() + 1;
+        let col = before
+            .rsplit('\n')
+            .next()
+            .map(|l| l.chars().count())
+            .unwrap_or(0)
+            + 1;
+        Some((id, LineCol { line, col }))
+    }
+
+    /// `file:line:col` of a span, for plain-text messages and NC comments.
+    pub fn describe(&self, span: Span) -> String {
+        match self.locate(span) {
+            Some((id, lc)) => format!("{}:{}:{}", self.name(id), lc.line, lc.col),
+            None => "<unknown>".to_string(),
+        }
+    }
+}
+
+impl SourceCode for SourceMap {
+    fn read_span<'a>(
+        &'a self,
+        span: &SourceSpan,
+        context_lines_before: usize,
+        context_lines_after: usize,
+    ) -> Result<Box<dyn SpanContents<'a> + 'a>, miette::MietteError> {
+        let id = self
+            .file_of(span.offset())
+            .ok_or(miette::MietteError::OutOfBounds)?;
+        let f = &self.files[id.0 as usize];
+        let local = SourceSpan::new((span.offset() - f.base).into(), span.len());
+        let inner = f
+            .text
+            .read_span(&local, context_lines_before, context_lines_after)?;
+        // The renderer places labels relative to the contents' span, so hand it back in global
+        // coordinates.
+        let global = SourceSpan::new(
+            (inner.span().offset() + f.base).into(),
+            inner.span().len(),
+        );
+        Ok(Box::new(MietteSpanContents::new_named(
+            f.name.clone(),
+            inner.data(),
+            global,
+            inner.line(),
+            inner.column(),
+            inner.line_count(),
+        )))
+    }
+}

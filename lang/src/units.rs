@@ -1,0 +1,315 @@
+//! Physical dimensions and unit literals.
+//!
+//! lase computes in one internal unit system — mm, s, rad, W — and converts only at the
+//! edges: unit literals in the recipe are scaled to it here, and NC dialects convert on the
+//! way out. A [`Dim`] is a vector of exponents over the base quantities length, time, angle
+//! and power; energy is power·time and frequency is time⁻¹.
+
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// Exponents of the base quantities (length, time, angle, power).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub struct Dim {
+    pub length: i8,
+    pub time: i8,
+    pub angle: i8,
+    pub power: i8,
+}
+
+impl Dim {
+    pub const NONE: Dim = Dim::new(0, 0, 0, 0);
+    pub const LENGTH: Dim = Dim::new(1, 0, 0, 0);
+    pub const TIME: Dim = Dim::new(0, 1, 0, 0);
+    pub const ANGLE: Dim = Dim::new(0, 0, 1, 0);
+    pub const POWER: Dim = Dim::new(0, 0, 0, 1);
+    pub const SPEED: Dim = Dim::new(1, -1, 0, 0);
+    pub const ACCEL: Dim = Dim::new(1, -2, 0, 0);
+    pub const JERK: Dim = Dim::new(1, -3, 0, 0);
+    pub const ANGULAR_SPEED: Dim = Dim::new(0, -1, 1, 0);
+    pub const ANGULAR_ACCEL: Dim = Dim::new(0, -2, 1, 0);
+    pub const ANGULAR_JERK: Dim = Dim::new(0, -3, 1, 0);
+    pub const FREQUENCY: Dim = Dim::new(0, -1, 0, 0);
+    pub const ENERGY: Dim = Dim::new(0, 1, 0, 1);
+
+    pub const fn new(length: i8, time: i8, angle: i8, power: i8) -> Dim {
+        Dim {
+            length,
+            time,
+            angle,
+            power,
+        }
+    }
+
+    pub fn mul(self, o: Dim) -> Dim {
+        Dim::new(
+            self.length + o.length,
+            self.time + o.time,
+            self.angle + o.angle,
+            self.power + o.power,
+        )
+    }
+
+    pub fn div(self, o: Dim) -> Dim {
+        self.mul(o.powi(-1))
+    }
+
+    pub fn powi(self, n: i8) -> Dim {
+        Dim::new(
+            self.length * n,
+            self.time * n,
+            self.angle * n,
+            self.power * n,
+        )
+    }
+
+    pub fn is_none(self) -> bool {
+        self == Dim::NONE
+    }
+
+    /// The everyday name of a dimension ("speed"), or its base-unit form ("mm·s⁻²") if it has
+    /// none.
+    pub fn name(self) -> String {
+        for (d, n) in NAMED_DIMS {
+            if *d == self {
+                return (*n).to_string();
+            }
+        }
+        format!("[{}]", self.base_unit())
+    }
+
+    /// The internal unit of this dimension, e.g. `mm/s^2`.
+    pub fn base_unit(self) -> String {
+        let parts = [
+            ("mm", self.length),
+            ("rad", self.angle),
+            ("W", self.power),
+            ("s", self.time),
+        ];
+        let num: Vec<String> = parts
+            .iter()
+            .filter(|(_, e)| *e > 0)
+            .map(|(u, e)| if *e == 1 { u.to_string() } else { format!("{u}^{e}") })
+            .collect();
+        let den: Vec<String> = parts
+            .iter()
+            .filter(|(_, e)| *e < 0)
+            .map(|(u, e)| {
+                if *e == -1 {
+                    u.to_string()
+                } else {
+                    format!("{u}^{}", -e)
+                }
+            })
+            .collect();
+        let mut s = if num.is_empty() { "1".to_string() } else { num.join("*") };
+        for d in den {
+            s.push('/');
+            s.push_str(&d);
+        }
+        s
+    }
+}
+
+const NAMED_DIMS: &[(Dim, &str)] = &[
+    (Dim::NONE, "number"),
+    (Dim::LENGTH, "length"),
+    (Dim::TIME, "time"),
+    (Dim::ANGLE, "angle"),
+    (Dim::POWER, "power"),
+    (Dim::SPEED, "speed"),
+    (Dim::ACCEL, "acceleration"),
+    (Dim::JERK, "jerk"),
+    (Dim::ANGULAR_SPEED, "angular speed"),
+    (Dim::ANGULAR_ACCEL, "angular acceleration"),
+    (Dim::ANGULAR_JERK, "angular jerk"),
+    (Dim::FREQUENCY, "frequency"),
+    (Dim::ENERGY, "energy"),
+];
+
+impl fmt::Display for Dim {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.name())
+    }
+}
+
+/// The dimension named by a type annotation (`length`, `speed`, ...).
+pub fn dim_by_name(name: &str) -> Option<Dim> {
+    let alias = match name {
+        "accel" => "acceleration",
+        "angular_speed" => "angular speed",
+        "angular_accel" => "angular acceleration",
+        "angular_jerk" => "angular jerk",
+        other => other,
+    };
+    NAMED_DIMS.iter().find(|(_, n)| *n == alias).map(|(d, _)| *d)
+}
+
+/// Atomic units: name, dimension, factor to the internal unit.
+const ATOMS: &[(&str, Dim, f64)] = &[
+    ("mm", Dim::LENGTH, 1.0),
+    ("um", Dim::LENGTH, 1e-3),
+    ("µm", Dim::LENGTH, 1e-3),
+    ("cm", Dim::LENGTH, 10.0),
+    ("m", Dim::LENGTH, 1000.0),
+    ("in", Dim::LENGTH, 25.4),
+    ("s", Dim::TIME, 1.0),
+    ("ms", Dim::TIME, 1e-3),
+    ("us", Dim::TIME, 1e-6),
+    ("µs", Dim::TIME, 1e-6),
+    ("ns", Dim::TIME, 1e-9),
+    ("min", Dim::TIME, 60.0),
+    ("rad", Dim::ANGLE, 1.0),
+    ("deg", Dim::ANGLE, std::f64::consts::PI / 180.0),
+    ("°", Dim::ANGLE, std::f64::consts::PI / 180.0),
+    ("rev", Dim::ANGLE, std::f64::consts::TAU),
+    ("W", Dim::POWER, 1.0),
+    ("mW", Dim::POWER, 1e-3),
+    ("kW", Dim::POWER, 1e3),
+    ("Hz", Dim::FREQUENCY, 1.0),
+    ("kHz", Dim::FREQUENCY, 1e3),
+    ("MHz", Dim::FREQUENCY, 1e6),
+    ("rpm", Dim::ANGULAR_SPEED, std::f64::consts::TAU / 60.0),
+    ("J", Dim::ENERGY, 1.0),
+    ("mJ", Dim::ENERGY, 1e-3),
+    ("uJ", Dim::ENERGY, 1e-6),
+    ("µJ", Dim::ENERGY, 1e-6),
+];
+
+/// Every atomic unit name, for completion and "did you mean".
+pub fn unit_names() -> impl Iterator<Item = &'static str> {
+    ATOMS.iter().map(|(n, _, _)| *n)
+}
+
+/// A resolved unit: its dimension and the factor that scales a value in it to the internal
+/// unit of that dimension.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Unit {
+    pub dim: Dim,
+    pub factor: f64,
+}
+
+/// Why a unit literal could not be resolved.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct UnknownUnit {
+    /// The atom that is not a unit.
+    pub atom: String,
+    /// The closest known unit name, if any is close.
+    pub suggestion: Option<&'static str>,
+}
+
+/// Resolves a unit literal such as `mm/s^2`, `m/min`, `kW`, `mm^2` or `s^-1`.
+pub fn parse_unit(text: &str) -> Result<Unit, UnknownUnit> {
+    let mut dim = Dim::NONE;
+    let mut factor = 1.0;
+    let mut sign = 1i8;
+    let mut rest = text;
+    loop {
+        let end = rest.find(['/', '*']).unwrap_or(rest.len());
+        let (term, tail) = rest.split_at(end);
+        let (name, pow) = match term.split_once('^') {
+            Some((n, p)) => (n, p.parse::<i8>().unwrap_or(1)),
+            None => (term, 1),
+        };
+        let (_, d, f) = ATOMS.iter().find(|(n, _, _)| *n == name).ok_or_else(|| {
+            UnknownUnit {
+                atom: name.to_string(),
+                suggestion: suggest(name, unit_names()),
+            }
+        })?;
+        let p = pow * sign;
+        dim = dim.mul(d.powi(p));
+        factor *= f.powi(p as i32);
+        if tail.is_empty() {
+            break;
+        }
+        sign = if tail.starts_with('/') { -1 } else { 1 };
+        rest = &tail[1..];
+    }
+    Ok(Unit { dim, factor })
+}
+
+/// The candidate closest to `name` by edit distance, if it is close enough to be a likely typo.
+pub fn suggest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> Option<&'a str> {
+    let mut best: Option<(f64, &str)> = None;
+    for c in candidates {
+        let score = strsim::jaro_winkler(name, c);
+        if score > 0.8 && best.is_none_or(|(b, _)| score > b) {
+            best = Some((score, c));
+        }
+    }
+    best.map(|(_, c)| c)
+}
+
+/// Formats a value given in internal units with a readable unit of its dimension.
+pub fn format_quantity(value: f64, dim: Dim) -> String {
+    let (v, u) = match dim {
+        d if d == Dim::LENGTH => (value, "mm"),
+        d if d == Dim::TIME => (value, "s"),
+        d if d == Dim::ANGLE => (value.to_degrees(), "deg"),
+        d if d == Dim::POWER => (value, "W"),
+        d if d == Dim::SPEED => (value, "mm/s"),
+        d if d == Dim::ACCEL => (value, "mm/s^2"),
+        d if d == Dim::JERK => (value, "mm/s^3"),
+        d if d == Dim::ANGULAR_SPEED => (value.to_degrees(), "deg/s"),
+        d if d == Dim::ANGULAR_ACCEL => (value.to_degrees(), "deg/s^2"),
+        d if d == Dim::ANGULAR_JERK => (value.to_degrees(), "deg/s^3"),
+        d if d == Dim::FREQUENCY => (value, "Hz"),
+        d if d == Dim::ENERGY => (value, "J"),
+        d if d == Dim::NONE => return format_number(value),
+        d => return format!("{} {}", format_number(value), d.base_unit()),
+    };
+    format!("{} {u}", format_number(v))
+}
+
+/// A number with at most 6 decimals and no trailing zeros.
+pub fn format_number(v: f64) -> String {
+    let s = format!("{v:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".to_string() } else { s.to_string() }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn compound_units_scale_to_internal() {
+        let u = parse_unit("m/s^2").unwrap();
+        assert_eq!(u.dim, Dim::ACCEL);
+        assert_eq!(u.factor, 1000.0);
+        let u = parse_unit("mm/min").unwrap();
+        assert_eq!(u.dim, Dim::SPEED);
+        assert!((u.factor - 1.0 / 60.0).abs() < 1e-15);
+        let u = parse_unit("m/min").unwrap();
+        assert!((u.factor - 1000.0 / 60.0).abs() < 1e-12);
+        let u = parse_unit("deg/s").unwrap();
+        assert_eq!(u.dim, Dim::ANGULAR_SPEED);
+        let u = parse_unit("mm^2").unwrap();
+        assert_eq!(u.dim, Dim::new(2, 0, 0, 0));
+        let u = parse_unit("s^-1").unwrap();
+        assert_eq!(u.dim, Dim::FREQUENCY);
+        let u = parse_unit("W*s").unwrap();
+        assert_eq!(u.dim, Dim::ENERGY);
+        let u = parse_unit("m/s^3").unwrap();
+        assert_eq!((u.dim, u.factor), (Dim::JERK, 1000.0));
+        assert_eq!(parse_unit("in").unwrap().factor, 25.4);
+    }
+
+    #[test]
+    fn unknown_units_suggest_the_closest() {
+        let e = parse_unit("mmm").unwrap_err();
+        assert_eq!(e.atom, "mmm");
+        assert_eq!(e.suggestion, Some("mm"));
+        let e = parse_unit("mm/sec").unwrap_err();
+        assert_eq!(e.atom, "sec");
+    }
+
+    #[test]
+    fn dims_have_names() {
+        assert_eq!(Dim::SPEED.name(), "speed");
+        assert_eq!(Dim::new(2, 0, 0, 0).name(), "[mm^2]");
+        assert_eq!(Dim::new(1, -4, 0, 0).base_unit(), "mm/s^4");
+        assert_eq!(format_quantity(std::f64::consts::PI, Dim::ANGLE), "180 deg");
+    }
+}

@@ -1,0 +1,276 @@
+//! The planned timeline: compact per-move segments and exact sampling of them.
+//!
+//! A [`Segment`] stores only what cannot be recomputed cheaply: its start time and path
+//! distance, its start axes (the end axes are the next segment's start, or the plan's end),
+//! the three characteristic speeds and the phase durations. Peak acceleration and jerk follow
+//! from those (`a_p = Δv / (t_j + t_a)`, `J = a_p / t_j`), and so do axis quantities through the
+//! move's direction `u = Δq / length` (q(s) = q0 + u·s). [`Plan::sample`] finds the segment by
+//! binary search on `t_start` and evaluates the phase polynomials in closed form.
+
+use super::profile::Shape;
+use super::{Axes, MAX_AXES};
+
+/// One move of the plan: where it starts, how fast it goes, how long each phase lasts.
+///
+/// Phases in order: jerk-up `t_j1`, constant acceleration `t_a1`, jerk-down `t_j1` (together
+/// the ramp from `v_entry` to `v_peak`), cruise `t_cruise`, then the mirrored ramp down
+/// `t_j2`, `t_a2`, `t_j2` to `v_exit`, then `dwell` of standstill. Trapezoid segments have
+/// `t_j1 = t_j2 = 0`. Times in s, speeds in path units/s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Segment {
+    /// Start time of the segment on the plan's timeline.
+    pub t_start: f64,
+    /// Path distance from the program start to this segment's start.
+    pub s_start: f64,
+    /// Path length of the move.
+    pub length: f64,
+    /// Axis positions at the start of the move.
+    pub q0: Axes,
+    /// Path speed at the start.
+    pub v_entry: f64,
+    /// Cruise speed, or the peak speed of a move too short to cruise.
+    pub v_peak: f64,
+    /// Path speed at the end of the motion (0 before a dwell or stop).
+    pub v_exit: f64,
+    /// Duration of each jerk phase of the ramp up.
+    pub t_j1: f64,
+    /// Duration of the constant-acceleration phase of the ramp up.
+    pub t_a1: f64,
+    /// Duration of the cruise.
+    pub t_cruise: f64,
+    /// Duration of each jerk phase of the ramp down.
+    pub t_j2: f64,
+    /// Duration of the constant-deceleration phase of the ramp down.
+    pub t_a2: f64,
+    /// Standstill after the motion.
+    pub dwell: f64,
+    /// Programmed path speed of the move (f64::INFINITY for a rapid).
+    pub feed: f64,
+    /// The caller's tag of the move.
+    pub tag: u32,
+    /// Index of the move in the input slice (zero-length moves are merged, so indices can skip).
+    pub move_index: u32,
+}
+
+impl Segment {
+    #[inline]
+    pub(crate) fn shape(&self) -> Shape {
+        Shape {
+            v0: self.v_entry,
+            vp: self.v_peak,
+            v1: self.v_exit,
+            t_j1: self.t_j1,
+            t_a1: self.t_a1,
+            t_c: self.t_cruise,
+            t_j2: self.t_j2,
+            t_a2: self.t_a2,
+        }
+    }
+
+    /// Duration of the motion, without the dwell.
+    #[inline]
+    pub fn motion_duration(&self) -> f64 {
+        2.0 * self.t_j1 + self.t_a1 + self.t_cruise + 2.0 * self.t_j2 + self.t_a2
+    }
+
+    /// Duration of motion plus dwell.
+    #[inline]
+    pub fn duration(&self) -> f64 {
+        self.motion_duration() + self.dwell
+    }
+
+    /// End time on the plan's timeline.
+    #[inline]
+    pub fn t_end(&self) -> f64 {
+        self.t_start + self.duration()
+    }
+
+    /// Peak path acceleration of the ramp up (0 without one).
+    pub fn accel_peak(&self) -> f64 {
+        let t = self.t_j1 + self.t_a1;
+        if t > 0.0 { (self.v_peak - self.v_entry) / t } else { 0.0 }
+    }
+
+    /// Peak path deceleration of the ramp down, as a positive number (0 without one).
+    pub fn decel_peak(&self) -> f64 {
+        let t = self.t_j2 + self.t_a2;
+        if t > 0.0 { (self.v_peak - self.v_exit) / t } else { 0.0 }
+    }
+
+    /// Path state (s, v, a, j) at `t_local` after the segment start; s is local to the move.
+    #[inline]
+    pub fn path_state(&self, t_local: f64) -> (f64, f64, f64, f64) {
+        let motion = self.motion_duration();
+        if t_local >= motion {
+            return (self.length, self.v_exit, 0.0, 0.0);
+        }
+        self.shape().eval(self.length, t_local.max(0.0))
+    }
+}
+
+/// The state of the machine at one instant of the plan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// Time on the plan's timeline.
+    pub t: f64,
+    /// Index of the segment the instant belongs to.
+    pub segment: usize,
+    /// Tag of that segment's move.
+    pub tag: u32,
+    /// Path distance from the program start.
+    pub s: f64,
+    /// Path speed.
+    pub v: f64,
+    /// Path acceleration.
+    pub a: f64,
+    /// Path jerk.
+    pub j: f64,
+    /// Axis positions.
+    pub pos: Axes,
+    /// Axis speeds.
+    pub vel: Axes,
+    /// Axis accelerations.
+    pub acc: Axes,
+    /// Axis jerks.
+    pub jerk: Axes,
+    /// The instant lies in a dwell (standstill after a move).
+    pub dwelling: bool,
+}
+
+/// A timed motion program. Built by [`super::plan`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    pub(crate) segments: Vec<Segment>,
+    pub(crate) start: Axes,
+    pub(crate) end: Axes,
+    pub(crate) duration: f64,
+    pub(crate) n_axes: usize,
+}
+
+impl Plan {
+    /// Total duration in s, dwells included.
+    pub fn duration(&self) -> f64 {
+        self.duration
+    }
+
+    /// One segment per planned move, in order.
+    pub fn segments(&self) -> &[Segment] {
+        &self.segments
+    }
+
+    /// Axis positions at the program start.
+    pub fn start(&self) -> Axes {
+        self.start
+    }
+
+    /// Axis positions at the program end (the last move's target).
+    pub fn end(&self) -> Axes {
+        self.end
+    }
+
+    /// Number of axes in use.
+    pub fn n_axes(&self) -> usize {
+        self.n_axes
+    }
+
+    /// Path length of the whole program.
+    pub fn length(&self) -> f64 {
+        self.segments.last().map_or(0.0, |s| s.s_start + s.length)
+    }
+
+    /// Axis positions at the end of segment `i` (clamped to the last segment).
+    pub fn segment_target(&self, i: usize) -> Axes {
+        match self.segments.get(i + 1) {
+            Some(next) => next.q0,
+            None => self.end,
+        }
+    }
+
+    /// Axis motion per unit path of segment `i`, `u = Δq / length` (zero for a standstill).
+    pub fn direction(&self, i: usize) -> Axes {
+        let Some(seg) = self.segments.get(i) else {
+            return [0.0; MAX_AXES];
+        };
+        let q1 = self.segment_target(i);
+        let mut u = [0.0; MAX_AXES];
+        if seg.length > 0.0 {
+            for k in 0..MAX_AXES {
+                u[k] = (q1[k] - seg.q0[k]) / seg.length;
+            }
+        }
+        u
+    }
+
+    /// State at time `t`, clamped to `[0, duration]` (NaN counts as 0). O(log n).
+    pub fn sample(&self, t: f64) -> Sample {
+        let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, self.duration) };
+        if self.segments.is_empty() {
+            return self.rest_sample(t);
+        }
+        // Last segment that starts at or before t.
+        let i = self.segments.partition_point(|s| s.t_start <= t).saturating_sub(1);
+        self.sample_segment(i, t - self.segments[i].t_start)
+    }
+
+    /// State at `t_local` after the start of segment `i`; both are clamped into range.
+    pub fn sample_segment(&self, i: usize, t_local: f64) -> Sample {
+        let Some(last) = self.segments.len().checked_sub(1) else {
+            return self.rest_sample(0.0);
+        };
+        let i = i.min(last);
+        let seg = &self.segments[i];
+        let t_local = if t_local.is_nan() {
+            0.0
+        } else {
+            t_local.clamp(0.0, seg.duration())
+        };
+        let motion = seg.motion_duration();
+        let dwelling = seg.dwell > 0.0 && t_local >= motion;
+        let (s, v, a, j) = seg.path_state(t_local);
+        let q1 = self.segment_target(i);
+        let mut out = Sample {
+            t: seg.t_start + t_local,
+            segment: i,
+            tag: seg.tag,
+            s: seg.s_start + s,
+            v,
+            a,
+            j,
+            pos: seg.q0,
+            vel: [0.0; MAX_AXES],
+            acc: [0.0; MAX_AXES],
+            jerk: [0.0; MAX_AXES],
+            dwelling,
+        };
+        if seg.length > 0.0 {
+            // q(s) = q0 + (s / length)·Δq, exact at both ends of the move.
+            let frac = s / seg.length;
+            for k in 0..MAX_AXES {
+                let dq = q1[k] - seg.q0[k];
+                let u = dq / seg.length;
+                out.pos[k] = if s >= seg.length { q1[k] } else { seg.q0[k] + frac * dq };
+                out.vel[k] = u * v;
+                out.acc[k] = u * a;
+                out.jerk[k] = u * j;
+            }
+        }
+        out
+    }
+
+    fn rest_sample(&self, t: f64) -> Sample {
+        Sample {
+            t,
+            segment: 0,
+            tag: 0,
+            s: 0.0,
+            v: 0.0,
+            a: 0.0,
+            j: 0.0,
+            pos: self.start,
+            vel: [0.0; MAX_AXES],
+            acc: [0.0; MAX_AXES],
+            jerk: [0.0; MAX_AXES],
+            dwelling: false,
+        }
+    }
+}

@@ -1,0 +1,435 @@
+//! One-dimensional speed profiles along a move's path parameter `s`: closed forms for the
+//! trapezoid and the 7-phase jerk-limited S-curve, the reachable-speed relation the look-ahead
+//! passes use, the peak-speed solve of one move, and exact evaluation at any instant.
+//!
+//! Both profile kinds are built from one block, the *ramp*: a symmetric velocity change from
+//! `v_lo` up to `v_lo + dv` that starts and ends with zero acceleration. A trapezoid ramp is the
+//! same block with infinite jerk. A move is `ramp up (v_entry → v_peak)`, `cruise`, and a
+//! time-reversed `ramp up (v_exit → v_peak)`, i.e. the seven S-curve phases of PROCESS.md §4.
+//!
+//! Everything here is plain `f64` arithmetic without allocation; inputs are assumed validated
+//! by the caller (limits > 0, at most one of `a`, `j` infinite, finite speeds and lengths).
+
+/// Phase durations of one ramp: `t_j` for each of the two jerk phases, `t_a` for the
+/// constant-acceleration phase between them.
+///
+/// Velocity change profile (PROCESS.md §4, T1 = T3 = a_max / J, T2 = v / a_max − a_max / J):
+/// when `dv ≥ a²/J` the ramp reaches `a`: `t_j = a/J`, `t_a = dv/a − a/J`; otherwise it never
+/// reaches `a`: `t_j = √(dv/J)`, `t_a = 0`. Infinite jerk (trapezoid) gives `t_j = 0`.
+#[inline]
+pub(crate) fn ramp_times(dv: f64, a: f64, j: f64) -> (f64, f64) {
+    if dv.is_nan() || dv <= 0.0 {
+        return (0.0, 0.0);
+    }
+    if j == f64::INFINITY {
+        return (0.0, dv / a);
+    }
+    // a²/J is infinite when a is unlimited: a jerk-only ramp never has a constant phase.
+    let threshold = a * a / j;
+    if dv >= threshold {
+        let t_j = a / j;
+        (t_j, (dv / a - t_j).max(0.0))
+    } else {
+        ((dv / j).sqrt(), 0.0)
+    }
+}
+
+/// Distance covered by a ramp from `v_lo` to `v_lo + dv`. The symmetric jerk pattern makes the
+/// mean speed exactly `(v_lo + v_hi) / 2`, so `D = (2 v_lo + dv) / 2 · (2 t_j + t_a)`.
+#[inline]
+pub(crate) fn ramp_distance(v_lo: f64, dv: f64, a: f64, j: f64) -> f64 {
+    let (t_j, t_a) = ramp_times(dv, a, j);
+    0.5 * (2.0 * v_lo + dv) * (2.0 * t_j + t_a)
+}
+
+/// Ramp distance and its derivative with respect to `dv` (for the Newton solve of the peak).
+#[inline]
+fn ramp_distance_slope(v_lo: f64, dv: f64, a: f64, j: f64) -> (f64, f64) {
+    if dv <= 0.0 {
+        // The derivative is +inf (jerk-limited) or (v_lo)/a (trapezoid) at dv = 0; the caller
+        // only uses it as a Newton slope, where "very steep" is the safe answer.
+        let slope = if j == f64::INFINITY { v_lo / a } else { f64::INFINITY };
+        return (0.0, slope);
+    }
+    let w = 2.0 * v_lo + dv;
+    if j != f64::INFINITY && dv < a * a / j {
+        // No constant-acceleration phase: D = w · √(dv/J).
+        let y = (dv / j).sqrt();
+        (w * y, y + w / (2.0 * j * y))
+    } else {
+        let t = dv / a + a / j;
+        (0.5 * w * t, 0.5 * t + 0.5 * w / a)
+    }
+}
+
+/// Highest speed reachable from `v0` over `len` with one ramp (the look-ahead relation).
+///
+/// It is also the highest speed from which one can slow to `v0` over `len`, because ramps are
+/// symmetric. Solved in closed form, not with the trapezoid formula:
+/// * with `x = dv ≥ a²/J` the distance condition `(2 v0 + x)(x/a + a/J) = 2 len` is a quadratic
+///   in `x`, solved in the cancellation-free form `x = 2|c| / (b + √(b² + 4|c|))`;
+/// * with `x < a²/J` and `y = √(x/J)` it is the cubic `J y³ + 2 v0 y = len`, solved with
+///   Cardano's formula written as `y = q / (A² + p/3 + (p/3A)²)` so no terms cancel.
+#[inline]
+pub(crate) fn reach(v0: f64, len: f64, a: f64, j: f64) -> f64 {
+    if len.is_nan() || len <= 0.0 {
+        return v0;
+    }
+    let threshold = a * a / j;
+    // Distance of the ramp that just reaches `a` (2 t_j at mean speed v0 + a²/2J).
+    let d_threshold = if j == f64::INFINITY {
+        0.0
+    } else {
+        (2.0 * v0 + threshold) * (a / j)
+    };
+    let dv = if len <= d_threshold {
+        let p = 2.0 * v0 / j;
+        let q = len / j;
+        let big_a = (0.5 * q + (0.25 * q * q + p * p * p / 27.0).sqrt()).cbrt();
+        let b = p / (3.0 * big_a);
+        let y = q / (big_a * big_a + p / 3.0 + b * b);
+        j * y * y
+    } else {
+        let b = threshold + 2.0 * v0;
+        let c_abs = 2.0 * len * a - 2.0 * v0 * threshold;
+        2.0 * c_abs / (b + (b * b + 4.0 * c_abs).sqrt())
+    };
+    if dv.is_finite() { v0 + dv.max(0.0) } else { v0 }
+}
+
+/// Timing of one move along its path: ramp up from `v0` to `vp`, cruise at `vp`, ramp down
+/// from `vp` to `v1`. Durations in s, speeds in path units/s.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct Shape {
+    pub v0: f64,
+    pub vp: f64,
+    pub v1: f64,
+    pub t_j1: f64,
+    pub t_a1: f64,
+    pub t_c: f64,
+    pub t_j2: f64,
+    pub t_a2: f64,
+}
+
+/// Relative tolerance of the peak-speed solve on the distance equation.
+const PEAK_REL_TOL: f64 = 1e-14;
+
+/// The fastest profile over `len` from `v0` to `v1` that never exceeds `vmax`, `a`, `j`.
+///
+/// The caller guarantees that `v1` is reachable from `v0` (the look-ahead passes do); rounding
+/// beyond that is absorbed by clamping the cruise to zero.
+pub(crate) fn shape(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> Shape {
+    let hi = v0.max(v1);
+    let vmax = vmax.max(hi);
+    let vp = if len <= 0.0 {
+        hi
+    } else if vmax.is_finite()
+        && ramp_distance(v0, vmax - v0, a, j) + ramp_distance(v1, vmax - v1, a, j) <= len
+    {
+        vmax
+    } else {
+        peak_speed(len, v0, v1, vmax, a, j)
+    };
+    let (t_j1, t_a1) = ramp_times(vp - v0, a, j);
+    let (t_j2, t_a2) = ramp_times(vp - v1, a, j);
+    let d1 = 0.5 * (v0 + vp) * (2.0 * t_j1 + t_a1);
+    let d2 = 0.5 * (v1 + vp) * (2.0 * t_j2 + t_a2);
+    let t_c = if vp > 0.0 {
+        ((len - d1 - d2) / vp).max(0.0)
+    } else {
+        0.0
+    };
+    Shape {
+        v0,
+        vp,
+        v1,
+        t_j1,
+        t_a1,
+        t_c,
+        t_j2,
+        t_a2,
+    }
+}
+
+/// Peak speed of a move too short to cruise at `vmax`: the root of
+/// `F(vp) = D(v0 → vp) + D(v1 → vp) − len`, which increases with `vp`.
+///
+/// Equal end speeds (every rest-to-rest move) have the closed form `vp = reach(v0, len/2)`,
+/// which is what makes rest-to-rest moves time-optimal to rounding. Otherwise a safeguarded
+/// Newton iteration (Newton inside a shrinking bracket, bisection when Newton leaves it) finds
+/// the root; the trapezoid peak `√((2 a len + v0² + v1²)/2)` bounds it from above, since
+/// limiting jerk only lengthens ramps.
+fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
+    let hi_v = v0.max(v1);
+    let f = |vp: f64| ramp_distance_slope(v0, vp - v0, a, j).0 + ramp_distance_slope(v1, vp - v1, a, j).0 - len;
+    if f(hi_v) >= 0.0 {
+        // The whole move is one ramp between the end speeds (or rounding says so).
+        return hi_v;
+    }
+    if v0 == v1 {
+        return reach(v0, 0.5 * len, a, j).min(vmax);
+    }
+    let mut lo = hi_v;
+    let mut up = (0.5 * (2.0 * a * len + v0 * v0 + v1 * v1)).sqrt().min(vmax);
+    if !up.is_finite() {
+        // Jerk-only limits and no speed limit: grow a bracket.
+        up = (2.0 * hi_v).max(1.0);
+        let mut guard = 0;
+        while f(up) < 0.0 && guard < 2100 {
+            lo = up;
+            up *= 2.0;
+            guard += 1;
+        }
+        if !up.is_finite() {
+            return lo;
+        }
+    }
+    let tol = PEAK_REL_TOL * len;
+    let mut x = up;
+    for _ in 0..100 {
+        let (d0, s0) = ramp_distance_slope(v0, x - v0, a, j);
+        let (d1, s1) = ramp_distance_slope(v1, x - v1, a, j);
+        let fx = d0 + d1 - len;
+        if fx < 0.0 {
+            lo = x;
+        } else {
+            up = x;
+        }
+        if fx.abs() <= tol || up - lo <= 1e-15 * up {
+            break;
+        }
+        let newton = x - fx / (s0 + s1);
+        x = if newton > lo && newton < up {
+            newton
+        } else {
+            0.5 * (lo + up)
+        };
+    }
+    // Never return a peak whose ramps overrun the move.
+    if f(x) > tol { lo } else { x }
+}
+
+/// Exact state of a ramp from `v_lo` by `dv` at time `t` after its start: (s, v, a, j).
+///
+/// Phase 1 (jerk +J): `s = v_lo t + J t³/6`; phase 2 (acceleration a_p): the quadratic
+/// continuation; phase 3 is evaluated backwards from the ramp's end so the end state is exact.
+#[inline]
+pub(crate) fn ramp_eval(v_lo: f64, dv: f64, t_j: f64, t_a: f64, t: f64) -> (f64, f64, f64, f64) {
+    let total = 2.0 * t_j + t_a;
+    if total <= 0.0 || t <= 0.0 {
+        return (0.0, v_lo, 0.0, 0.0);
+    }
+    let a_p = dv / (t_j + t_a);
+    if t < t_j {
+        let jj = a_p / t_j;
+        return (v_lo * t + jj * t * t * t / 6.0, v_lo + 0.5 * jj * t * t, jj * t, jj);
+    }
+    if t < t_j + t_a {
+        let tau = t - t_j;
+        let v_1 = v_lo + 0.5 * a_p * t_j;
+        let s_1 = v_lo * t_j + a_p * t_j * t_j / 6.0;
+        return (s_1 + v_1 * tau + 0.5 * a_p * tau * tau, v_1 + a_p * tau, a_p, 0.0);
+    }
+    let v_hi = v_lo + dv;
+    let s_total = 0.5 * (v_lo + v_hi) * total;
+    let tau = (total - t).max(0.0);
+    if t_j > 0.0 {
+        let jj = a_p / t_j;
+        (
+            s_total - (v_hi * tau - jj * tau * tau * tau / 6.0),
+            v_hi - 0.5 * jj * tau * tau,
+            jj * tau,
+            -jj,
+        )
+    } else {
+        (s_total, v_hi, 0.0, 0.0)
+    }
+}
+
+impl Shape {
+    /// Duration of the ramp up.
+    #[inline]
+    pub(crate) fn t_up(&self) -> f64 {
+        2.0 * self.t_j1 + self.t_a1
+    }
+
+    /// Duration of the ramp down.
+    #[inline]
+    pub(crate) fn t_down(&self) -> f64 {
+        2.0 * self.t_j2 + self.t_a2
+    }
+
+    /// Duration of the motion (without any dwell).
+    #[inline]
+    pub(crate) fn duration(&self) -> f64 {
+        self.t_up() + self.t_c + self.t_down()
+    }
+
+    /// Path state (s, v, a, j) at `t` ∈ [0, duration] of a move of length `len`.
+    ///
+    /// The ramp down is the ramp up from `v1` run backwards in time, so it is evaluated from the
+    /// move's end: `s = len − s_r(τ)`, `v = v_r(τ)`, `a = −a_r(τ)`, `j = j_r(τ)` with τ the time
+    /// left. That makes the end state (`s = len`, `v = v1`, `a = 0`) exact.
+    #[inline]
+    pub(crate) fn eval(&self, len: f64, t: f64) -> (f64, f64, f64, f64) {
+        let t_up = self.t_up();
+        if t < t_up {
+            return ramp_eval(self.v0, self.vp - self.v0, self.t_j1, self.t_a1, t);
+        }
+        let t_cruise_end = t_up + self.t_c;
+        if t < t_cruise_end {
+            let s_up = 0.5 * (self.v0 + self.vp) * t_up;
+            return (s_up + self.vp * (t - t_up), self.vp, 0.0, 0.0);
+        }
+        let tau = (t_cruise_end + self.t_down() - t).max(0.0);
+        let (s, v, a, j) = ramp_eval(self.v1, self.vp - self.v1, self.t_j2, self.t_a2, tau);
+        (len - s, v, -a, j)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const INF: f64 = f64::INFINITY;
+
+    fn close(a: f64, b: f64, tol: f64) -> bool {
+        (a - b).abs() <= tol * b.abs().max(1.0)
+    }
+
+    #[test]
+    fn trapezoid_triangle_rest_to_rest_is_two_sqrt_l_over_a() {
+        let (l, a) = (2.0, 500.0);
+        let sh = shape(l, 0.0, 0.0, INF, a, INF);
+        assert!(close(sh.duration(), 2.0 * (l / a).sqrt(), 1e-12), "{sh:?}");
+        assert!(close(sh.vp, (l * a).sqrt(), 1e-12));
+        assert_eq!(sh.t_c, 0.0);
+    }
+
+    #[test]
+    fn trapezoid_with_cruise_is_l_over_v_plus_v_over_a() {
+        let (l, v, a) = (100.0, 50.0, 500.0);
+        let sh = shape(l, 0.0, 0.0, v, a, INF);
+        assert!(close(sh.duration(), l / v + v / a, 1e-12), "{sh:?}");
+        assert_eq!(sh.vp, v);
+        let (s, vv, aa, _) = sh.eval(l, sh.duration());
+        assert!(close(s, l, 1e-12) && vv.abs() < 1e-12 && aa == 0.0);
+    }
+
+    #[test]
+    fn full_s_curve_is_l_over_v_plus_v_over_a_plus_a_over_j() {
+        let (l, v, a, j) = (100.0, 50.0, 500.0, 10_000.0);
+        let sh = shape(l, 0.0, 0.0, v, a, j);
+        assert!(close(sh.duration(), l / v + v / a + a / j, 1e-12), "{sh:?}");
+        // T1 = a/J and T2 = v/a − a/J (PROCESS.md §4).
+        assert!(close(sh.t_j1, a / j, 1e-12));
+        assert!(close(sh.t_a1, v / a - a / j, 1e-12));
+    }
+
+    #[test]
+    fn s01_s02_s03_match_process_formulas() {
+        let (v, a, j) = (50.0, 500.0, 10_000.0);
+        let t1 = a / j;
+        let t2 = v / a - a / j;
+        let (tj, ta) = ramp_times(v, a, j);
+        assert!(close(tj, t1, 1e-12) && close(ta, t2, 1e-12));
+        let s01 = j * t1.powi(3) / 6.0;
+        let s02 = s01 + j * t1 * t1 * t2 / 2.0 + j * t1 * t2 * t2 / 2.0;
+        let s03 = s02 + 5.0 / 6.0 * j * t1.powi(3) + j * t1 * t1 * t2;
+        let at = |t: f64| ramp_eval(0.0, v, tj, ta, t);
+        assert!(close(at(t1).0, s01, 1e-9), "{} vs {s01}", at(t1).0);
+        assert!(close(at(t1 + t2).0, s02, 1e-9), "{} vs {s02}", at(t1 + t2).0);
+        assert!(close(at(2.0 * t1 + t2).0, s03, 1e-9), "{} vs {s03}", at(2.0 * t1 + t2).0);
+        assert!(close(ramp_distance(0.0, v, a, j), s03, 1e-12));
+        // Just inside phase 2 the acceleration is a_max; at the end it is 0 at speed v.
+        assert!(close(at(t1 + 0.5 * t2).2, a, 1e-12));
+        let end = at(2.0 * t1 + t2);
+        assert!(close(end.1, v, 1e-12) && end.2 == 0.0);
+    }
+
+    #[test]
+    fn no_constant_acceleration_phase_when_v_below_a2_over_j() {
+        // v < a²/J: T2 = 0 and the peak acceleration √(vJ) stays below a.
+        let (l, v, a, j) = (100.0, 10.0, 500.0, 10_000.0);
+        assert!(v < a * a / j);
+        let sh = shape(l, 0.0, 0.0, v, a, j);
+        let tj = (v / j).sqrt();
+        assert!(close(sh.t_j1, tj, 1e-12) && sh.t_a1 == 0.0);
+        assert!(close(sh.duration(), l / v + 2.0 * tj, 1e-12), "{sh:?}");
+        let (_, _, peak_a, _) = sh.eval(l, tj);
+        assert!(close(peak_a, (v * j).sqrt(), 1e-12) && peak_a < a);
+    }
+
+    #[test]
+    fn short_s_curve_finds_peak_without_constant_phase() {
+        // Rest to rest, too short for a or v: T = 4 (L / 2J)^(1/3), peak speed J t_j².
+        let (l, j) = (0.01, 10_000.0);
+        let sh = shape(l, 0.0, 0.0, 100.0, 500.0, j);
+        let tj = (l / (2.0 * j)).cbrt();
+        assert!(close(sh.duration(), 4.0 * tj, 1e-12), "{sh:?}");
+        assert!(close(sh.vp, j * tj * tj, 1e-12));
+    }
+
+    #[test]
+    fn short_s_curve_reaching_a_but_not_v() {
+        // Rest to rest with a reached, no cruise: vp solves vp²/a + vp a/J = L.
+        let (l, a, j) = (5.0, 500.0, 10_000.0);
+        let sh = shape(l, 0.0, 0.0, 1000.0, a, j);
+        let b = a / j;
+        let vp = 0.5 * (-b * a + ((b * a).powi(2) + 4.0 * a * l).sqrt());
+        assert!(close(sh.vp, vp, 1e-12), "{} vs {vp}", sh.vp);
+        assert!(close(sh.duration(), 2.0 * (vp / a + a / j), 1e-12));
+    }
+
+    #[test]
+    fn reach_inverts_ramp_distance_in_both_regimes() {
+        for &(v0, len) in &[(0.0, 1e-4), (3.0, 0.05), (3.0, 40.0), (80.0, 0.2), (0.0, 1e3)] {
+            for &(a, j) in &[(500.0, 10_000.0), (500.0, INF), (INF, 10_000.0), (2.0, 1e7)] {
+                let v1 = reach(v0, len, a, j);
+                let d = ramp_distance(v0, v1 - v0, a, j);
+                assert!(close(d, len, 1e-11), "v0={v0} len={len} a={a} j={j}: {d}");
+            }
+        }
+    }
+
+    #[test]
+    fn nonzero_end_speeds_fill_the_length_exactly() {
+        for &(l, v0, v1, vmax, a, j) in &[
+            (1.0, 5.0, 20.0, 100.0, 500.0, 1e4),
+            (1.0, 20.0, 5.0, 100.0, 500.0, 1e4),
+            (0.05, 12.0, 3.0, 100.0, 500.0, 1e4),
+            (10.0, 12.0, 3.0, 30.0, 500.0, 1e4),
+            (0.3, 0.0, 7.0, 1e9, 500.0, INF),
+            (0.3, 1.0, 7.0, INF, INF, 1e5),
+        ] {
+            let sh = shape(l, v0, v1, vmax, a, j);
+            let (s, v, acc, _) = sh.eval(l, sh.duration());
+            let d = 0.5 * (v0 + sh.vp) * sh.t_up() + sh.vp * sh.t_c + 0.5 * (v1 + sh.vp) * sh.t_down();
+            assert!(close(d, l, 1e-12), "{sh:?} covers {d}, not {l}");
+            assert!(close(s, l, 1e-12) && close(v, v1, 1e-12) && acc == 0.0);
+            assert!(sh.vp <= vmax);
+            // Time-reversal symmetry: swapping end speeds gives the same duration.
+            let rev = shape(l, v1, v0, vmax, a, j);
+            assert!(close(rev.duration(), sh.duration(), 1e-10));
+        }
+    }
+
+    #[test]
+    fn eval_is_continuous_at_phase_boundaries() {
+        let sh = shape(3.0, 2.0, 1.0, 40.0, 300.0, 5000.0);
+        let bounds = [
+            sh.t_j1,
+            sh.t_j1 + sh.t_a1,
+            sh.t_up(),
+            sh.t_up() + sh.t_c,
+            sh.t_up() + sh.t_c + sh.t_j2,
+            sh.t_up() + sh.t_c + sh.t_j2 + sh.t_a2,
+        ];
+        for b in bounds {
+            let e = 1e-9;
+            let (s0, v0, a0, _) = sh.eval(3.0, b - e);
+            let (s1, v1, a1, _) = sh.eval(3.0, b + e);
+            assert!((s0 - s1).abs() < 1e-7 && (v0 - v1).abs() < 1e-5 && (a0 - a1).abs() < 1e-2);
+        }
+    }
+}
