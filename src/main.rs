@@ -1,1 +1,272 @@
-fn main() {}
+//! The `lase` command: check, emit, plan, plot and run laser-process recipes, and the REPL.
+//!
+//! Only this binary touches the terminal, the file system for outputs, rustyline and miette's
+//! graphical renderer.
+
+mod driver;
+mod output;
+mod repl;
+
+use clap::{Parser, Subcommand};
+use driver::{Failure, IoError};
+use lase_lang::SourceMap;
+use lase_runtime::emit::{Dialect, EmitOptions, NcLine};
+use lase_runtime::link::{self, Reply};
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+#[derive(Debug, Parser)]
+#[command(name = "lase", version, about = "A recipe language for laser processing machines")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Check a recipe: syntax, names, units, machine limits, reachability. Exit 1 on errors.
+    Check { file: PathBuf },
+    /// Write the NC program of a recipe (stdout unless -o).
+    Emit {
+        file: PathBuf,
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// NC dialect: linuxcnc, grbl or iso.
+        #[arg(long, default_value = "linuxcnc")]
+        dialect: String,
+    },
+    /// Plan the motion: cycle time and peaks; optionally a JSON summary and a CSV trace.
+    Plan {
+        file: PathBuf,
+        /// Write the job summary as JSON.
+        #[arg(long)]
+        summary: Option<PathBuf>,
+        /// Write a sampled trace as CSV.
+        #[arg(long)]
+        trace: Option<PathBuf>,
+        /// Trace sampling period, with a unit (e.g. 1ms, 500us).
+        #[arg(long, default_value = "1ms")]
+        period: String,
+    },
+    /// Draw the toolpath (coloured by laser state and speed) and the speed over time as SVG.
+    Plot {
+        file: PathBuf,
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
+    /// Check, plan and send the job to a controller (the built-in simulator by default).
+    Run {
+        file: PathBuf,
+        /// Controller link URL (`sim` is the built-in simulated controller).
+        #[arg(long)]
+        link: Option<String>,
+        /// NC dialect sent over the link.
+        #[arg(long, default_value = "linuxcnc")]
+        dialect: String,
+    },
+    /// Interactive session: statements evaluated as you type.
+    Repl {
+        /// A recipe to load first.
+        file: Option<PathBuf>,
+    },
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let color = std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none();
+    let result = match cli.command {
+        Command::Check { file } => cmd_check(&file),
+        Command::Emit {
+            file,
+            output,
+            dialect,
+        } => cmd_emit(&file, output.as_deref(), &dialect),
+        Command::Plan {
+            file,
+            summary,
+            trace,
+            period,
+        } => cmd_plan(&file, summary.as_deref(), trace.as_deref(), &period),
+        Command::Plot { file, output } => cmd_plot(&file, output.as_deref()),
+        Command::Run {
+            file,
+            link,
+            dialect,
+        } => cmd_run(&file, link.as_deref(), &dialect),
+        Command::Repl { file } => return repl::run(file.as_deref(), color),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err((map, failure)) => {
+            eprint!("{}", driver::render(&map, &failure, color));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+type CmdResult = Result<(), (SourceMap, Failure)>;
+
+fn io_fail(message: String) -> (SourceMap, Failure) {
+    (SourceMap::new(), Failure::one(IoError { message }))
+}
+
+fn cmd_check(file: &Path) -> CmdResult {
+    let (recipe, job) = driver::compile(file)?;
+    let summary = lase_runtime::report::summarize(&job);
+    println!(
+        "{}: ok — {} ops on `{}`, cycle time {:.3} s",
+        recipe.name(),
+        job.program.ops.len(),
+        job.program.machine.name,
+        summary.cycle_time_s
+    );
+    Ok(())
+}
+
+fn parse_dialect(d: &str) -> Result<Dialect, (SourceMap, Failure)> {
+    d.parse::<Dialect>().map_err(|_| {
+        io_fail(format!(
+            "unknown dialect `{d}`: choose linuxcnc, grbl or iso"
+        ))
+    })
+}
+
+fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
+    let dialect = parse_dialect(dialect)?;
+    let (recipe, job) = driver::compile(file)?;
+    let locate = |s: lase_lang::Span| recipe.locate(s);
+    let options = EmitOptions {
+        locate: Some(&locate),
+        comments: true,
+    };
+    let write = |w: &mut dyn Write| -> Result<(), (SourceMap, Failure)> {
+        let mut io_err = None;
+        let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
+            writeln!(w, "{}", l.text).inspect_err(|e| io_err = Some(e.to_string()))
+        });
+        match r {
+            Ok(stats) => {
+                for warn in &stats.warnings {
+                    eprintln!("warning: {warn}");
+                }
+                Ok(())
+            }
+            Err(e) => match io_err {
+                Some(msg) => Err(io_fail(format!("cannot write the NC program: {msg}"))),
+                None => Err((recipe.map.clone(), Failure::one(e))),
+            },
+        }
+    };
+    match output {
+        Some(path) => output::write_atomic(path, |w| write(w)),
+        None => {
+            let stdout = std::io::stdout();
+            let mut lock = std::io::BufWriter::new(stdout.lock());
+            write(&mut lock)?;
+            lock.flush().map_err(|e| io_fail(format!("stdout: {e}")))
+        }
+    }
+}
+
+fn parse_period(p: &str) -> Result<f64, (SourceMap, Failure)> {
+    let bad = || io_fail(format!("bad --period `{p}`: give a time with a unit, e.g. 1ms or 0.5ms"));
+    let split = p
+        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
+        .ok_or_else(bad)?;
+    let (n, u) = p.split_at(split);
+    let n: f64 = n.trim().parse().map_err(|_| bad())?;
+    let unit = lase_lang::units::parse_unit(u.trim()).map_err(|_| bad())?;
+    if unit.dim != lase_lang::units::Dim::TIME || !(n > 0.0) {
+        return Err(bad());
+    }
+    Ok(n * unit.factor)
+}
+
+fn cmd_plan(file: &Path, summary: Option<&Path>, trace: Option<&Path>, period: &str) -> CmdResult {
+    let period = parse_period(period)?;
+    let (recipe, job) = driver::compile(file)?;
+    let s = lase_runtime::report::summarize(&job);
+    if let Some(path) = summary {
+        output::write_atomic(path, |w| {
+            serde_json::to_writer_pretty(&mut *w, &s)
+                .map_err(|e| io_fail(e.to_string()))?;
+            writeln!(w).map_err(|e| io_fail(e.to_string()))
+        })?;
+    }
+    if let Some(path) = trace {
+        output::write_atomic(path, |w| {
+            lase_runtime::report::write_trace(&job, period, w).map_err(|e| io_fail(e.to_string()))
+        })?;
+    }
+    println!("{} on `{}` ({:?} ramps)", recipe.name(), job.program.machine.name, job.program.planner.ramp);
+    println!("  cycle time      {:.4} s", s.cycle_time_s);
+    println!("  path length     {:.4} mm ({:.4} mm rapid)", s.path_length_mm, s.rapid_length_mm);
+    println!("  laser on        {:.4} mm, {:.4} s", s.laser_on_length_mm, s.laser_on_time_s);
+    println!("  pulses          {}", s.pulses);
+    println!("  blocks          {} planned moves from {} ops", s.blocks, s.ops);
+    for (axis, p) in &s.axes {
+        let j = p.j_max.map(|j| format!("{j:.1}")).unwrap_or_else(|| "unbounded (trapezoid)".into());
+        println!("  axis {axis:<3}  v {:.3}  a {:.3}  j {j}", p.v_max, p.a_max);
+    }
+    Ok(())
+}
+
+fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
+    let (recipe, job) = driver::compile(file)?;
+    let svg = lase_runtime::report::plot_svg(&job).map_err(|e| io_fail(e.to_string()))?;
+    let default = file.with_extension("svg");
+    let path = output.unwrap_or(&default);
+    output::write_atomic(path, |w| w.write_all(svg.as_bytes()).map_err(|e| io_fail(e.to_string())))?;
+    println!("{}: wrote {}", recipe.name(), path.display());
+    Ok(())
+}
+
+fn cmd_run(file: &Path, link_url: Option<&str>, dialect: &str) -> CmdResult {
+    let dialect = parse_dialect(dialect)?;
+    let (recipe, job) = driver::compile(file)?;
+    let mut link = link::open(link_url, &job.program.machine).map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
+    // Emit the whole program first: nothing is sent unless all of it is valid.
+    let mut lines: Vec<NcLine> = Vec::new();
+    lase_runtime::emit::emit(&job, dialect, &EmitOptions::default(), &mut |l: &NcLine| {
+        lines.push(l.clone());
+        Ok(())
+    })
+    .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
+    let summary = lase_runtime::report::summarize(&job);
+    eprintln!(
+        "{}: {} lines to {} — planned cycle time {:.3} s",
+        recipe.name(),
+        lines.len(),
+        link_url.unwrap_or("the built-in simulator"),
+        summary.cycle_time_s
+    );
+    for (i, l) in lines.iter().enumerate() {
+        match link.send(&l.text).map_err(|e| (recipe.map.clone(), Failure::one(e)))? {
+            Reply::Ok => {}
+            Reply::Error { code, message } => {
+                let span = l
+                    .op
+                    .and_then(|o| job.program.ops.get(o as usize))
+                    .map(|o| o.span)
+                    .unwrap_or_default();
+                return Err((
+                    recipe.map.clone(),
+                    Failure::one(output::ControllerRejected {
+                        line_no: i + 1,
+                        line: l.text.clone(),
+                        code,
+                        message,
+                        span,
+                    }),
+                ));
+            }
+        }
+    }
+    println!("{}: done — {}", recipe.name(), link.status());
+    println!(
+        "  cycle time {:.3} s, laser on {:.3} mm / {:.3} s, {} pulses",
+        summary.cycle_time_s, summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
+    );
+    Ok(())
+}

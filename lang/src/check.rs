@@ -103,8 +103,8 @@ enum Place {
 
 /// The checker's state. A REPL session keeps one alive across lines.
 #[derive(Debug)]
-pub struct Checker<'p> {
-    program: &'p Program,
+pub struct Checker {
+    program: Program,
     errors: Vec<CheckError>,
     scopes: Vec<HashMap<String, Ty>>,
     fns: HashMap<String, FnSig>,
@@ -116,15 +116,15 @@ pub struct Checker<'p> {
 
 /// Checks a whole program; the main module is `program.modules[0]`.
 pub fn check_program(program: &Program) -> Vec<CheckError> {
-    let mut c = Checker::new(program);
+    let mut c = Checker::new(program.clone());
     if let Some(m) = program.modules.first() {
-        c.check_stmts(&m.stmts);
+        c.check_stmts(&m.stmts.clone());
     }
     c.take_errors()
 }
 
-impl<'p> Checker<'p> {
-    pub fn new(program: &'p Program) -> Checker<'p> {
+impl Checker {
+    pub fn new(program: Program) -> Checker {
         let mut globals = HashMap::new();
         for (name, _, _) in schema::CONSTANTS {
             globals.insert((*name).to_string(), Ty::Num(Dim::NONE));
@@ -140,7 +140,7 @@ impl<'p> Checker<'p> {
     }
 
     /// Lets a session checker see a newer version of the (growing) program.
-    pub fn set_program(&mut self, program: &'p Program) {
+    pub fn set_program(&mut self, program: Program) {
         self.program = program;
     }
 
@@ -479,12 +479,12 @@ impl<'p> Checker<'p> {
             return; // the loader has reported why it could not be loaded
         };
         if !self.checked_modules.contains_key(&idx) {
-            let module = &self.program.modules[idx];
+            let stmts = self.program.modules[idx].stmts.clone();
             let globals = vec![self.scopes[0].clone()];
             let saved_scopes = std::mem::replace(&mut self.scopes, globals);
             let saved_fns = std::mem::take(&mut self.fns);
             self.scopes.push(HashMap::new());
-            self.block(&module.stmts, Place::Import, false);
+            self.block(&stmts, Place::Import, false);
             let vars = self.scopes.pop().unwrap_or_default();
             let fns = std::mem::replace(&mut self.fns, saved_fns);
             self.scopes = saved_scopes;

@@ -15,7 +15,9 @@ pub enum PlanError {
     #[error("planner setting `{field}` = {value} is invalid: {why}")]
     #[diagnostic(
         code(lase::plan::bad_config),
-        help("path limits must be > 0 (f64::INFINITY for none), junction_deviation >= 0, n_axes in 1..=6")
+        help(
+            "path limits must be > 0 (f64::INFINITY for none), junction_deviation >= 0, n_axes in 1..=6"
+        )
     )]
     BadConfig {
         field: &'static str,
@@ -27,7 +29,9 @@ pub enum PlanError {
     #[error("axis {axis}: {kind} limit = {value} is invalid, it must be > 0")]
     #[diagnostic(
         code(lase::plan::bad_limit),
-        help("give every axis in use a positive speed, acceleration and jerk limit; use f64::INFINITY for unlimited")
+        help(
+            "give every axis in use a positive speed, acceleration and jerk limit; use f64::INFINITY for unlimited"
+        )
     )]
     BadLimit {
         axis: usize,
@@ -37,12 +41,18 @@ pub enum PlanError {
 
     /// The start position is not finite.
     #[error("start position of axis {axis} = {value} is not a finite number")]
-    #[diagnostic(code(lase::plan::bad_start), help("the planner starts from a known, finite machine position"))]
+    #[diagnostic(
+        code(lase::plan::bad_start),
+        help("the planner starts from a known, finite machine position")
+    )]
     BadStart { axis: usize, value: f64 },
 
     /// A field of a move is NaN, infinite where it must not be, or negative.
     #[error("move {index}: `{field}` = {value} is invalid: {why}")]
-    #[diagnostic(code(lase::plan::bad_move), help("check the geometry and feed that produced this move"))]
+    #[diagnostic(
+        code(lase::plan::bad_move),
+        help("check the geometry and feed that produced this move")
+    )]
     BadMove {
         index: usize,
         field: &'static str,
@@ -56,7 +66,11 @@ pub enum PlanError {
         code(lase::plan::zero_length_motion),
         help("the caller must give every move that changes an axis a positive path length")
     )]
-    ZeroLengthWithMotion { index: usize, axis: usize, delta: f64 },
+    ZeroLengthWithMotion {
+        index: usize,
+        axis: usize,
+        delta: f64,
+    },
 
     /// A move has a positive length but changes no axis, so nothing would move.
     #[error("move {index} has length {length} but changes no axis")]
@@ -83,12 +97,17 @@ pub enum PlanError {
     #[error("move {index}: the path {what} is unbounded, so the move cannot be timed")]
     #[diagnostic(
         code(lase::plan::unbounded),
-        help("give the axes this move uses a finite acceleration limit (S-curve: a finite acceleration or jerk limit)")
+        help(
+            "give the axes this move uses a finite acceleration limit (S-curve: a finite acceleration or jerk limit)"
+        )
     )]
     Unbounded { index: usize, what: &'static str },
 
     /// More moves than a segment index can address.
     #[error("{count} moves are more than the planner can index")]
-    #[diagnostic(code(lase::plan::too_many_moves), help("split the program into several plans"))]
+    #[diagnostic(
+        code(lase::plan::too_many_moves),
+        help("split the program into several plans")
+    )]
     TooManyMoves { count: usize },
 }

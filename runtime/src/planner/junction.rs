@@ -54,10 +54,19 @@ mod tests {
 
     #[test]
     fn straight_keeps_speed_and_reversal_stops() {
-        assert_eq!(junction_speed(&dir(1.0, 1.0), &dir(1.0, 1.0), 2, 1e3, 0.01), f64::INFINITY);
-        assert_eq!(junction_speed(&dir(1.0, 1.0), &dir(-1.0, -1.0), 2, 1e3, 0.01), 0.0);
+        assert_eq!(
+            junction_speed(&dir(1.0, 1.0), &dir(1.0, 1.0), 2, 1e3, 0.01),
+            f64::INFINITY
+        );
+        assert_eq!(
+            junction_speed(&dir(1.0, 1.0), &dir(-1.0, -1.0), 2, 1e3, 0.01),
+            0.0
+        );
         // Zero deviation makes every real corner a stop.
-        assert_eq!(junction_speed(&dir(1.0, 0.0), &dir(1.0, 0.1), 2, 1e3, 0.0), 0.0);
+        assert_eq!(
+            junction_speed(&dir(1.0, 0.0), &dir(1.0, 0.1), 2, 1e3, 0.0),
+            0.0
+        );
     }
 
     #[test]

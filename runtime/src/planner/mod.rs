@@ -1,9 +1,406 @@
 //! Look-ahead motion planner: timed motion from a sequence of straight moves in axis space.
 //!
-//! (The helper building this module replaces this header with the real one.)
+//! Owns the time law of the machine: per-move speed/acceleration/jerk limits, corner speeds,
+//! look-ahead, and the trapezoid and 7-phase S-curve velocity profiles of PROCESS.md §4. It is
+//! pure math on plain data: no IO, no recipe syntax, no G-code; the caller hands in moves with
+//! axis targets and path lengths and gets back a [`Plan`] it can sample at any instant.
+//!
+//! The path of one move through [`plan`]:
+//! 1. `prepare` validates it, merges a zero-length move into its predecessor, and derives its
+//!    limits from its direction `u = Δq / length`: `v ≤ min_i v_i / |u_i|` (likewise `a`, `j`),
+//!    the path limits and the feed; it caps its entry speed with the junction-deviation corner
+//!    model (`junction`).
+//! 2. `lookahead` chooses entry and exit speeds with a backward and a forward pass, over the
+//!    whole program or through a bounded streaming window.
+//! 3. `profile` turns (length, entry, exit, limits) into the fastest ramp-cruise-ramp shape.
+//! 4. The result is stored as a compact [`Segment`]; [`Plan::sample`] evaluates it exactly.
+//!
+//! Module map: `error` (diagnostics), `junction` (corner speeds), `lookahead` (speed passes),
+//! `profile` (1-D closed forms), `plan` (segments and sampling).
+
+mod error;
+mod junction;
+mod lookahead;
+mod plan;
+mod profile;
+
+pub use error::PlanError;
+pub use plan::{Plan, Sample, Segment};
+
+use lookahead::Kin;
 
 /// Most machine axes one plan can carry (X Y Z A B C). Unused axes stay at zero.
 pub const MAX_AXES: usize = 6;
 
 /// A position or a per-axis quantity, in machine units (mm for linear axes, rad for rotary).
 pub type Axes = [f64; MAX_AXES];
+
+/// Which velocity profile every move gets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ProfileKind {
+    /// Constant-acceleration ramps (jerk unlimited); a triangle when a move is too short.
+    #[default]
+    Trapezoid,
+    /// 7-phase jerk-limited profile (PROCESS.md §4).
+    SCurve,
+}
+
+/// Per-axis limits, in machine units per s, s², s³. Axes in use need values > 0;
+/// `f64::INFINITY` means unlimited.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisLimits {
+    pub v: Axes,
+    pub a: Axes,
+    pub j: Axes,
+}
+
+/// How to plan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlannerConfig {
+    pub profile: ProfileKind,
+    /// Corner deviation δ of the GRBL/Klipper junction model, in axis units (mm). 0 stops at
+    /// every corner; `f64::INFINITY` takes corners at the moves' full speed.
+    pub junction_deviation: f64,
+    /// Path speed limit (`f64::INFINITY` = none).
+    pub path_v: f64,
+    /// Path acceleration limit (`f64::INFINITY` = none).
+    pub path_a: f64,
+    /// Path jerk limit (`f64::INFINITY` = none).
+    pub path_j: f64,
+    /// `None`: look ahead over the whole program (offline). `Some(n)`: a streaming controller
+    /// that commits each move's exit speed knowing only the next `n` moves, and the last of
+    /// them must be able to stop (see the `lookahead` module).
+    pub lookahead: Option<usize>,
+    /// How many of the [`MAX_AXES`] axes are in use (1..=6).
+    pub n_axes: usize,
+}
+
+impl Default for PlannerConfig {
+    /// Trapezoid, offline, 3 axes, GRBL's default junction deviation of 0.01 mm, no path
+    /// limits.
+    fn default() -> Self {
+        PlannerConfig {
+            profile: ProfileKind::Trapezoid,
+            junction_deviation: 0.01,
+            path_v: f64::INFINITY,
+            path_a: f64::INFINITY,
+            path_j: f64::INFINITY,
+            lookahead: None,
+            n_axes: 3,
+        }
+    }
+}
+
+/// One straight move in axis space.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Move {
+    /// Axis positions at the end of the move (mm or rad).
+    pub target: Axes,
+    /// Path length; the path parameter s runs 0..length and `q(s) = q0 + (s/length)·Δq`.
+    /// Euclidean for Cartesian moves, the part-space distance for multi-axis chords.
+    /// Length 0 without axis change: merged into the previous move; with a change: an error.
+    pub length: f64,
+    /// Programmed path speed (path units/s); `f64::INFINITY` = rapid.
+    pub feed: f64,
+    /// Stop point after the move: speed exactly 0 at its end.
+    pub stop_after: bool,
+    /// Standstill after the move, in s (implies `stop_after` when > 0).
+    pub dwell_after: f64,
+    /// Caller's id of what produced the move.
+    pub tag: u32,
+}
+
+impl Move {
+    /// A move to `target` over `length` at `feed`, without stop or dwell, tag 0.
+    pub fn new(target: Axes, length: f64, feed: f64) -> Move {
+        Move {
+            target,
+            length,
+            feed,
+            stop_after: false,
+            dwell_after: 0.0,
+            tag: 0,
+        }
+    }
+
+    /// A move whose length is the Euclidean distance in axis space from `from`.
+    pub fn linear(from: Axes, target: Axes, feed: f64) -> Move {
+        let mut d2 = 0.0;
+        for i in 0..MAX_AXES {
+            d2 += (target[i] - from[i]) * (target[i] - from[i]);
+        }
+        Move::new(target, d2.sqrt(), feed)
+    }
+}
+
+/// Path distance a jerk-limited speed change from `v_from` to `v_to` needs (either
+/// direction), with path acceleration `a` and jerk `j` (`j = f64::INFINITY` for a trapezoid
+/// ramp). PROCESS.md §4's look-ahead preprocessing uses it to place the point where a cut reaches
+/// its feed: from rest to feed `F` takes `speed_change_distance(0, F, a, j)`, which for a full
+/// S-curve ramp is `S03 = F/2 · (F/a + a/J)`. Returns NaN for negative or NaN inputs.
+pub fn speed_change_distance(v_from: f64, v_to: f64, a: f64, j: f64) -> f64 {
+    if !(v_from >= 0.0 && v_to >= 0.0 && a > 0.0 && j > 0.0) {
+        return f64::NAN;
+    }
+    profile::ramp_distance(v_from.min(v_to), (v_to - v_from).abs(), a, j)
+}
+
+/// Plans `moves` from `start` (at rest) to the last target (at rest).
+///
+/// Validates everything first and fails without a partial plan. Allocates the output segments
+/// and one scratch vector; nothing per move.
+pub fn plan(
+    start: Axes,
+    moves: &[Move],
+    limits: &AxisLimits,
+    cfg: &PlannerConfig,
+) -> Result<Plan, PlanError> {
+    validate(start, limits, cfg)?;
+    if u32::try_from(moves.len()).is_err() {
+        return Err(PlanError::TooManyMoves { count: moves.len() });
+    }
+    let (mut segments, mut kin, end) = prepare(start, moves, limits, cfg)?;
+    match cfg.lookahead {
+        Some(window) if window.saturating_add(1) < kin.len() => {
+            lookahead::streaming(&mut kin, window)
+        }
+        _ => lookahead::offline(&mut kin),
+    }
+    let mut t = 0.0;
+    let mut s = 0.0;
+    for (seg, k) in segments.iter_mut().zip(&kin) {
+        let sh = profile::shape(k.len, k.v_in, k.v_out, k.v, k.a, k.j);
+        seg.t_start = t;
+        seg.s_start = s;
+        seg.v_entry = sh.v0;
+        seg.v_peak = sh.vp;
+        seg.v_exit = sh.v1;
+        seg.t_j1 = sh.t_j1;
+        seg.t_a1 = sh.t_a1;
+        seg.t_cruise = sh.t_c;
+        seg.t_j2 = sh.t_j2;
+        seg.t_a2 = sh.t_a2;
+        t += seg.duration();
+        s += seg.length;
+    }
+    Ok(Plan {
+        segments,
+        start,
+        end,
+        duration: t,
+        n_axes: cfg.n_axes,
+    })
+}
+
+// `!(x > 0.0)` rather than `x <= 0.0`: NaN must fail every check.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+fn validate(start: Axes, limits: &AxisLimits, cfg: &PlannerConfig) -> Result<(), PlanError> {
+    let bad = |field, value, why| Err(PlanError::BadConfig { field, value, why });
+    if cfg.n_axes == 0 || cfg.n_axes > MAX_AXES {
+        return bad("n_axes", cfg.n_axes as f64, "must be between 1 and 6");
+    }
+    if !(cfg.junction_deviation >= 0.0) {
+        return bad("junction_deviation", cfg.junction_deviation, "must be >= 0");
+    }
+    for (field, value) in [
+        ("path_v", cfg.path_v),
+        ("path_a", cfg.path_a),
+        ("path_j", cfg.path_j),
+    ] {
+        if !(value > 0.0) {
+            return bad(field, value, "must be > 0 (f64::INFINITY for no limit)");
+        }
+    }
+    for axis in 0..cfg.n_axes {
+        for (kind, value) in [
+            ("speed", limits.v[axis]),
+            ("acceleration", limits.a[axis]),
+            ("jerk", limits.j[axis]),
+        ] {
+            if !(value > 0.0) {
+                return Err(PlanError::BadLimit { axis, kind, value });
+            }
+        }
+    }
+    for (axis, &value) in start.iter().enumerate() {
+        if !value.is_finite() {
+            return Err(PlanError::BadStart { axis, value });
+        }
+    }
+    Ok(())
+}
+
+/// Validates the moves, merges zero-length ones, and derives each move's limits and junction
+/// cap. Returns the segment skeletons (timing still empty), the look-ahead data and the end
+/// position.
+// `!(x > 0.0)` so NaN fails; axis loops index several parallel arrays.
+#[allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+fn prepare(
+    start: Axes,
+    moves: &[Move],
+    limits: &AxisLimits,
+    cfg: &PlannerConfig,
+) -> Result<(Vec<Segment>, Vec<Kin>, Axes), PlanError> {
+    let n_axes = cfg.n_axes;
+    let scurve = cfg.profile == ProfileKind::SCurve;
+    let mut segments: Vec<Segment> = Vec::with_capacity(moves.len());
+    let mut kin: Vec<Kin> = Vec::with_capacity(moves.len());
+    let mut q = start;
+    let mut prev_dir: Axes = [0.0; MAX_AXES];
+    for (index, mv) in moves.iter().enumerate() {
+        let bad = |field, value, why| PlanError::BadMove {
+            index,
+            field,
+            value,
+            why,
+        };
+        if let Some(&value) = mv.target.iter().find(|x| !x.is_finite()) {
+            return Err(bad("target", value, "axis positions must be finite"));
+        }
+        if !(mv.length >= 0.0 && mv.length.is_finite()) {
+            return Err(bad("length", mv.length, "must be finite and >= 0"));
+        }
+        if !(mv.feed > 0.0) {
+            return Err(bad(
+                "feed",
+                mv.feed,
+                "must be > 0 (f64::INFINITY for a rapid)",
+            ));
+        }
+        if !(mv.dwell_after >= 0.0 && mv.dwell_after.is_finite()) {
+            return Err(bad(
+                "dwell_after",
+                mv.dwell_after,
+                "must be finite and >= 0",
+            ));
+        }
+        let mut dq = [0.0; MAX_AXES];
+        let mut norm2 = 0.0;
+        for axis in 0..MAX_AXES {
+            dq[axis] = mv.target[axis] - q[axis];
+            if dq[axis] != 0.0 && axis >= n_axes {
+                return Err(PlanError::UnusedAxis {
+                    index,
+                    axis,
+                    n_axes,
+                });
+            }
+            norm2 += dq[axis] * dq[axis];
+        }
+        let stop = mv.stop_after || mv.dwell_after > 0.0;
+        if mv.length == 0.0 {
+            if let Some(axis) = dq.iter().position(|&d| d != 0.0) {
+                return Err(PlanError::ZeroLengthWithMotion {
+                    index,
+                    axis,
+                    delta: dq[axis],
+                });
+            }
+            // No motion: its stop and dwell belong to the previous move's end. Before any
+            // motion the program is at rest already, so only a dwell needs a segment.
+            if let (Some(seg), Some(k)) = (segments.last_mut(), kin.last_mut()) {
+                seg.dwell += mv.dwell_after;
+                k.stop |= stop;
+            } else if mv.dwell_after > 0.0 {
+                segments.push(skeleton(q, 0.0, mv, index));
+                kin.push(Kin {
+                    stop: true,
+                    ..Kin::default()
+                });
+            }
+            continue;
+        }
+        if norm2 == 0.0 {
+            return Err(PlanError::LengthWithoutMotion {
+                index,
+                length: mv.length,
+            });
+        }
+        // Per-move limits from the tightest axis along the direction u = Δq / length.
+        let mut v = mv.feed.min(cfg.path_v);
+        let mut a = cfg.path_a;
+        let mut j = cfg.path_j;
+        for axis in 0..n_axes {
+            let u = dq[axis].abs() / mv.length;
+            if u > 0.0 {
+                v = v.min(limits.v[axis] / u);
+                a = a.min(limits.a[axis] / u);
+                j = j.min(limits.j[axis] / u);
+            }
+        }
+        if !scurve {
+            j = f64::INFINITY;
+            if a == f64::INFINITY {
+                return Err(PlanError::Unbounded {
+                    index,
+                    what: "acceleration",
+                });
+            }
+        } else if a == f64::INFINITY && j == f64::INFINITY {
+            return Err(PlanError::Unbounded {
+                index,
+                what: "acceleration and jerk",
+            });
+        }
+        if !(v > 0.0 && a > 0.0 && j > 0.0) {
+            // Limits so small against the move's axis motion that they underflow to zero.
+            return Err(bad(
+                "length",
+                mv.length,
+                "the axis limits allow no motion along this move",
+            ));
+        }
+        let norm = norm2.sqrt();
+        let mut dir = [0.0; MAX_AXES];
+        for axis in 0..MAX_AXES {
+            dir[axis] = dq[axis] / norm;
+        }
+        let entry_cap = match kin.last() {
+            Some(prev) if !prev.stop => {
+                let corner = junction::junction_speed(
+                    &prev_dir,
+                    &dir,
+                    n_axes,
+                    a.min(prev.a),
+                    cfg.junction_deviation,
+                );
+                corner.min(v).min(prev.v)
+            }
+            _ => 0.0,
+        };
+        segments.push(skeleton(q, mv.length, mv, index));
+        kin.push(Kin {
+            len: mv.length,
+            v,
+            a,
+            j,
+            entry_cap,
+            stop,
+            ..Kin::default()
+        });
+        prev_dir = dir;
+        q = mv.target;
+    }
+    Ok((segments, kin, q))
+}
+
+fn skeleton(q0: Axes, length: f64, mv: &Move, index: usize) -> Segment {
+    Segment {
+        t_start: 0.0,
+        s_start: 0.0,
+        length,
+        q0,
+        v_entry: 0.0,
+        v_peak: 0.0,
+        v_exit: 0.0,
+        t_j1: 0.0,
+        t_a1: 0.0,
+        t_cruise: 0.0,
+        t_j2: 0.0,
+        t_a2: 0.0,
+        dwell: mv.dwell_after,
+        feed: mv.feed,
+        tag: mv.tag,
+        move_index: index as u32,
+    }
+}

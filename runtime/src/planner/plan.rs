@@ -70,7 +70,7 @@ impl Segment {
     /// Duration of the motion, without the dwell.
     #[inline]
     pub fn motion_duration(&self) -> f64 {
-        2.0 * self.t_j1 + self.t_a1 + self.t_cruise + 2.0 * self.t_j2 + self.t_a2
+        self.shape().duration()
     }
 
     /// Duration of motion plus dwell.
@@ -88,13 +88,29 @@ impl Segment {
     /// Peak path acceleration of the ramp up (0 without one).
     pub fn accel_peak(&self) -> f64 {
         let t = self.t_j1 + self.t_a1;
-        if t > 0.0 { (self.v_peak - self.v_entry) / t } else { 0.0 }
+        if t > 0.0 {
+            (self.v_peak - self.v_entry) / t
+        } else {
+            0.0
+        }
     }
 
     /// Peak path deceleration of the ramp down, as a positive number (0 without one).
     pub fn decel_peak(&self) -> f64 {
         let t = self.t_j2 + self.t_a2;
-        if t > 0.0 { (self.v_peak - self.v_exit) / t } else { 0.0 }
+        if t > 0.0 {
+            (self.v_peak - self.v_exit) / t
+        } else {
+            0.0
+        }
+    }
+
+    /// Where along the move (local path distance from its start) the cruise at `v_peak`
+    /// begins and ends; empty (`begin == end`) when the move never cruises. A cut that must
+    /// run at constant speed (PROCESS.md §4) lies inside this span.
+    pub fn cruise_span(&self) -> (f64, f64) {
+        let begin = 0.5 * (self.v_entry + self.v_peak) * (2.0 * self.t_j1 + self.t_a1);
+        (begin, begin + self.v_peak * self.t_cruise)
     }
 
     /// Path state (s, v, a, j) at `t_local` after the segment start; s is local to the move.
@@ -203,16 +219,29 @@ impl Plan {
 
     /// State at time `t`, clamped to `[0, duration]` (NaN counts as 0). O(log n).
     pub fn sample(&self, t: f64) -> Sample {
-        let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, self.duration) };
+        let t = if t.is_nan() {
+            0.0
+        } else {
+            t.clamp(0.0, self.duration)
+        };
         if self.segments.is_empty() {
             return self.rest_sample(t);
         }
+        let last = self.segments.len() - 1;
+        if t >= self.duration {
+            // Exactly the end state, not a state a rounding error before it.
+            return self.sample_segment(last, f64::INFINITY);
+        }
         // Last segment that starts at or before t.
-        let i = self.segments.partition_point(|s| s.t_start <= t).saturating_sub(1);
+        let i = self
+            .segments
+            .partition_point(|s| s.t_start <= t)
+            .saturating_sub(1);
         self.sample_segment(i, t - self.segments[i].t_start)
     }
 
     /// State at `t_local` after the start of segment `i`; both are clamped into range.
+    #[allow(clippy::needless_range_loop)] // one index over five parallel axis arrays
     pub fn sample_segment(&self, i: usize, t_local: f64) -> Sample {
         let Some(last) = self.segments.len().checked_sub(1) else {
             return self.rest_sample(0.0);
@@ -248,7 +277,11 @@ impl Plan {
             for k in 0..MAX_AXES {
                 let dq = q1[k] - seg.q0[k];
                 let u = dq / seg.length;
-                out.pos[k] = if s >= seg.length { q1[k] } else { seg.q0[k] + frac * dq };
+                out.pos[k] = if s >= seg.length {
+                    q1[k]
+                } else {
+                    seg.q0[k] + frac * dq
+                };
                 out.vel[k] = u * v;
                 out.acc[k] = u * a;
                 out.jerk[k] = u * j;

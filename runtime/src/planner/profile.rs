@@ -48,7 +48,11 @@ fn ramp_distance_slope(v_lo: f64, dv: f64, a: f64, j: f64) -> (f64, f64) {
     if dv <= 0.0 {
         // The derivative is +inf (jerk-limited) or (v_lo)/a (trapezoid) at dv = 0; the caller
         // only uses it as a Newton slope, where "very steep" is the safe answer.
-        let slope = if j == f64::INFINITY { v_lo / a } else { f64::INFINITY };
+        let slope = if j == f64::INFINITY {
+            v_lo / a
+        } else {
+            f64::INFINITY
+        };
         return (0.0, slope);
     }
     let w = 2.0 * v_lo + dv;
@@ -97,6 +101,65 @@ pub(crate) fn reach(v0: f64, len: f64, a: f64, j: f64) -> f64 {
     if dv.is_finite() { v0 + dv.max(0.0) } else { v0 }
 }
 
+/// Highest entry speed of a move of length `len` from which its exit can be brought to *some*
+/// speed `≤ e` (the look-ahead's backward relation).
+///
+/// For a trapezoid this is `reach(e, len)`. For jerk-limited ramps that start and end at zero
+/// acceleration it is not: `reach(v0, len)` first *falls* as `v0` grows (while the ramp's
+/// `dv > 2 v0`, resp. `v0 < a²/2J`; a ramp that starts faster has less time, and its speed gain
+/// shrinks faster than `v0` grows), so slowing all the way to rest can take less distance than
+/// slowing to a low speed. The set of entries that can end at or below `e` is therefore
+/// `[0, max(reach(e), reach(0))]`; taking that maximum keeps the relation monotone in `e`,
+/// which the streaming window relies on (a longer window only ever raises caps).
+#[inline]
+pub(crate) fn entry_limit(e: f64, len: f64, a: f64, j: f64) -> f64 {
+    let r = reach(e, len, a, j);
+    if j == f64::INFINITY {
+        r
+    } else {
+        r.max(reach(0.0, len, a, j))
+    }
+}
+
+/// The exit speed the forward pass commits: the highest speed `≤ e` that a move of length
+/// `len` entered at `v_in` can end at. Requires `v_in ≤ entry_limit(e, len)` (up to rounding).
+///
+/// Accelerating: `min(e, reach(v_in))`. Slowing: `e` itself when the ramp `e → v_in` fits;
+/// otherwise `v_in` was admitted through the `reach(0)` branch of [`entry_limit`], and the
+/// answer is the largest `w < e` whose ramp `w → v_in` fits, found by bisection on
+/// `ramp_distance(w, v_in − w) ≤ len`, which holds on `[0, w_lo]` below `e`.
+#[inline]
+pub(crate) fn exit_speed(v_in: f64, e: f64, len: f64, a: f64, j: f64) -> f64 {
+    if v_in <= e {
+        return e.min(reach(v_in, len, a, j));
+    }
+    // Compare with the very expression the backward pass used, not with a recomputed ramp
+    // distance: `v_in − e` of two nearby speeds loses digits, and a short ramp's distance
+    // `∝ √dv` amplifies that loss far beyond any fixed tolerance.
+    if j == f64::INFINITY || v_in <= reach(e, len, a, j) {
+        return e;
+    }
+    let len_ok = len * (1.0 + 1e-12);
+    let fits = |w: f64| ramp_distance(w, v_in - w, a, j) <= len_ok;
+    if !fits(0.0) {
+        // `v_in ≤ reach(0, len)` up to rounding; rest is the closest admissible answer.
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, e);
+    for _ in 0..64 {
+        let mid = 0.5 * (lo + hi);
+        if fits(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo <= 1e-15 * e {
+            break;
+        }
+    }
+    lo
+}
+
 /// Timing of one move along its path: ramp up from `v0` to `vp`, cruise at `vp`, ramp down
 /// from `vp` to `v1`. Durations in s, speeds in path units/s.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
@@ -134,8 +197,10 @@ pub(crate) fn shape(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> Sh
     let (t_j2, t_a2) = ramp_times(vp - v1, a, j);
     let d1 = 0.5 * (v0 + vp) * (2.0 * t_j1 + t_a1);
     let d2 = 0.5 * (v1 + vp) * (2.0 * t_j2 + t_a2);
-    let t_c = if vp > 0.0 {
-        ((len - d1 - d2) / vp).max(0.0)
+    // A residue of rounding is no cruise: snap it so triangles stay exact triangles.
+    let rest = len - d1 - d2;
+    let t_c = if vp > 0.0 && rest > 8.0 * f64::EPSILON * len {
+        rest / vp
     } else {
         0.0
     };
@@ -161,7 +226,9 @@ pub(crate) fn shape(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> Sh
 /// limiting jerk only lengthens ramps.
 fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
     let hi_v = v0.max(v1);
-    let f = |vp: f64| ramp_distance_slope(v0, vp - v0, a, j).0 + ramp_distance_slope(v1, vp - v1, a, j).0 - len;
+    let f = |vp: f64| {
+        ramp_distance_slope(v0, vp - v0, a, j).0 + ramp_distance_slope(v1, vp - v1, a, j).0 - len
+    };
     if f(hi_v) >= 0.0 {
         // The whole move is one ramp between the end speeds (or rounding says so).
         return hi_v;
@@ -170,7 +237,11 @@ fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
         return reach(v0, 0.5 * len, a, j).min(vmax);
     }
     let mut lo = hi_v;
-    let mut up = (0.5 * (2.0 * a * len + v0 * v0 + v1 * v1)).sqrt().min(vmax);
+    // Rounding can put the bound a hair below hi_v when the move is one ramp end to end.
+    let mut up = (0.5 * (2.0 * a * len + v0 * v0 + v1 * v1))
+        .sqrt()
+        .min(vmax)
+        .max(hi_v);
     if !up.is_finite() {
         // Jerk-only limits and no speed limit: grow a bracket.
         up = (2.0 * hi_v).max(1.0);
@@ -206,7 +277,7 @@ fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
         };
     }
     // Never return a peak whose ramps overrun the move.
-    if f(x) > tol { lo } else { x }
+    if f(x) > tol { lo } else { x.clamp(hi_v, vmax) }
 }
 
 /// Exact state of a ramp from `v_lo` by `dv` at time `t` after its start: (s, v, a, j).
@@ -222,13 +293,23 @@ pub(crate) fn ramp_eval(v_lo: f64, dv: f64, t_j: f64, t_a: f64, t: f64) -> (f64,
     let a_p = dv / (t_j + t_a);
     if t < t_j {
         let jj = a_p / t_j;
-        return (v_lo * t + jj * t * t * t / 6.0, v_lo + 0.5 * jj * t * t, jj * t, jj);
+        return (
+            v_lo * t + jj * t * t * t / 6.0,
+            v_lo + 0.5 * jj * t * t,
+            jj * t,
+            jj,
+        );
     }
     if t < t_j + t_a {
         let tau = t - t_j;
         let v_1 = v_lo + 0.5 * a_p * t_j;
         let s_1 = v_lo * t_j + a_p * t_j * t_j / 6.0;
-        return (s_1 + v_1 * tau + 0.5 * a_p * tau * tau, v_1 + a_p * tau, a_p, 0.0);
+        return (
+            s_1 + v_1 * tau + 0.5 * a_p * tau * tau,
+            v_1 + a_p * tau,
+            a_p,
+            0.0,
+        );
     }
     let v_hi = v_lo + dv;
     let s_total = 0.5 * (v_lo + v_hi) * total;
@@ -338,8 +419,16 @@ mod tests {
         let s03 = s02 + 5.0 / 6.0 * j * t1.powi(3) + j * t1 * t1 * t2;
         let at = |t: f64| ramp_eval(0.0, v, tj, ta, t);
         assert!(close(at(t1).0, s01, 1e-9), "{} vs {s01}", at(t1).0);
-        assert!(close(at(t1 + t2).0, s02, 1e-9), "{} vs {s02}", at(t1 + t2).0);
-        assert!(close(at(2.0 * t1 + t2).0, s03, 1e-9), "{} vs {s03}", at(2.0 * t1 + t2).0);
+        assert!(
+            close(at(t1 + t2).0, s02, 1e-9),
+            "{} vs {s02}",
+            at(t1 + t2).0
+        );
+        assert!(
+            close(at(2.0 * t1 + t2).0, s03, 1e-9),
+            "{} vs {s03}",
+            at(2.0 * t1 + t2).0
+        );
         assert!(close(ramp_distance(0.0, v, a, j), s03, 1e-12));
         // Just inside phase 2 the acceleration is a_max; at the end it is 0 at speed v.
         assert!(close(at(t1 + 0.5 * t2).2, a, 1e-12));
@@ -383,7 +472,13 @@ mod tests {
 
     #[test]
     fn reach_inverts_ramp_distance_in_both_regimes() {
-        for &(v0, len) in &[(0.0, 1e-4), (3.0, 0.05), (3.0, 40.0), (80.0, 0.2), (0.0, 1e3)] {
+        for &(v0, len) in &[
+            (0.0, 1e-4),
+            (3.0, 0.05),
+            (3.0, 40.0),
+            (80.0, 0.2),
+            (0.0, 1e3),
+        ] {
             for &(a, j) in &[(500.0, 10_000.0), (500.0, INF), (INF, 10_000.0), (2.0, 1e7)] {
                 let v1 = reach(v0, len, a, j);
                 let d = ramp_distance(v0, v1 - v0, a, j);
@@ -393,18 +488,45 @@ mod tests {
     }
 
     #[test]
+    fn jerk_limited_reach_is_not_monotone_but_entry_limit_is() {
+        // From rest a ramp gains (L² J)^(1/3); the minimum over v0 is 3 (L² J / 32)^(1/3) at
+        // v0 = (L² J / 32)^(1/3) (where dv = 2 v0), about 5.5 % lower.
+        let (l, a, j): (f64, f64, f64) = (1.0, 1e9, 1000.0);
+        let v_star = (l * l * j / 32.0).cbrt();
+        assert!(close(reach(0.0, l, a, j), (l * l * j).cbrt(), 1e-12));
+        assert!(close(reach(v_star, l, a, j), 3.0 * v_star, 1e-12));
+        assert!(reach(v_star, l, a, j) < reach(0.0, l, a, j));
+        let mut last = 0.0;
+        for k in 0..200 {
+            let e = k as f64 * 0.2;
+            let lim = entry_limit(e, l, a, j);
+            assert!(lim >= last);
+            last = lim;
+            // Every entry up to the limit can end at or below e, within the length.
+            for f in [0.3, 0.9, 1.0] {
+                let v_in = f * lim;
+                let w = exit_speed(v_in, e, l, a, j);
+                assert!(w <= e);
+                let d = ramp_distance(w.min(v_in), (w - v_in).abs(), a, j);
+                assert!(d <= l * (1.0 + 1e-12), "e={e} v_in={v_in} w={w} d={d}");
+            }
+        }
+    }
+
+    #[test]
     fn nonzero_end_speeds_fill_the_length_exactly() {
         for &(l, v0, v1, vmax, a, j) in &[
             (1.0, 5.0, 20.0, 100.0, 500.0, 1e4),
             (1.0, 20.0, 5.0, 100.0, 500.0, 1e4),
-            (0.05, 12.0, 3.0, 100.0, 500.0, 1e4),
+            (0.5, 12.0, 3.0, 100.0, 500.0, 1e4),
             (10.0, 12.0, 3.0, 30.0, 500.0, 1e4),
             (0.3, 0.0, 7.0, 1e9, 500.0, INF),
             (0.3, 1.0, 7.0, INF, INF, 1e5),
         ] {
             let sh = shape(l, v0, v1, vmax, a, j);
             let (s, v, acc, _) = sh.eval(l, sh.duration());
-            let d = 0.5 * (v0 + sh.vp) * sh.t_up() + sh.vp * sh.t_c + 0.5 * (v1 + sh.vp) * sh.t_down();
+            let d =
+                0.5 * (v0 + sh.vp) * sh.t_up() + sh.vp * sh.t_c + 0.5 * (v1 + sh.vp) * sh.t_down();
             assert!(close(d, l, 1e-12), "{sh:?} covers {d}, not {l}");
             assert!(close(s, l, 1e-12) && close(v, v1, 1e-12) && acc == 0.0);
             assert!(sh.vp <= vmax);

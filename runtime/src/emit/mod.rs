@@ -1,0 +1,265 @@
+//! NC program emitters: the only code in lase that knows NC text.
+//!
+//! A planned [`Job`] becomes an NC program for one [`Dialect`] (LinuxCNC, GRBL 1.1, ISO/Fanuc
+//! style), streamed line by line to a sink so that a texturing job of millions of lines never
+//! sits in memory. The machine file supplies what differs between machines of one dialect:
+//! the laser on/off/power lines (`[post.<dialect>]`) and the codes of named events.
+//!
+//! The path of one op: [`validate`] checks the whole program for the dialect first (every
+//! M-code, event, axis letter, template and, for GRBL, line length), so that emission can only
+//! fail on the sink's IO, never halfway through a program ("validate before anything moves",
+//! CONVENTIONS.md). Then [`writer`] walks `program.ops` once, keeping the modal state a
+//! controller keeps (motion mode, feed, last axis words, laser state) and writes only what
+//! changes.
+//!
+//! Laser model (shared with `report`): the beam is switched at motion ops only. It goes on
+//! right before the first lit move after an unlit one and off right after the last lit move of
+//! a run; dwells, M-codes and events between two lit moves happen with the beam on (a pierce
+//! dwell), and power changes between lit moves are written before the next lit move.
+
+mod format;
+mod validate;
+mod writer;
+
+use crate::motion::Job;
+use lase_lang::Span;
+use std::fmt;
+use std::str::FromStr;
+
+pub use format::number;
+
+/// An NC dialect lase can write.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Dialect {
+    /// LinuxCNC's rs274ngc interpreter.
+    LinuxCnc,
+    /// GRBL 1.1 (laser mode `$32=1`): X, Y, Z only, 80-character lines.
+    Grbl,
+    /// ISO 6983 / Fanuc style: `%`, program number, `N` block numbers, `M30`.
+    Iso,
+}
+
+impl Dialect {
+    pub const ALL: [Dialect; 3] = [Dialect::LinuxCnc, Dialect::Grbl, Dialect::Iso];
+
+    /// The name used on the command line and as the key of `[post.<name>]` and event codes in
+    /// machine files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Dialect::LinuxCnc => "linuxcnc",
+            Dialect::Grbl => "grbl",
+            Dialect::Iso => "iso",
+        }
+    }
+}
+
+impl fmt::Display for Dialect {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A dialect name that is not one of `linuxcnc`, `grbl`, `iso`.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error, miette::Diagnostic)]
+#[error("unknown NC dialect `{0}`")]
+#[diagnostic(
+    code(lase::emit::unknown_dialect),
+    help("the dialects are linuxcnc, grbl and iso")
+)]
+pub struct UnknownDialect(pub String);
+
+impl FromStr for Dialect {
+    type Err = UnknownDialect;
+
+    fn from_str(s: &str) -> Result<Dialect, UnknownDialect> {
+        Dialect::ALL
+            .into_iter()
+            .find(|d| d.name().eq_ignore_ascii_case(s.trim()))
+            .ok_or_else(|| UnknownDialect(s.to_string()))
+    }
+}
+
+/// One line of NC text (without its newline) and the op that produced it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct NcLine {
+    pub text: String,
+    /// Index of the producing op in `job.program.ops`; `None` for the header and footer.
+    pub op: Option<u32>,
+}
+
+/// How to emit.
+#[derive(Clone, Copy)]
+pub struct EmitOptions<'a> {
+    /// Names the recipe line of a span, e.g. `recipe.lase:12`. When given (and `comments` is
+    /// on), a `(recipe.lase:12)` comment is written whenever the recipe line of the ops
+    /// changes. An empty string writes nothing.
+    pub locate: Option<&'a dyn Fn(Span) -> String>,
+    /// Write traceability comments and the comments of M-code ops. The header comment is
+    /// always written.
+    pub comments: bool,
+}
+
+impl Default for EmitOptions<'_> {
+    fn default() -> Self {
+        EmitOptions {
+            locate: None,
+            comments: true,
+        }
+    }
+}
+
+impl fmt::Debug for EmitOptions<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("EmitOptions")
+            .field("locate", &self.locate.map(|_| "Fn(Span) -> String"))
+            .field("comments", &self.comments)
+            .finish()
+    }
+}
+
+/// What emission produced.
+#[derive(Debug, Clone, Default)]
+pub struct EmitStats {
+    /// Lines handed to the sink.
+    pub lines: u64,
+    /// Bytes handed to the sink, counting one newline per line.
+    pub bytes: u64,
+    /// Motion blocks (G0/G1/G2/G3).
+    pub motion_blocks: u64,
+    /// The longest line, in characters.
+    pub longest_line: usize,
+    /// Things that are valid NC but need attention on the machine.
+    pub warnings: Vec<EmitWarning>,
+}
+
+/// Valid NC that needs attention on the machine.
+#[derive(Debug, Clone, PartialEq, thiserror::Error, miette::Diagnostic)]
+pub enum EmitWarning {
+    #[error("M{code} is a user M-code: LinuxCNC runs the file `M{code}` from its program directory")]
+    #[diagnostic(
+        code(lase::emit::user_mcode),
+        severity(Warning),
+        help("make sure the file M{code} exists and is executable in the machine's [DISPLAY]PROGRAM_PREFIX or [RS274NGC]USER_M_PATH")
+    )]
+    UserMCode {
+        code: u32,
+        #[label("needs a user M-code file")]
+        span: Span,
+    },
+
+    #[error("M{code} ends the program here; the ops after it never run")]
+    #[diagnostic(
+        code(lase::emit::program_end),
+        severity(Warning),
+        help("lase ends every program itself; remove this `mcode`, or use M0/M1 to pause")
+    )]
+    ProgramEnd {
+        code: u32,
+        #[label("program end before the last op")]
+        span: Span,
+    },
+}
+
+/// Why a program cannot be written in a dialect. Nothing is written when one of these is
+/// returned, except for [`EmitError::Io`].
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+pub enum EmitError {
+    #[error("M{code} is not an M-code {dialect} accepts")]
+    #[diagnostic(code(lase::emit::unsupported_mcode))]
+    UnsupportedMCode {
+        code: u32,
+        dialect: Dialect,
+        #[label("{label}")]
+        span: Span,
+        label: String,
+        #[help]
+        help: String,
+    },
+
+    #[error("event `{name}` has no {dialect} code in machine `{machine}`")]
+    #[diagnostic(code(lase::emit::unsupported_event))]
+    UnsupportedEvent {
+        name: String,
+        dialect: Dialect,
+        machine: String,
+        #[label("not available in {dialect}")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("{message}")]
+    #[diagnostic(code(lase::emit::dialect))]
+    Dialect {
+        message: String,
+        dialect: Dialect,
+        #[label("{label}")]
+        span: Span,
+        label: String,
+        #[help]
+        help: String,
+    },
+
+    #[error("machine `{machine}` has no post for {dialect}")]
+    #[diagnostic(code(lase::emit::no_post))]
+    NoPost {
+        machine: String,
+        dialect: Dialect,
+        #[label("this program needs a [post.{dialect}] section in the machine file")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("post template `{template}` of machine `{machine}`: {message}")]
+    #[diagnostic(code(lase::emit::template))]
+    Template {
+        template: String,
+        machine: String,
+        message: String,
+        #[label("used here")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("writing the NC program failed: {0}")]
+    #[diagnostic(code(lase::emit::io))]
+    Io(#[from] std::io::Error),
+}
+
+/// Writes `job` as an NC program in `dialect`, one line at a time to `sink`.
+///
+/// The whole program is validated for the dialect before the first line is written; after
+/// that only the sink can fail.
+pub fn emit(
+    job: &Job,
+    dialect: Dialect,
+    options: &EmitOptions<'_>,
+    sink: &mut dyn FnMut(&NcLine) -> std::io::Result<()>,
+) -> Result<EmitStats, EmitError> {
+    let checked = validate::validate(job, dialect)?;
+    let mut stats = writer::write(job, dialect, options, &checked, sink)?;
+    stats.warnings = checked.warnings;
+    Ok(stats)
+}
+
+/// The whole program as one string, one `\n` after every line. For tests and small jobs.
+pub fn emit_to_string(job: &Job, dialect: Dialect) -> Result<String, EmitError> {
+    emit_to_string_with(job, dialect, &EmitOptions::default())
+}
+
+/// [`emit_to_string`] with options.
+pub fn emit_to_string_with(
+    job: &Job,
+    dialect: Dialect,
+    options: &EmitOptions<'_>,
+) -> Result<String, EmitError> {
+    let mut out = String::new();
+    emit(job, dialect, options, &mut |l: &NcLine| {
+        out.push_str(&l.text);
+        out.push('\n');
+        Ok(())
+    })?;
+    Ok(out)
+}

@@ -1,0 +1,282 @@
+//! Checks a whole program against a dialect before a single line is written: M-codes, events,
+//! axis letters, post templates, arc planes and (GRBL) line lengths.
+
+use super::format::{self, LaserWords};
+use super::{Dialect, EmitError, EmitWarning};
+use crate::machine::{AxisKind, DialectPost, Machine};
+use crate::motion::Job;
+use crate::program::{Op, OpKind};
+use lase_lang::Span;
+
+/// GRBL's serial line buffer (`LINE_BUFFER_SIZE`): longer lines overflow it.
+pub(super) const GRBL_MAX_LINE: usize = 80;
+
+/// What validation learned that the writer needs.
+#[derive(Debug)]
+pub(super) struct Checked<'j> {
+    pub post: &'j DialectPost,
+    pub warnings: Vec<EmitWarning>,
+}
+
+/// Whether `dialect` accepts `M<code>` as written.
+pub(super) fn mcode_supported(dialect: Dialect, code: u32) -> bool {
+    match dialect {
+        // rs274ngc's built-in M-codes plus user M100–M199.
+        Dialect::LinuxCnc => matches!(code, 0..=9 | 30 | 48..=53 | 60..=68 | 70..=73 | 100..=199),
+        // GRBL 1.1's M-codes; M56 (parking override) exists only in some builds.
+        Dialect::Grbl => matches!(code, 0..=5 | 7..=9 | 30),
+        Dialect::Iso => true,
+    }
+}
+
+fn mcode_list(dialect: Dialect) -> &'static str {
+    match dialect {
+        Dialect::LinuxCnc => "M0–M9, M30, M48–M53, M60–M68, M70–M73 and user M100–M199",
+        Dialect::Grbl => "M0, M1, M2, M3, M4, M5, M7, M8, M9 and M30",
+        Dialect::Iso => "any M-code",
+    }
+}
+
+/// Where an M word came from, for the diagnostic's label.
+enum Origin<'a> {
+    Op,
+    Post(&'a str),
+    Event(&'a str),
+}
+
+fn check_mcode(
+    dialect: Dialect,
+    code: u32,
+    span: Span,
+    origin: Origin<'_>,
+    machine: &str,
+) -> Result<(), EmitError> {
+    if mcode_supported(dialect, code) {
+        return Ok(());
+    }
+    let (label, help) = match origin {
+        Origin::Op => (
+            format!("{dialect} has no M{code}"),
+            format!(
+                "{dialect} accepts {}; for a machine function use an `event` mapped by the \
+                 machine file, e.g. `event swing_right` with `[events.swing_right]` \
+                 `codes = {{ {dialect} = [\"M64 P1\"] }}`",
+                mcode_list(dialect)
+            ),
+        ),
+        Origin::Post(what) => (
+            format!("the {what} lines of machine `{machine}` use M{code}"),
+            format!(
+                "{dialect} accepts {}; fix `[post.{dialect}] {what}` in the machine file",
+                mcode_list(dialect)
+            ),
+        ),
+        Origin::Event(name) => (
+            format!("event `{name}` of machine `{machine}` uses M{code}"),
+            format!(
+                "{dialect} accepts {}; fix `[events.{name}] codes.{dialect}` in the machine file",
+                mcode_list(dialect)
+            ),
+        ),
+    };
+    Err(EmitError::UnsupportedMCode {
+        code,
+        dialect,
+        span,
+        label,
+        help,
+    })
+}
+
+fn too_long(dialect: Dialect, line: &str, span: Span, what: &str) -> Result<(), EmitError> {
+    if dialect == Dialect::Grbl && line.len() > GRBL_MAX_LINE {
+        return Err(EmitError::Dialect {
+            message: format!(
+                "{what} `{line}` is {} characters; GRBL reads at most {GRBL_MAX_LINE}",
+                line.len()
+            ),
+            dialect,
+            span,
+            label: "emits a line too long for GRBL".into(),
+            help: "shorten the line in the machine file (comments count)".into(),
+        });
+    }
+    Ok(())
+}
+
+pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitError> {
+    let program = &job.program;
+    let machine = &program.machine;
+    let ops = &program.ops;
+    let first_span = ops.first().map(|o| o.span).unwrap_or_default();
+    let post = machine.post.get(dialect.name()).ok_or_else(|| EmitError::NoPost {
+        machine: machine.name.clone(),
+        dialect,
+        span: first_span,
+        help: format!(
+            "the machine has posts for: {}; add a [post.{dialect}] section (laser_on, \
+             laser_off, power) to its file",
+            names(machine.post.keys())
+        ),
+    })?;
+    if dialect == Dialect::Grbl {
+        check_grbl_axes(machine, first_span)?;
+    }
+    let mut warnings = Vec::new();
+
+    if let Some(lit) = ops.iter().find(|o| o.laser().is_some()) {
+        check_post(post, machine, dialect, lit.span)?;
+    }
+    for (i, op) in ops.iter().enumerate() {
+        match &op.kind {
+            OpKind::MCode { code, .. } => {
+                check_mcode(dialect, *code, op.span, Origin::Op, &machine.name)?;
+                if dialect == Dialect::LinuxCnc && (100..=199).contains(code) {
+                    warnings.push(EmitWarning::UserMCode {
+                        code: *code,
+                        span: op.span,
+                    });
+                }
+                if matches!(code, 2 | 30) && i + 1 < ops.len() {
+                    warnings.push(EmitWarning::ProgramEnd {
+                        code: *code,
+                        span: op.span,
+                    });
+                }
+            }
+            OpKind::Event { name } => check_event(op, name, machine, dialect)?,
+            OpKind::Arc { .. } => check_arc_plane(machine, dialect, op.span)?,
+            _ => {}
+        }
+    }
+    Ok(Checked { post, warnings })
+}
+
+fn names<'a>(it: impl Iterator<Item = &'a String>) -> String {
+    let v: Vec<&str> = it.map(String::as_str).collect();
+    if v.is_empty() { "none".into() } else { v.join(", ") }
+}
+
+fn check_grbl_axes(machine: &Machine, span: Span) -> Result<(), EmitError> {
+    for a in &machine.axes {
+        if a.kind == AxisKind::Rotary || !matches!(a.name.as_str(), "X" | "Y" | "Z") {
+            return Err(EmitError::Dialect {
+                message: format!(
+                    "GRBL drives X, Y and Z only; machine `{}` has {} axis {}",
+                    machine.name,
+                    if a.kind == AxisKind::Rotary { "rotary" } else { "linear" },
+                    a.name
+                ),
+                dialect: Dialect::Grbl,
+                span,
+                label: "this program cannot run on GRBL".into(),
+                help: "emit for linuxcnc or iso, or use a machine whose axes are X, Y and Z".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+fn check_post(
+    post: &DialectPost,
+    machine: &Machine,
+    dialect: Dialect,
+    span: Span,
+) -> Result<(), EmitError> {
+    // The longest value a placeholder can take is at full power.
+    let full = LaserWords {
+        power_w: machine.laser.max_power_w,
+        max_power_w: machine.laser.max_power_w,
+        s_max: post.s_max,
+    };
+    for (what, lines) in [
+        ("laser_on", &post.laser_on),
+        ("laser_off", &post.laser_off),
+        ("power", &post.power),
+    ] {
+        for t in lines {
+            if let Some(message) = format::template_problem(t) {
+                return Err(EmitError::Template {
+                    template: t.clone(),
+                    machine: machine.name.clone(),
+                    message,
+                    span,
+                    help: format!(
+                        "templates in [post.{dialect}] {what} may use {{power}} (W), {{s}} \
+                         (power scaled to s_max) and {{pct}} (percent of max power)"
+                    ),
+                });
+            }
+            for code in format::m_words(t) {
+                check_mcode(dialect, code, span, Origin::Post(what), &machine.name)?;
+            }
+            too_long(dialect, &format::fill(t, full), span, what)?;
+        }
+    }
+    Ok(())
+}
+
+fn check_event(op: &Op, name: &str, machine: &Machine, dialect: Dialect) -> Result<(), EmitError> {
+    let Some(ev) = machine.events.get(name) else {
+        return Err(EmitError::UnsupportedEvent {
+            name: name.to_string(),
+            dialect,
+            machine: machine.name.clone(),
+            span: op.span,
+            help: format!(
+                "machine `{}` defines the events: {}",
+                machine.name,
+                names(machine.events.keys())
+            ),
+        });
+    };
+    let Some(codes) = ev.codes.get(dialect.name()) else {
+        return Err(EmitError::UnsupportedEvent {
+            name: name.to_string(),
+            dialect,
+            machine: machine.name.clone(),
+            span: op.span,
+            help: format!(
+                "event `{name}` has codes for: {}; emit for one of those, or add \
+                 `{dialect} = [...]` to `[events.{name}] codes` in the machine file",
+                names(ev.codes.keys())
+            ),
+        });
+    };
+    for line in codes {
+        for code in format::m_words(line) {
+            check_mcode(dialect, code, op.span, Origin::Event(name), &machine.name)?;
+        }
+        too_long(dialect, line, op.span, &format!("event `{name}` line"))?;
+    }
+    Ok(())
+}
+
+/// Axis indices (X, Y, optional Z) of the G17 plane. G2/G3 take I and J by letter, so arcs
+/// need an axis named X moving part x and one named Y moving part y.
+pub(super) fn arc_axes(machine: &Machine) -> Option<(usize, usize, Option<usize>)> {
+    let find = |letter: &str, part: &str| {
+        machine
+            .axes
+            .iter()
+            .position(|a| a.name == letter && a.part_axis.as_deref() == Some(part))
+    };
+    Some((find("X", "x")?, find("Y", "y")?, find("Z", "z")))
+}
+
+fn check_arc_plane(machine: &Machine, dialect: Dialect, span: Span) -> Result<(), EmitError> {
+    if arc_axes(machine).is_some() {
+        return Ok(());
+    }
+    Err(EmitError::Dialect {
+        message: format!(
+            "machine `{}` has no X and Y axes along part x and y, so G2/G3 cannot describe \
+             this arc",
+            machine.name
+        ),
+        dialect,
+        span,
+        label: "arc".into(),
+        help: "use a machine with X and Y axes, or write the path as straight moves".into(),
+    })
+}

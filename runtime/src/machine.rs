@@ -1,0 +1,427 @@
+//! Machine definitions: axes, limits, laser and the post settings each NC dialect needs.
+//!
+//! Machines are TOML files (the standard library embeds the stock ones). Quantities are written
+//! with units, exactly as in recipes (`v_max = "200 mm/s"`), and converted to internal units
+//! here; every error points at the offending TOML span.
+
+use lase_lang::Span;
+use lase_lang::units::{self, Dim};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+/// What is wrong with a machine file. Spans are global offsets (the file is part of the
+/// recipe's source map).
+#[derive(Debug, Clone, thiserror::Error, miette::Diagnostic, PartialEq)]
+pub enum MachineError {
+    #[error("machine file: {message}")]
+    #[diagnostic(code(lase::machine::invalid))]
+    Invalid {
+        message: String,
+        #[label("{label}")]
+        span: Span,
+        label: String,
+        #[help]
+        help: Option<String>,
+    },
+}
+
+impl MachineError {
+    pub fn span(&self) -> Span {
+        match self {
+            MachineError::Invalid { span, .. } => *span,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AxisKind {
+    Linear,
+    Rotary,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum KinematicsKind {
+    /// Axes move the spot along part x, y, z directly.
+    Cartesian,
+}
+
+/// One machine axis, in internal units (mm or rad).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Axis {
+    /// The NC address letter (X, Y, Z, A, B, C).
+    pub name: String,
+    pub kind: AxisKind,
+    /// Which part coordinate a Cartesian axis moves (x, y or z).
+    pub part_axis: Option<String>,
+    pub min: f64,
+    pub max: f64,
+    pub v_max: f64,
+    pub a_max: f64,
+    pub j_max: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LaserSpec {
+    pub max_power_w: f64,
+    pub max_pulse_rate_hz: f64,
+}
+
+/// How one dialect switches the laser and frames the program. Templates may use `{power}`
+/// (W), `{s}` (the S word: power scaled to `s_max`) and `{pct}` (percent of max power).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DialectPost {
+    pub laser_on: Vec<String>,
+    pub laser_off: Vec<String>,
+    /// Lines that change power while the laser stays on.
+    pub power: Vec<String>,
+    /// The S value that means full power.
+    pub s_max: f64,
+    /// Whether switching the laser on or off needs the machine at rest (seed 4: M27 does).
+    pub laser_switch_stops: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EventPost {
+    /// NC lines per dialect ("linuxcnc", "grbl", "iso"); a dialect not listed cannot run the
+    /// event.
+    pub codes: BTreeMap<String, Vec<String>>,
+    /// Time the machine needs after the event (e.g. a head swing), s.
+    pub dwell_s: f64,
+    pub doc: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Machine {
+    pub name: String,
+    pub description: String,
+    pub kinematics: KinematicsKind,
+    pub axes: Vec<Axis>,
+    pub laser: LaserSpec,
+    pub ramp: crate::program::Ramp,
+    pub junction_deviation_mm: f64,
+    pub arc_tolerance_mm: f64,
+    pub post: BTreeMap<String, DialectPost>,
+    pub events: BTreeMap<String, EventPost>,
+}
+
+impl Machine {
+    pub fn axis_index(&self, name: &str) -> Option<usize> {
+        self.axes
+            .iter()
+            .position(|a| a.name.eq_ignore_ascii_case(name))
+    }
+}
+
+// ------------------------------------------------------------------ file format
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileMachine {
+    name: String,
+    #[serde(default)]
+    description: String,
+    kinematics: toml::Spanned<String>,
+    axes: Vec<FileAxis>,
+    laser: FileLaser,
+    #[serde(default)]
+    planner: FilePlanner,
+    post: BTreeMap<String, FilePost>,
+    #[serde(default)]
+    events: BTreeMap<String, FileEvent>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileAxis {
+    name: toml::Spanned<String>,
+    kind: AxisKind,
+    part_axis: Option<toml::Spanned<String>>,
+    travel: [toml::Spanned<String>; 2],
+    v_max: toml::Spanned<String>,
+    a_max: toml::Spanned<String>,
+    j_max: toml::Spanned<String>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileLaser {
+    max_power: toml::Spanned<String>,
+    max_pulse_rate: toml::Spanned<String>,
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct FilePlanner {
+    ramp: Option<crate::program::Ramp>,
+    junction_deviation: Option<toml::Spanned<String>>,
+    arc_tolerance: Option<toml::Spanned<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FilePost {
+    laser_on: Vec<String>,
+    laser_off: Vec<String>,
+    #[serde(default)]
+    power: Vec<String>,
+    #[serde(default = "default_s_max")]
+    s_max: f64,
+    #[serde(default)]
+    laser_switch_stops: bool,
+}
+
+fn default_s_max() -> f64 {
+    1000.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileEvent {
+    #[serde(default)]
+    doc: String,
+    #[serde(default)]
+    dwell: Option<toml::Spanned<String>>,
+    codes: BTreeMap<String, Vec<String>>,
+}
+
+/// Parses a machine file whose text starts at global offset `base`.
+pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
+    let at = |r: Range<usize>| Span::new(base + r.start, base + r.end);
+    let file: FileMachine = toml::from_str(text).map_err(|e| {
+        let span = e.span().map(at).unwrap_or(Span::new(base, base));
+        MachineError::Invalid {
+            message: e.message().to_string(),
+            span,
+            label: "here".into(),
+            help: Some(
+                "see stdlib/machines/README.md for every field of a machine file".into(),
+            ),
+        }
+    })?;
+    let qty = |s: &toml::Spanned<String>, want: &[Dim], what: &str| -> Result<f64, MachineError> {
+        let span = at(s.span());
+        let bad = |label: String, help: String| MachineError::Invalid {
+            message: format!("`{}` is not a valid {what}", s.get_ref()),
+            span,
+            label,
+            help: Some(help),
+        };
+        let text = s.get_ref().trim();
+        let split = text
+            .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+' || c == 'e'))
+            .unwrap_or(text.len());
+        let (num, unit) = text.split_at(split);
+        let value: f64 = num.trim().parse().map_err(|_| {
+            bad(
+                "expected a number with a unit".into(),
+                format!("write it like \"200 mm/s\"; {what} is {}", want[0]),
+            )
+        })?;
+        let unit = unit.trim();
+        if unit.is_empty() {
+            if want.contains(&Dim::NONE) {
+                return Ok(value);
+            }
+            return Err(bad(
+                "no unit".into(),
+                format!("{what} is {}; give a unit, e.g. \"{value} {}\"", want[0], want[0].base_unit()),
+            ));
+        }
+        let u = units::parse_unit(unit).map_err(|e| {
+            bad(
+                format!("unknown unit `{}`", e.atom),
+                e.suggestion
+                    .map(|s| format!("did you mean `{s}`?"))
+                    .unwrap_or_else(|| "units are written as in recipes: mm, deg, mm/s, m/s^2".into()),
+            )
+        })?;
+        if !want.contains(&u.dim) {
+            return Err(bad(
+                format!("this is {}", u.dim),
+                format!(
+                    "{what} must be {}",
+                    want.iter().map(|d| d.name()).collect::<Vec<_>>().join(" or ")
+                ),
+            ));
+        }
+        let v = value * u.factor;
+        if !v.is_finite() {
+            return Err(bad("not finite".into(), "use a finite value".into()));
+        }
+        Ok(v)
+    };
+    let positive = |v: f64, s: &toml::Spanned<String>, what: &str| -> Result<f64, MachineError> {
+        if v > 0.0 {
+            Ok(v)
+        } else {
+            Err(MachineError::Invalid {
+                message: format!("{what} must be greater than zero"),
+                span: at(s.span()),
+                label: "not positive".into(),
+                help: None,
+            })
+        }
+    };
+    let kinematics = match file.kinematics.get_ref().as_str() {
+        "cartesian" => KinematicsKind::Cartesian,
+        other => {
+            return Err(MachineError::Invalid {
+                message: format!("unknown kinematics `{other}`"),
+                span: at(file.kinematics.span()),
+                label: "not a kinematics model".into(),
+                help: Some("available: cartesian".into()),
+            });
+        }
+    };
+    let mut axes = Vec::new();
+    for a in &file.axes {
+        let (lin, ang) = match a.kind {
+            AxisKind::Linear => (true, false),
+            AxisKind::Rotary => (false, true),
+        };
+        let d = |l: Dim, r: Dim| if lin { [l] } else { [r] };
+        let _ = ang;
+        let min = qty(&a.travel[0], &d(Dim::LENGTH, Dim::ANGLE), "travel")?;
+        let max = qty(&a.travel[1], &d(Dim::LENGTH, Dim::ANGLE), "travel")?;
+        if min >= max {
+            return Err(MachineError::Invalid {
+                message: "travel must be [min, max] with min < max".into(),
+                span: at(a.travel[0].span().start..a.travel[1].span().end),
+                label: "empty travel".into(),
+                help: None,
+            });
+        }
+        let v_max = positive(qty(&a.v_max, &d(Dim::SPEED, Dim::ANGULAR_SPEED), "v_max")?, &a.v_max, "v_max")?;
+        let a_max = positive(qty(&a.a_max, &d(Dim::ACCEL, Dim::ANGULAR_ACCEL), "a_max")?, &a.a_max, "a_max")?;
+        let j_max = positive(qty(&a.j_max, &d(Dim::JERK, Dim::ANGULAR_JERK), "j_max")?, &a.j_max, "j_max")?;
+        let name = a.name.get_ref().to_ascii_uppercase();
+        if !matches!(name.as_str(), "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W") {
+            return Err(MachineError::Invalid {
+                message: format!("axis name `{}` is not an NC axis letter", a.name.get_ref()),
+                span: at(a.name.span()),
+                label: "not an axis letter".into(),
+                help: Some("use X, Y, Z, A, B, C, U, V or W".into()),
+            });
+        }
+        if axes.iter().any(|x: &Axis| x.name == name) {
+            return Err(MachineError::Invalid {
+                message: format!("axis `{name}` is defined twice"),
+                span: at(a.name.span()),
+                label: "duplicate".into(),
+                help: None,
+            });
+        }
+        let part_axis = match &a.part_axis {
+            Some(p) if matches!(p.get_ref().as_str(), "x" | "y" | "z") => Some(p.get_ref().clone()),
+            Some(p) => {
+                return Err(MachineError::Invalid {
+                    message: format!("part_axis `{}` must be x, y or z", p.get_ref()),
+                    span: at(p.span()),
+                    label: "not a part axis".into(),
+                    help: None,
+                });
+            }
+            None => None,
+        };
+        axes.push(Axis {
+            name,
+            kind: a.kind,
+            part_axis,
+            min,
+            max,
+            v_max,
+            a_max,
+            j_max,
+        });
+    }
+    if axes.is_empty() || axes.len() > crate::planner::MAX_AXES {
+        return Err(MachineError::Invalid {
+            message: format!(
+                "a machine has 1 to {} axes, this one has {}",
+                crate::planner::MAX_AXES,
+                axes.len()
+            ),
+            span: Span::new(base, base),
+            label: "here".into(),
+            help: None,
+        });
+    }
+    if kinematics == KinematicsKind::Cartesian {
+        for (i, a) in file.axes.iter().enumerate() {
+            if axes[i].kind != AxisKind::Linear || axes[i].part_axis.is_none() {
+                return Err(MachineError::Invalid {
+                    message: "a cartesian machine's axes are linear and each names its part_axis".into(),
+                    span: at(a.name.span()),
+                    label: "this axis".into(),
+                    help: Some("add `part_axis = \"x\"` (or y, z) and `kind = \"linear\"`".into()),
+                });
+            }
+        }
+    }
+    let laser = LaserSpec {
+        max_power_w: positive(
+            qty(&file.laser.max_power, &[Dim::POWER], "max_power")?,
+            &file.laser.max_power,
+            "max_power",
+        )?,
+        max_pulse_rate_hz: positive(
+            qty(&file.laser.max_pulse_rate, &[Dim::FREQUENCY], "max_pulse_rate")?,
+            &file.laser.max_pulse_rate,
+            "max_pulse_rate",
+        )?,
+    };
+    let junction_deviation_mm = match &file.planner.junction_deviation {
+        Some(s) => positive(qty(s, &[Dim::LENGTH], "junction_deviation")?, s, "junction_deviation")?,
+        None => 0.01,
+    };
+    let arc_tolerance_mm = match &file.planner.arc_tolerance {
+        Some(s) => positive(qty(s, &[Dim::LENGTH], "arc_tolerance")?, s, "arc_tolerance")?,
+        None => 0.002,
+    };
+    let post = file
+        .post
+        .into_iter()
+        .map(|(k, p)| {
+            (
+                k,
+                DialectPost {
+                    laser_on: p.laser_on,
+                    laser_off: p.laser_off,
+                    power: p.power,
+                    s_max: p.s_max,
+                    laser_switch_stops: p.laser_switch_stops,
+                },
+            )
+        })
+        .collect();
+    let mut events = BTreeMap::new();
+    for (k, e) in file.events {
+        let dwell_s = match &e.dwell {
+            Some(s) => qty(s, &[Dim::TIME], "dwell")?,
+            None => 0.0,
+        };
+        events.insert(
+            k,
+            EventPost {
+                codes: e.codes,
+                dwell_s,
+                doc: e.doc,
+            },
+        );
+    }
+    Ok(Machine {
+        name: file.name,
+        description: file.description,
+        kinematics,
+        axes,
+        laser,
+        ramp: file.planner.ramp.unwrap_or(crate::program::Ramp::Scurve),
+        junction_deviation_mm,
+        arc_tolerance_mm,
+        post,
+        events,
+    })
+}

@@ -1,0 +1,310 @@
+//! From process program to timed motion: each op is turned into straight moves in machine
+//! axis space (arcs split into chords within the chord tolerance, every point through the
+//! machine's inverse kinematics and travel check), then handed to the look-ahead planner.
+//!
+//! Nothing is planned unless every point of the program is reachable: a job never starts if
+//! it could fail halfway.
+
+use crate::kinematics::{self, KinError, ToolPose};
+use crate::planner::{self, Axes, AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind};
+use crate::program::{Op, OpKind, P3, ProcessProgram, Ramp};
+use lase_lang::Span;
+
+/// Planning errors that point at the recipe.
+#[derive(Debug, Clone, thiserror::Error, miette::Diagnostic, PartialEq)]
+pub enum MotionError {
+    #[error("axis {axis} would leave its travel: {value} outside [{min}, {max}]")]
+    #[diagnostic(
+        code(lase::plan::travel),
+        help("move the part origin or the path so that every point lies inside the machine's travel")
+    )]
+    Travel {
+        axis: String,
+        value: String,
+        min: String,
+        max: String,
+        #[label("this move leaves the travel of {axis}")]
+        span: Span,
+    },
+
+    #[error("the machine cannot reach this pose: {reason}")]
+    #[diagnostic(code(lase::plan::unreachable), help("check the machine selected with `machine`"))]
+    Unreachable {
+        reason: String,
+        #[label("unreachable")]
+        span: Span,
+    },
+
+    #[error("{message}")]
+    #[diagnostic(code(lase::plan::planner))]
+    Planner {
+        message: String,
+        #[label("this move")]
+        span: Span,
+        #[help]
+        help: Option<String>,
+    },
+}
+
+/// A program lowered to machine moves and planned.
+#[derive(Debug, Clone)]
+pub struct Job {
+    pub program: ProcessProgram,
+    /// Axis positions at the start.
+    pub start: Axes,
+    /// The moves handed to the planner; `tag` is the index of the op that produced each.
+    pub moves: Vec<Move>,
+    /// Standstill before the first move (dwells and events ahead of any motion), s.
+    pub initial_dwell_s: f64,
+    pub plan: Plan,
+}
+
+impl Job {
+    /// Total cycle time, s.
+    pub fn cycle_time(&self) -> f64 {
+        self.initial_dwell_s + self.plan.duration()
+    }
+
+    pub fn n_axes(&self) -> usize {
+        self.program.machine.axes.len()
+    }
+}
+
+/// Lowers and plans a program.
+pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
+    let kin = kinematics::for_machine(&program.machine);
+    let n_axes = kin.axis_count();
+    let start_span = program.ops.first().map(|o| o.span).unwrap_or_default();
+    let start = inverse(&*kin, program.start, start_span, &program)?;
+    let mut moves: Vec<Move> = Vec::new();
+    let mut initial_dwell_s = 0.0;
+    let mut pos = program.start;
+    let mut q_prev = start;
+    let switch_stops = |dialect_any: bool| dialect_any;
+    let laser_switch_stops = switch_stops(
+        program
+            .machine
+            .post
+            .values()
+            .any(|p| p.laser_switch_stops),
+    );
+    let mut lit_prev = false;
+    for (i, op) in program.ops.iter().enumerate() {
+        let tag = i as u32;
+        let stop_here = |moves: &mut Vec<Move>, initial: &mut f64, dwell: f64| match moves.last_mut() {
+            Some(m) => {
+                m.stop_after = true;
+                m.dwell_after += dwell;
+            }
+            None => *initial += dwell,
+        };
+        let lit = op.laser().is_some();
+        if op.target().is_some() && lit != lit_prev && laser_switch_stops {
+            // The machine switches the beam with an M-function that needs it at rest (§4).
+            stop_here(&mut moves, &mut initial_dwell_s, 0.0);
+        }
+        match &op.kind {
+            OpKind::Rapid { to } => {
+                let q = inverse(&*kin, *to, op.span, &program)?;
+                push_line(&mut moves, q_prev, q, dist(pos, *to), f64::INFINITY, tag);
+                pos = *to;
+                q_prev = q;
+            }
+            OpKind::Line { to, feed_mm_s, .. } => {
+                let q = inverse(&*kin, *to, op.span, &program)?;
+                push_line(&mut moves, q_prev, q, dist(pos, *to), *feed_mm_s, tag);
+                pos = *to;
+                q_prev = q;
+            }
+            OpKind::Arc {
+                to,
+                center,
+                ccw,
+                feed_mm_s,
+                ..
+            } => {
+                for p in arc_points(pos, *to, *center, *ccw, program.planner.arc_tolerance_mm) {
+                    let q = inverse(&*kin, p, op.span, &program)?;
+                    push_line(&mut moves, q_prev, q, dist(pos, p), *feed_mm_s, tag);
+                    pos = p;
+                    q_prev = q;
+                }
+            }
+            OpKind::Dwell { seconds } => stop_here(&mut moves, &mut initial_dwell_s, *seconds),
+            OpKind::MCode { .. } => stop_here(&mut moves, &mut initial_dwell_s, 0.0),
+            OpKind::Event { name } => {
+                let dwell = program
+                    .machine
+                    .events
+                    .get(name)
+                    .map(|e| e.dwell_s)
+                    .unwrap_or(0.0);
+                stop_here(&mut moves, &mut initial_dwell_s, dwell)
+            }
+        }
+        if op.target().is_some() {
+            lit_prev = lit;
+        }
+    }
+    let mut limits = AxisLimits {
+        v: [f64::INFINITY; MAX_AXES],
+        a: [f64::INFINITY; MAX_AXES],
+        j: [f64::INFINITY; MAX_AXES],
+    };
+    for (i, l) in program.limits.iter().enumerate().take(MAX_AXES) {
+        limits.v[i] = l.v;
+        limits.a[i] = l.a;
+        limits.j[i] = l.j;
+    }
+    let cfg = PlannerConfig {
+        profile: match program.planner.ramp {
+            Ramp::Trapezoid => ProfileKind::Trapezoid,
+            Ramp::Scurve => ProfileKind::SCurve,
+        },
+        junction_deviation: program.planner.junction_deviation_mm,
+        path_v: program.path_limits.v,
+        path_a: program.path_limits.a,
+        path_j: program.path_limits.j,
+        lookahead: program.planner.lookahead,
+        n_axes,
+    };
+    let plan = planner::plan(start, &moves, &limits, &cfg).map_err(|e| {
+        let span = planner_error_move(&e)
+            .and_then(|i| moves.get(i))
+            .and_then(|m| program.ops.get(m.tag as usize))
+            .map(|o: &Op| o.span)
+            .unwrap_or(start_span);
+        MotionError::Planner {
+            message: e.to_string(),
+            span,
+            help: miette::Diagnostic::help(&e).map(|h| h.to_string()),
+        }
+    })?;
+    Ok(Job {
+        program,
+        start,
+        moves,
+        initial_dwell_s,
+        plan,
+    })
+}
+
+fn planner_error_move(e: &planner::PlanError) -> Option<usize> {
+    use planner::PlanError::*;
+    match e {
+        BadMove { index, .. } | ZeroLengthWithMotion { index, .. } => Some(*index),
+        _ => None,
+    }
+}
+
+fn inverse(
+    kin: &dyn kinematics::Kinematics,
+    p: P3,
+    span: Span,
+    program: &ProcessProgram,
+) -> Result<Axes, MotionError> {
+    let q = kin
+        .inverse(&ToolPose::down(p), None)
+        .map_err(|e| kin_error(e, span, program))?;
+    kin.check(&q).map_err(|e| kin_error(e, span, program))?;
+    Ok(q)
+}
+
+fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
+    match e {
+        KinError::Travel {
+            axis,
+            value,
+            min,
+            max,
+        } => {
+            let unit = |v: f64| format!("{} mm", lase_lang::units::format_number(v));
+            MotionError::Travel {
+                axis: program.machine.axes[axis].name.clone(),
+                value: unit(value),
+                min: unit(min),
+                max: unit(max),
+                span,
+            }
+        }
+        KinError::Unreachable(reason) => MotionError::Unreachable { reason, span },
+    }
+}
+
+fn dist(a: P3, b: P3) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+fn push_line(moves: &mut Vec<Move>, from: Axes, to: Axes, length: f64, feed: f64, tag: u32) {
+    if length <= 1e-12 && from == to {
+        return;
+    }
+    // A move that changes axes over no part distance (cannot happen on a Cartesian machine,
+    // but keeps the planner's contract) gets the axis-space distance as its length.
+    let length = if length <= 1e-12 {
+        (0..MAX_AXES)
+            .map(|i| (to[i] - from[i]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    } else {
+        length
+    };
+    moves.push(Move {
+        target: to,
+        length,
+        feed,
+        stop_after: false,
+        dwell_after: 0.0,
+        tag,
+    });
+}
+
+/// Points along an arc (excluding its start, including its end) such that no chord deviates
+/// from the arc by more than `tol`: chord sagitta r(1 − cos(θ/2)) ≤ tol. z moves linearly.
+pub fn arc_points(from: P3, to: P3, center: [f64; 2], ccw: bool, tol: f64) -> Vec<P3> {
+    let r = ((from[0] - center[0]).powi(2) + (from[1] - center[1]).powi(2)).sqrt();
+    let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
+    let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
+    let sweep = arc_sweep(a0, a1, ccw, from, to);
+    let max_step = if r > tol {
+        2.0 * (1.0 - tol / r).acos()
+    } else {
+        std::f64::consts::PI / 2.0
+    };
+    let n = ((sweep.abs() / max_step).ceil() as usize).clamp(1, 1_000_000);
+    (1..=n)
+        .map(|k| {
+            if k == n {
+                return to;
+            }
+            let f = k as f64 / n as f64;
+            let a = a0 + sweep * f;
+            [
+                center[0] + r * a.cos(),
+                center[1] + r * a.sin(),
+                from[2] + (to[2] - from[2]) * f,
+            ]
+        })
+        .collect()
+}
+
+/// The signed sweep from angle `a0` to `a1` in the given direction; a full turn when the end
+/// equals the start.
+pub fn arc_sweep(a0: f64, a1: f64, ccw: bool, from: P3, to: P3) -> f64 {
+    use std::f64::consts::TAU;
+    let same = (from[0] - to[0]).abs() < 1e-9 && (from[1] - to[1]).abs() < 1e-9;
+    if same {
+        return if ccw { TAU } else { -TAU };
+    }
+    let mut d = a1 - a0;
+    if ccw {
+        while d <= 0.0 {
+            d += TAU;
+        }
+    } else {
+        while d >= 0.0 {
+            d -= TAU;
+        }
+    }
+    d
+}

@@ -1,0 +1,142 @@
+//! The process program: what a recipe means, independent of any machine's axes or any NC
+//! dialect. A flat list of operations in part coordinates (mm, s, rad, W), each carrying the
+//! recipe span that produced it so a planning error or a controller's complaint can point at
+//! the recipe line.
+
+use crate::machine::Machine;
+use lase_lang::Span;
+use serde::{Deserialize, Serialize};
+
+/// A point in part coordinates, mm.
+pub type P3 = [f64; 3];
+
+/// Laser state of a lit move.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Laser {
+    pub power_w: f64,
+    pub spot_mm: f64,
+    pub pulse: Option<Pulse>,
+}
+
+/// How pulses are fired while the laser is on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Pulse {
+    pub mode: PulseMode,
+    pub width_s: Option<f64>,
+    pub energy_j: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum PulseMode {
+    /// One pulse every `pitch_mm` of lit path, the first at the start of the lit section
+    /// (position-synchronized output).
+    Distance { pitch_mm: f64 },
+    /// One pulse every `period_s` of lit time, the first at the start of the lit section.
+    Time { period_s: f64 },
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum OpKind {
+    /// Positioning at the machine's top speed, laser off.
+    Rapid { to: P3 },
+    /// A straight move at a programmed feed.
+    Line {
+        to: P3,
+        feed_mm_s: f64,
+        laser: Option<Laser>,
+    },
+    /// A circular arc in the XY plane (z may change linearly: a helix).
+    Arc {
+        to: P3,
+        center: [f64; 2],
+        ccw: bool,
+        feed_mm_s: f64,
+        laser: Option<Laser>,
+    },
+    /// Standstill.
+    Dwell { seconds: f64 },
+    /// A raw M-function; the machine stops for it.
+    MCode { code: u32, comment: Option<String> },
+    /// A named machine event (head swing, shutter ...), translated by the machine's post.
+    Event { name: String },
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Op {
+    pub kind: OpKind,
+    pub span: Span,
+}
+
+impl Op {
+    pub fn laser(&self) -> Option<&Laser> {
+        match &self.kind {
+            OpKind::Line { laser, .. } | OpKind::Arc { laser, .. } => laser.as_ref(),
+            _ => None,
+        }
+    }
+
+    /// The end point of a motion op.
+    pub fn target(&self) -> Option<P3> {
+        match &self.kind {
+            OpKind::Rapid { to } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => Some(*to),
+            _ => None,
+        }
+    }
+}
+
+/// Velocity profile shape.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Ramp {
+    Trapezoid,
+    Scurve,
+}
+
+/// Planner settings in force for the program (machine defaults, overridden by `planner`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlannerSettings {
+    pub ramp: Ramp,
+    pub junction_deviation_mm: f64,
+    pub arc_tolerance_mm: f64,
+    pub lookahead: Option<usize>,
+}
+
+/// Per-axis limits in force (machine limits, tightened by `limits`), internal units.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct AxisLimit {
+    pub v: f64,
+    pub a: f64,
+    pub j: f64,
+}
+
+/// Extra limits along the path (`limits { path: ... }`); infinite when not given.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PathLimits {
+    pub v: f64,
+    pub a: f64,
+    pub j: f64,
+}
+
+impl Default for PathLimits {
+    fn default() -> Self {
+        PathLimits {
+            v: f64::INFINITY,
+            a: f64::INFINITY,
+            j: f64::INFINITY,
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProcessProgram {
+    /// The recipe's file name, for headers and reports.
+    pub recipe: String,
+    pub machine: Machine,
+    /// Limits per machine axis, in the machine's axis order.
+    pub limits: Vec<AxisLimit>,
+    pub path_limits: PathLimits,
+    pub planner: PlannerSettings,
+    /// Where the spot is when the program starts (part coordinates).
+    pub start: P3,
+    pub ops: Vec<Op>,
+}

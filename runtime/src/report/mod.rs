@@ -1,0 +1,79 @@
+//! What a planned job does, for people and for tests: the plan summary (JSON), a sampled trace
+//! (CSV), a plot (SVG) and the exact pulse positions.
+//!
+//! Everything here reads a [`Job`] and nothing else: the plan's segments give exact times,
+//! speeds and peaks; the program's ops (by each segment's tag) say which moves are lit.
+//!
+//! Times are on the job's timeline: 0 is the program start, so the plan's time 0 lies
+//! `job.initial_dwell_s` later (dwells and events before the first move).
+//!
+//! Laser model (the same as `emit`'s): the beam is on during the motion of lit moves and
+//! during a dwell that sits between two lit moves; it is off during rapids, unlit moves and
+//! every other standstill. A lit section is a maximal run of consecutive lit moves with the
+//! same pulse setting; pulses are counted from the start of each section.
+
+mod plot;
+mod pulses;
+mod summary;
+mod trace;
+
+pub use plot::plot_svg;
+pub use pulses::{PulseEvent, PulseEvents, pulse_events};
+pub use summary::{AxisPeaks, Summary, summarize};
+pub use trace::write_trace;
+
+use crate::motion::Job;
+use crate::program::{Laser, OpKind};
+
+/// The laser setting of segment `i`'s move (None when unlit or out of range).
+fn segment_laser(job: &Job, i: usize) -> Option<&Laser> {
+    let seg = job.plan.segments().get(i)?;
+    job.program.ops.get(seg.tag as usize)?.laser()
+}
+
+/// Whether segment `i`'s move is a rapid.
+fn segment_is_rapid(job: &Job, i: usize) -> bool {
+    job.plan
+        .segments()
+        .get(i)
+        .and_then(|s| job.program.ops.get(s.tag as usize))
+        .is_some_and(|op| matches!(op.kind, OpKind::Rapid { .. }))
+}
+
+/// Whether the beam stays on through the dwell after segment `i` (it sits between two lit
+/// moves).
+fn dwell_lit(job: &Job, i: usize) -> bool {
+    segment_laser(job, i).is_some() && segment_laser(job, i + 1).is_some()
+}
+
+/// Whether the beam is on at `t_local` after the start of segment `i`. Lit intervals are
+/// half-open, so the instant a lit run ends counts as off.
+fn lit_at(job: &Job, i: usize, t_local: f64) -> bool {
+    let Some(seg) = job.plan.segments().get(i) else {
+        return false;
+    };
+    if segment_laser(job, i).is_none() {
+        return false;
+    }
+    t_local < seg.motion_duration() || (dwell_lit(job, i) && t_local < seg.duration())
+}
+
+/// Rounds to 9 significant digits, so goldens do not change with the last bits of a platform's
+/// libm.
+fn round_sig(x: f64) -> f64 {
+    if !x.is_finite() || x == 0.0 {
+        return x;
+    }
+    let r: f64 = format!("{x:.8e}").parse().unwrap_or(x);
+    if r == 0.0 { 0.0 } else { r }
+}
+
+/// A number with at most 6 decimals, trailing zeros trimmed, never `-0`.
+fn fixed6(x: f64) -> String {
+    let mut s = format!("{x:.6}");
+    if s.contains('.') {
+        let t = s.trim_end_matches('0').trim_end_matches('.').len();
+        s.truncate(t);
+    }
+    if s == "-0" { "0".to_string() } else { s }
+}

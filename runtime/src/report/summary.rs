@@ -1,0 +1,120 @@
+//! The plan summary: cycle time, lengths, laser time, pulse count and the peak axis speed,
+//! acceleration and jerk, computed exactly from the plan's segments.
+
+use super::pulses::sections;
+use super::{dwell_lit, round_sig, segment_is_rapid, segment_laser};
+use crate::machine::AxisKind;
+use crate::motion::Job;
+use crate::program::Ramp;
+use serde::Serialize;
+use std::collections::BTreeMap;
+
+/// What a job does, in numbers. Serialized in this field order; numbers are rounded to 9
+/// significant digits so goldens are stable across platforms.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Summary {
+    pub recipe: String,
+    pub machine: String,
+    pub ramp: Ramp,
+    /// Job time including the standstill before the first move, s.
+    pub cycle_time_s: f64,
+    /// All motion, rapids included (the plan's path length), mm.
+    pub path_length_mm: f64,
+    pub rapid_length_mm: f64,
+    pub laser_on_length_mm: f64,
+    /// Beam-on time: lit motion plus dwells between lit moves, s.
+    pub laser_on_time_s: f64,
+    pub pulses: u64,
+    /// Moves handed to the planner (arcs count once per chord).
+    pub blocks: usize,
+    /// Ops of the process program.
+    pub ops: usize,
+    /// Peaks reached per machine axis, by axis name.
+    pub axes: BTreeMap<String, AxisPeaks>,
+}
+
+/// Peak magnitudes one axis reaches, in mm (deg for a rotary axis) per s, s², s³.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AxisPeaks {
+    pub v_max: f64,
+    pub a_max: f64,
+    /// `None` (JSON `null`) for trapezoid ramps: their acceleration steps, so jerk is
+    /// unbounded (a Dirac at every phase change).
+    pub j_max: Option<f64>,
+}
+
+/// Summarizes a planned job.
+///
+/// Axis peaks: along a straight move `q(s) = q0 + u·s`, so every axis quantity is `|u_k|`
+/// times the path quantity, and the path peaks of a segment are its `v_peak`, its ramp
+/// accelerations and, for an S-curve, the jerk `a_p / t_j` of its jerk phases. Speed jumps at
+/// junctions (the corner model) are not counted as acceleration.
+pub fn summarize(job: &Job) -> Summary {
+    let plan = &job.plan;
+    let machine = &job.program.machine;
+    let segs = plan.segments();
+    let scurve = job.program.planner.ramp == Ramp::Scurve;
+    let n_axes = machine.axes.len();
+    let mut v = vec![0.0f64; n_axes];
+    let mut a = vec![0.0f64; n_axes];
+    let mut j = vec![0.0f64; n_axes];
+    let (mut rapid, mut lit_len, mut lit_time) = (0.0, 0.0, 0.0);
+    for (i, seg) in segs.iter().enumerate() {
+        if segment_is_rapid(job, i) {
+            rapid += seg.length;
+        }
+        if segment_laser(job, i).is_some() {
+            lit_len += seg.length;
+            lit_time += seg.motion_duration();
+            if dwell_lit(job, i) {
+                lit_time += seg.dwell;
+            }
+        }
+        let u = plan.direction(i);
+        let acc = seg.accel_peak().max(seg.decel_peak());
+        let jerk = {
+            let up = if seg.t_j1 > 0.0 { seg.accel_peak() / seg.t_j1 } else { 0.0 };
+            let down = if seg.t_j2 > 0.0 { seg.decel_peak() / seg.t_j2 } else { 0.0 };
+            up.max(down)
+        };
+        for k in 0..n_axes {
+            let uk = u[k].abs();
+            v[k] = v[k].max(uk * seg.v_peak);
+            a[k] = a[k].max(uk * acc);
+            j[k] = j[k].max(uk * jerk);
+        }
+    }
+    let axes = machine
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(k, axis)| {
+            let unit = match axis.kind {
+                AxisKind::Linear => 1.0,
+                AxisKind::Rotary => 1f64.to_degrees(),
+            };
+            (
+                axis.name.clone(),
+                AxisPeaks {
+                    v_max: round_sig(v[k] * unit),
+                    a_max: round_sig(a[k] * unit),
+                    j_max: scurve.then(|| round_sig(j[k] * unit)),
+                },
+            )
+        })
+        .collect();
+    Summary {
+        recipe: job.program.recipe.clone(),
+        machine: machine.name.clone(),
+        ramp: job.program.planner.ramp,
+        cycle_time_s: round_sig(job.cycle_time()),
+        path_length_mm: round_sig(plan.length()),
+        rapid_length_mm: round_sig(rapid),
+        laser_on_length_mm: round_sig(lit_len),
+        laser_on_time_s: round_sig(lit_time),
+        pulses: sections(job).iter().map(|s| s.count()).sum(),
+        blocks: job.moves.len(),
+        ops: job.program.ops.len(),
+        axes,
+    }
+}

@@ -1,0 +1,98 @@
+//! Golden tests: every example recipe's NC program in each dialect and its plan summary are
+//! pinned under tests/golden/. `UPDATE_GOLDEN=1 cargo test` rewrites them.
+//!
+//! Goldens pin behaviour; the physical tests in `physics.rs` prove it right.
+
+mod common;
+
+use common::*;
+
+#[test]
+fn examples_match_their_goldens() {
+    let examples = lase_files(&root().join("examples"));
+    assert!(examples.len() >= 3, "examples/ holds the example recipes");
+    for ex in examples {
+        let rel = ex.strip_prefix(root()).unwrap().to_string_lossy().into_owned();
+        let stem = ex.file_stem().unwrap().to_string_lossy().into_owned();
+        for dialect in ["linuxcnc", "grbl", "iso"] {
+            let (code, out, err) = lase(&["emit", &rel, "--dialect", dialect]);
+            let ext = match dialect {
+                "linuxcnc" => "ngc",
+                _ => "nc",
+            };
+            assert_eq!(code, 0, "lase emit {rel} --dialect {dialect} failed:\n{err}");
+            golden(&root().join(format!("tests/golden/{stem}.{dialect}.{ext}")), &out);
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let summary = dir.path().join("summary.json");
+        let (code, _, err) = lase(&["plan", &rel, "--summary", summary.to_str().unwrap()]);
+        assert_eq!(code, 0, "lase plan {rel} failed:\n{err}");
+        let text = std::fs::read_to_string(&summary).unwrap();
+        golden(&root().join(format!("tests/golden/{stem}.summary.json")), &text);
+    }
+}
+
+/// LinuxCNC's own interpreter accepts every example's LinuxCNC program. `rs274` comes with
+/// Debian's linuxcnc-uspace, which `.ci/run` installs; without it (outside CI) the test says so
+/// and checks nothing.
+#[test]
+fn linuxcnc_interpreter_accepts_every_example() {
+    let rs274 = std::process::Command::new("rs274").arg("-h").output();
+    if rs274.is_err() {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "rs274 (linuxcnc-uspace) must be installed in CI"
+        );
+        eprintln!("rs274 not found: skipping the LinuxCNC interpreter check");
+        return;
+    }
+    for ex in lase_files(&root().join("examples")) {
+        let rel = ex.strip_prefix(root()).unwrap().to_string_lossy().into_owned();
+        let dir = tempfile::tempdir().unwrap();
+        let ngc = dir.path().join("job.ngc");
+        let (code, _, err) = lase(&["emit", &rel, "-o", ngc.to_str().unwrap()]);
+        assert_eq!(code, 0, "{err}");
+        let out = std::process::Command::new("rs274")
+            .arg("-g")
+            .arg(&ngc)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success() && !text.contains("Unknown") && !text.contains("error"),
+            "rs274 rejected {rel}:\n{text}\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        // The interpreter ran the whole program.
+        assert!(text.contains("PROGRAM_END"), "rs274 did not reach the end of {rel}:\n{text}");
+    }
+}
+
+/// GRBL accepts a small, fixed word set: only those words, and lines of at most 80 characters
+/// (GRBL's line buffer). Mirrors grbl's gcode.c.
+#[test]
+fn grbl_programs_use_only_words_grbl_knows() {
+    for ex in lase_files(&root().join("examples")) {
+        let rel = ex.strip_prefix(root()).unwrap().to_string_lossy().into_owned();
+        let (code, out, err) = lase(&["emit", &rel, "--dialect", "grbl"]);
+        assert_eq!(code, 0, "{err}");
+        for line in out.lines() {
+            assert!(line.len() <= 80, "{rel}: line longer than GRBL's buffer: {line}");
+            for (c, v) in nc_words(line) {
+                match c {
+                    'G' => assert!(
+                        [0.0, 1.0, 2.0, 3.0, 4.0, 17.0, 18.0, 19.0, 20.0, 21.0, 90.0, 91.0, 93.0, 94.0]
+                            .contains(&v),
+                        "{rel}: GRBL does not know G{v}: {line}"
+                    ),
+                    'M' => assert!(
+                        [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 7.0, 8.0, 9.0, 30.0].contains(&v),
+                        "{rel}: GRBL does not know M{v}: {line}"
+                    ),
+                    'X' | 'Y' | 'Z' | 'F' | 'S' | 'I' | 'J' | 'K' | 'P' | 'N' => {}
+                    other => panic!("{rel}: GRBL does not know the word {other}: {line}"),
+                }
+            }
+        }
+    }
+}

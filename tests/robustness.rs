@@ -1,0 +1,121 @@
+//! No input, however malformed, makes lase panic: random text and mutated example recipes
+//! go through parse, check, evaluation and planning, and each phase either succeeds or
+//! returns diagnostics.
+
+mod common;
+
+use lase_lang::{Loader, SourceMap};
+use lase_runtime::eval::{Evaluator, StdlibOnly};
+use proptest::prelude::*;
+
+struct NoFiles;
+impl Loader for NoFiles {
+    fn load(&mut self, _: &str, path: &str) -> Result<(String, String), String> {
+        Err(format!("no file {path}"))
+    }
+}
+
+/// Runs every phase; returns how far it got (for the corpus test's own sanity).
+fn pipeline(text: &str) -> usize {
+    let mut map = SourceMap::new();
+    let id = map.add("fuzz.lase", text);
+    let (program, perr) = lase_lang::load(&mut map, id, &mut NoFiles);
+    if !perr.is_empty() {
+        // Every diagnostic's span lies inside the source map.
+        for e in &perr {
+            assert!(map.file_of(e.span().start as usize).is_some() || e.span().start as usize == text.len());
+        }
+        return 0;
+    }
+    let cerr = lase_lang::check_program(&program);
+    if !cerr.is_empty() {
+        return 1;
+    }
+    let mut ev = Evaluator::new();
+    let stmts = program.modules[0].stmts.clone();
+    if ev.run(&stmts, &program, &mut map, &mut StdlibOnly).is_err() {
+        return 2;
+    }
+    let Ok(p) = ev.program("fuzz", Default::default()) else { return 2 };
+    let Ok(job) = lase_runtime::motion::plan_program(p) else { return 3 };
+    let _ = lase_runtime::emit::emit_to_string(&job, lase_runtime::emit::Dialect::LinuxCnc);
+    let _ = lase_runtime::report::summarize(&job);
+    4
+}
+
+fn corpus() -> Vec<String> {
+    let mut v: Vec<String> = common::lase_files(&common::root().join("examples"))
+        .into_iter()
+        .chain(common::lase_files(&common::root().join("tests/ok")))
+        .map(|p| std::fs::read_to_string(p).unwrap())
+        .collect();
+    v.push("machine xy_table\nlaser { power 5 W }\nfollow profile circle(center: (1 mm, 2 mm), radius: 3 mm) at 9 mm/s".into());
+    v
+}
+
+#[test]
+fn the_unmutated_corpus_runs_all_the_way() {
+    for (i, src) in corpus().iter().enumerate() {
+        // imports.lase needs files; everything else plans and emits.
+        if src.contains("import") {
+            continue;
+        }
+        assert_eq!(pipeline(src), 4, "corpus entry {i} did not get through:\n{src}");
+    }
+}
+
+const TOKENS: &[&str] = &[
+    "(", ")", "[", "]", "{", "}", ",", ";", ":", "..", "=", "==", "+", "-", "*", "/", "%", "mm",
+    "mm/s", "deg", "0", "1", "-1", "1e308", "\"", "let", "fn", "for", "in", "if", "else",
+    "follow", "move", "to", "rapid", "at", "profile", "circle", "offset", "laser", "pulse",
+    "limits", "machine", "xy_table", "return", "\n", " ", "µ", "°", "1e-300",
+];
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 256, .. ProptestConfig::default() })]
+
+    #[test]
+    fn random_text_never_panics(s in "\\PC{0,120}") {
+        pipeline(&s);
+    }
+
+    #[test]
+    fn random_token_soup_never_panics(toks in proptest::collection::vec(0..TOKENS.len(), 0..60)) {
+        let s: Vec<&str> = toks.iter().map(|&i| TOKENS[i]).collect();
+        pipeline(&s.join(" "));
+    }
+
+    #[test]
+    fn mutated_recipes_never_panic(
+        which in 0usize..16,
+        edits in proptest::collection::vec((any::<prop::sample::Index>(), 0usize..3, 0..TOKENS.len()), 1..5),
+    ) {
+        let corpus = corpus();
+        let mut src = corpus[which % corpus.len()].clone();
+        for (at, kind, tok) in edits {
+            let len = src.len();
+            let mut pos = at.index(len + 1);
+            while !src.is_char_boundary(pos) {
+                pos -= 1;
+            }
+            match kind {
+                0 => src.insert_str(pos, TOKENS[tok]),
+                1 => {
+                    let mut end = (pos + 1 + tok % 8).min(len);
+                    while !src.is_char_boundary(end) {
+                        end += 1;
+                    }
+                    src.replace_range(pos..end, "");
+                }
+                _ => {
+                    let mut end = (pos + 3).min(len);
+                    while !src.is_char_boundary(end) {
+                        end += 1;
+                    }
+                    src.replace_range(pos..end, TOKENS[tok]);
+                }
+            }
+        }
+        pipeline(&src);
+    }
+}
