@@ -83,7 +83,10 @@ struct Builder {
 impl Builder {
     fn span(&self, p: &P) -> Span {
         let s = p.as_span();
-        Span::new(self.base + s.start(), self.base + s.end())
+        // pest's optional tails may have skipped trailing blanks and comments, which a label
+        // should not underline.
+        let len = trimmed_len(p.as_str());
+        Span::new(self.base + s.start(), self.base + s.start() + len)
     }
 
     fn ident(&self, p: P) -> Ident {
@@ -494,6 +497,38 @@ impl Builder {
     }
 }
 
+/// The length of `text` without trailing white space and comments.
+fn trimmed_len(text: &str) -> usize {
+    let mut t = text;
+    loop {
+        let before = t.len();
+        t = t.trim_end();
+        if t.ends_with("*/")
+            && let Some(open) = t.rfind("/*")
+        {
+            t = &t[..open];
+        }
+        let line_start = t.rfind('\n').map_or(0, |i| i + 1);
+        let mut in_str = false;
+        let bytes = t.as_bytes();
+        let mut i = line_start;
+        while i < bytes.len() {
+            match bytes[i] {
+                b'"' => in_str = !in_str,
+                b'/' if !in_str && bytes.get(i + 1) == Some(&b'/') => {
+                    t = &t[..i];
+                    break;
+                }
+                _ => {}
+            }
+            i += 1;
+        }
+        if t.len() == before {
+            return t.len();
+        }
+    }
+}
+
 fn parse_number(s: &str) -> f64 {
     // The grammar admits only valid float syntax; an absurd exponent parses to infinity, which
     // the checker reports.
@@ -631,7 +666,7 @@ fn syntax_error(e: pest::error::Error<Rule>, text: &str, base: usize) -> ParseEr
     } else {
         text[start..]
             .char_indices()
-            .find(|(_, c)| c.is_whitespace() || "()[]{},;".contains(*c))
+            .find(|(_, c)| c.is_whitespace() || "()[]{},;:".contains(*c))
             .map(|(i, _)| start + i.max(text[start..].chars().next().map_or(0, char::len_utf8)))
             .unwrap_or(text.len())
     };

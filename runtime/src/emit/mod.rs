@@ -135,11 +135,15 @@ pub struct EmitStats {
 /// Valid NC that needs attention on the machine.
 #[derive(Debug, Clone, PartialEq, thiserror::Error, miette::Diagnostic)]
 pub enum EmitWarning {
-    #[error("M{code} is a user M-code: LinuxCNC runs the file `M{code}` from its program directory")]
+    #[error(
+        "M{code} is a user M-code: LinuxCNC runs the file `M{code}` from its program directory"
+    )]
     #[diagnostic(
         code(lase::emit::user_mcode),
         severity(Warning),
-        help("make sure the file M{code} exists and is executable in the machine's [DISPLAY]PROGRAM_PREFIX or [RS274NGC]USER_M_PATH")
+        help(
+            "make sure the file M{code} exists and is executable in the machine's [DISPLAY]PROGRAM_PREFIX or [RS274NGC]USER_M_PATH"
+        )
     )]
     UserMCode {
         code: u32,

@@ -109,16 +109,19 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
     let machine = &program.machine;
     let ops = &program.ops;
     let first_span = ops.first().map(|o| o.span).unwrap_or_default();
-    let post = machine.post.get(dialect.name()).ok_or_else(|| EmitError::NoPost {
-        machine: machine.name.clone(),
-        dialect,
-        span: first_span,
-        help: format!(
-            "the machine has posts for: {}; add a [post.{dialect}] section (laser_on, \
+    let post = machine
+        .post
+        .get(dialect.name())
+        .ok_or_else(|| EmitError::NoPost {
+            machine: machine.name.clone(),
+            dialect,
+            span: first_span,
+            help: format!(
+                "the machine has posts for: {}; add a [post.{dialect}] section (laser_on, \
              laser_off, power) to its file",
-            names(machine.post.keys())
-        ),
-    })?;
+                names(machine.post.keys())
+            ),
+        })?;
     if dialect == Dialect::Grbl {
         check_grbl_axes(machine, first_span)?;
     }
@@ -154,7 +157,11 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
 
 fn names<'a>(it: impl Iterator<Item = &'a String>) -> String {
     let v: Vec<&str> = it.map(String::as_str).collect();
-    if v.is_empty() { "none".into() } else { v.join(", ") }
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join(", ")
+    }
 }
 
 fn check_grbl_axes(machine: &Machine, span: Span) -> Result<(), EmitError> {
@@ -164,7 +171,11 @@ fn check_grbl_axes(machine: &Machine, span: Span) -> Result<(), EmitError> {
                 message: format!(
                     "GRBL drives X, Y and Z only; machine `{}` has {} axis {}",
                     machine.name,
-                    if a.kind == AxisKind::Rotary { "rotary" } else { "linear" },
+                    if a.kind == AxisKind::Rotary {
+                        "rotary"
+                    } else {
+                        "linear"
+                    },
                     a.name
                 ),
                 dialect: Dialect::Grbl,

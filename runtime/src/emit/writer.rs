@@ -32,7 +32,11 @@ impl Out<'_> {
     /// Writes one block, numbered in ISO.
     fn put(&mut self, text: &str, op: Option<u32>) -> io::Result<()> {
         let text = if self.dialect == Dialect::Iso {
-            self.block = if self.block >= BLOCK_WRAP { BLOCK_STEP } else { self.block + BLOCK_STEP };
+            self.block = if self.block >= BLOCK_WRAP {
+                BLOCK_STEP
+            } else {
+                self.block + BLOCK_STEP
+            };
             format!("N{} {text}", self.block)
         } else {
             text.to_string()
@@ -172,7 +176,9 @@ pub(super) fn write(
                         }
                         m.laser_on = true;
                         m.power_w = laser.power_w;
-                    } else if (laser.power_w - m.power_w).abs() > 1e-9 * laser.power_w.abs().max(1.0) {
+                    } else if (laser.power_w - m.power_w).abs()
+                        > 1e-9 * laser.power_w.abs().max(1.0)
+                    {
                         for t in &post.power {
                             out.put(&format::fill(t, words(laser.power_w)), tag)?;
                         }
@@ -199,7 +205,11 @@ pub(super) fn write(
         .iter()
         .map(|t| {
             let line = format::fill(t, words(0.0));
-            if dialect == Dialect::LinuxCnc { immediate(&line) } else { line }
+            if dialect == Dialect::LinuxCnc {
+                immediate(&line)
+            } else {
+                line
+            }
         })
         .collect();
     let already_off = out.after_off
@@ -279,9 +289,7 @@ fn motion_line(
         _ => unreachable!("motion_line is called for motion ops only"),
     };
     // Validated reachable by planning; keep the last position if a hand-built job is not.
-    let q = kin
-        .inverse(&ToolPose::down(to), Some(&m.q))
-        .unwrap_or(m.q);
+    let q = kin.inverse(&ToolPose::down(to), Some(&m.q)).unwrap_or(m.q);
     let mut parts: Vec<String> = Vec::with_capacity(MAX_AXES + 3);
     if m.motion != Some(g) {
         parts.push(g.to_string());

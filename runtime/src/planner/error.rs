@@ -3,7 +3,7 @@
 //! The planner validates the whole program before it computes any timing, so a job never
 //! starts with a move it could not execute (CONVENTIONS.md, "Validate the whole recipe before
 //! anything moves"). Each variant carries a stable `lase::plan::*` code and a help line.
-//! Indices are positions in the `moves` slice handed to [`super::plan`].
+//! Indices are positions in the `moves` slice handed to [`plan`](fn@super::plan).
 
 use miette::Diagnostic;
 use thiserror::Error;

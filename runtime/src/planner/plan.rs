@@ -153,7 +153,7 @@ pub struct Sample {
     pub dwelling: bool,
 }
 
-/// A timed motion program. Built by [`super::plan`].
+/// A timed motion program. Built by [`plan`](fn@super::plan).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
     pub(crate) segments: Vec<Segment>,

@@ -59,7 +59,10 @@ struct Pt {
 pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
     let machine = &job.program.machine;
     let kin = kinematics::for_machine(machine);
-    let has_y = machine.axes.iter().any(|a| a.part_axis.as_deref() == Some("y"))
+    let has_y = machine
+        .axes
+        .iter()
+        .any(|a| a.part_axis.as_deref() == Some("y"))
         || machine.axes.iter().all(|a| a.part_axis.is_none());
     let plane_w = if has_y { 1 } else { 2 };
     let plan = &job.plan;
@@ -95,7 +98,11 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
         let spare = (MAX_POINTS - segs.len() * 2) as f64;
         for (i, seg) in segs.iter().enumerate() {
             let motion = seg.motion_duration();
-            let share = if motion_total > 0.0 { motion / motion_total } else { 0.0 };
+            let share = if motion_total > 0.0 {
+                motion / motion_total
+            } else {
+                0.0
+            };
             let n = ((spare * share) as usize).min(MAX_PER_SEGMENT);
             for k in 0..=n + 1 {
                 pts.push(point(i, motion * k as f64 / (n + 1) as f64));
@@ -112,7 +119,11 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
         }
     }
 
-    let lit_v: Vec<f64> = pts.iter().filter(|p| p.kind == Kind::Lit).map(|p| p.v).collect();
+    let lit_v: Vec<f64> = pts
+        .iter()
+        .filter(|p| p.kind == Kind::Lit)
+        .map(|p| p.v)
+        .collect();
     let v_lo = lit_v.iter().copied().fold(f64::INFINITY, f64::min);
     let v_hi = lit_v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let v_max = pts.iter().map(|p| p.v).fold(0.0, f64::max);
@@ -170,16 +181,28 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
         let y = py(v);
         tick_y(s, y, LEFT, PLOT_W, &num(v))?;
     }
-    axis_label_x(s, LEFT + PLOT_W / 2.0, TOP + path_h + 32.0, &format!("{hn} [mm]"))?;
+    axis_label_x(
+        s,
+        LEFT + PLOT_W / 2.0,
+        TOP + path_h + 32.0,
+        &format!("{hn} [mm]"),
+    )?;
     axis_label_y(s, LEFT - 48.0, TOP + path_h / 2.0, &format!("{wn} [mm]"))?;
 
     // Toolpath pieces, merged into polylines of one style.
-    writeln!(s, r#"<g fill="none" stroke-linecap="round" stroke-linejoin="round">"#)?;
+    writeln!(
+        s,
+        r#"<g fill="none" stroke-linecap="round" stroke-linejoin="round">"#
+    )?;
     let style = |a: &Pt, b: &Pt| match b.kind {
         Kind::Rapid => format!(r#"stroke="{RAPID_COLOR}" stroke-width="1" stroke-dasharray="4 3""#),
         Kind::Feed => format!(r#"stroke="{FEED_COLOR}" stroke-width="1.3""#),
         Kind::Lit => {
-            let f = if v_hi > v_lo { (0.5 * (a.v + b.v) - v_lo) / (v_hi - v_lo) } else { 1.0 };
+            let f = if v_hi > v_lo {
+                (0.5 * (a.v + b.v) - v_lo) / (v_hi - v_lo)
+            } else {
+                1.0
+            };
             let bin = (f.clamp(0.0, 1.0) * (BINS - 1) as f64).round() / (BINS - 1) as f64;
             format!(r#"stroke="{}" stroke-width="1.8""#, ramp(bin))
         }
@@ -219,11 +242,26 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
     let lx = LEFT + PLOT_W + 16.0;
     let mut ly = TOP + 6.0;
     for (label, st) in [
-        ("rapid", format!(r#"stroke="{RAPID_COLOR}" stroke-dasharray="4 3""#)),
-        ("feed, laser off", format!(r#"stroke="{FEED_COLOR}" stroke-width="1.3""#)),
+        (
+            "rapid",
+            format!(r#"stroke="{RAPID_COLOR}" stroke-dasharray="4 3""#),
+        ),
+        (
+            "feed, laser off",
+            format!(r#"stroke="{FEED_COLOR}" stroke-width="1.3""#),
+        ),
     ] {
-        writeln!(s, r#"<line x1="{lx}" y1="{ly}" x2="{}" y2="{ly}" {st}/>"#, lx + 22.0)?;
-        writeln!(s, r#"<text x="{}" y="{}">{label}</text>"#, lx + 26.0, ly + 4.0)?;
+        writeln!(
+            s,
+            r#"<line x1="{lx}" y1="{ly}" x2="{}" y2="{ly}" {st}/>"#,
+            lx + 22.0
+        )?;
+        writeln!(
+            s,
+            r#"<text x="{}" y="{}">{label}</text>"#,
+            lx + 26.0,
+            ly + 4.0
+        )?;
         ly += 16.0;
     }
     if !lit_v.is_empty() {
@@ -245,8 +283,20 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
             s,
             r##"<rect x="{lx}" y="{bar_top}" width="{bar_w}" height="{bar_h}" fill="none" stroke="#444" stroke-width="0.6"/>"##
         )?;
-        writeln!(s, r#"<text x="{}" y="{}">{}</text>"#, lx + bar_w + 4.0, bar_top + 4.0, num(v_hi))?;
-        writeln!(s, r#"<text x="{}" y="{}">{}</text>"#, lx + bar_w + 4.0, bar_top + bar_h + 4.0, num(v_lo))?;
+        writeln!(
+            s,
+            r#"<text x="{}" y="{}">{}</text>"#,
+            lx + bar_w + 4.0,
+            bar_top + 4.0,
+            num(v_hi)
+        )?;
+        writeln!(
+            s,
+            r#"<text x="{}" y="{}">{}</text>"#,
+            lx + bar_w + 4.0,
+            bar_top + bar_h + 4.0,
+            num(v_lo)
+        )?;
     }
 
     // Speed panel: laser-on shading first, then frame, ticks and the speed curve.
@@ -257,7 +307,11 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
             continue;
         }
         let a = t0 + seg.t_start;
-        let b = a + if dwell_lit(job, i) { seg.duration() } else { seg.motion_duration() };
+        let b = a + if dwell_lit(job, i) {
+            seg.duration()
+        } else {
+            seg.motion_duration()
+        };
         match lit.last_mut() {
             Some(last) if a - last.1 <= min_gap => last.1 = b,
             _ => lit.push((a, b)),
@@ -285,17 +339,42 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
         curve.push((sx(t0), sy(0.0)));
     }
     curve.extend(pts.iter().map(|p| (sx(p.t), sy(p.v))));
-    polyline(s, r##"fill="none" stroke="#222" stroke-width="1.2""##, &curve)?;
+    polyline(
+        s,
+        r##"fill="none" stroke="#222" stroke-width="1.2""##,
+        &curve,
+    )?;
     let ly = speed_top + 8.0;
     writeln!(
         s,
         r##"<rect x="{lx}" y="{ly}" width="22" height="10" fill="#f9a825" fill-opacity="0.35"/>"##
     )?;
-    writeln!(s, r#"<text x="{}" y="{}">laser on</text>"#, lx + 26.0, ly + 9.0)?;
-    writeln!(s, r##"<line x1="{lx}" y1="{}" x2="{}" y2="{}" stroke="#222" stroke-width="1.2"/>"##, ly + 24.0, lx + 22.0, ly + 24.0)?;
-    writeln!(s, r#"<text x="{}" y="{}">path speed</text>"#, lx + 26.0, ly + 28.0)?;
+    writeln!(
+        s,
+        r#"<text x="{}" y="{}">laser on</text>"#,
+        lx + 26.0,
+        ly + 9.0
+    )?;
+    writeln!(
+        s,
+        r##"<line x1="{lx}" y1="{}" x2="{}" y2="{}" stroke="#222" stroke-width="1.2"/>"##,
+        ly + 24.0,
+        lx + 22.0,
+        ly + 24.0
+    )?;
+    writeln!(
+        s,
+        r#"<text x="{}" y="{}">path speed</text>"#,
+        lx + 26.0,
+        ly + 28.0
+    )?;
     if segs.is_empty() {
-        writeln!(s, r#"<text x="{}" y="{}" text-anchor="middle">no motion</text>"#, LEFT + PLOT_W / 2.0, TOP + path_h / 2.0)?;
+        writeln!(
+            s,
+            r#"<text x="{}" y="{}" text-anchor="middle">no motion</text>"#,
+            LEFT + PLOT_W / 2.0,
+            TOP + path_h / 2.0
+        )?;
     }
     writeln!(s, "</svg>")?;
     Ok(svg)
@@ -330,7 +409,10 @@ fn tick_y(s: &mut String, y: f64, left: f64, w: f64, label: &str) -> fmt::Result
 }
 
 fn axis_label_x(s: &mut String, x: f64, y: f64, text: &str) -> fmt::Result {
-    writeln!(s, r#"<text x="{x:.2}" y="{y:.2}" text-anchor="middle">{text}</text>"#)
+    writeln!(
+        s,
+        r#"<text x="{x:.2}" y="{y:.2}" text-anchor="middle">{text}</text>"#
+    )
 }
 
 fn axis_label_y(s: &mut String, x: f64, y: f64, text: &str) -> fmt::Result {
@@ -393,7 +475,12 @@ fn ramp(f: f64) -> String {
     let u = f - i as f64;
     let mix = |a: u8, b: u8| (a as f64 + (b as f64 - a as f64) * u).round() as u8;
     let (a, b) = (RAMP[i], RAMP[i + 1]);
-    format!("#{:02x}{:02x}{:02x}", mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+    format!(
+        "#{:02x}{:02x}{:02x}",
+        mix(a.0, b.0),
+        mix(a.1, b.1),
+        mix(a.2, b.2)
+    )
 }
 
 fn xml(text: &str) -> String {

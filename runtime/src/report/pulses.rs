@@ -58,14 +58,14 @@ pub(super) fn sections(job: &Job) -> Vec<Section> {
     let mut out = Vec::new();
     let mut i = 0;
     while i < segs.len() {
-        let Some(Pulse { mode, .. }) = segment_laser(job, i).and_then(|l| l.pulse.as_ref())
-        else {
+        let Some(Pulse { mode, .. }) = segment_laser(job, i).and_then(|l| l.pulse.as_ref()) else {
             i += 1;
             continue;
         };
         let pulse = segment_laser(job, i).and_then(|l| l.pulse.as_ref());
         let mut last = i;
-        while dwell_lit(job, last) && segment_laser(job, last + 1).and_then(|l| l.pulse.as_ref()) == pulse
+        while dwell_lit(job, last)
+            && segment_laser(job, last + 1).and_then(|l| l.pulse.as_ref()) == pulse
         {
             last += 1;
         }

@@ -73,8 +73,16 @@ pub fn summarize(job: &Job) -> Summary {
         let u = plan.direction(i);
         let acc = seg.accel_peak().max(seg.decel_peak());
         let jerk = {
-            let up = if seg.t_j1 > 0.0 { seg.accel_peak() / seg.t_j1 } else { 0.0 };
-            let down = if seg.t_j2 > 0.0 { seg.decel_peak() / seg.t_j2 } else { 0.0 };
+            let up = if seg.t_j1 > 0.0 {
+                seg.accel_peak() / seg.t_j1
+            } else {
+                0.0
+            };
+            let down = if seg.t_j2 > 0.0 {
+                seg.decel_peak() / seg.t_j2
+            } else {
+                0.0
+            };
             up.max(down)
         };
         for k in 0..n_axes {

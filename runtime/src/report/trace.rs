@@ -39,7 +39,11 @@ pub fn write_trace(job: &Job, period_s: f64, out: &mut dyn Write) -> io::Result<
     let mut pulses = pulse_events(job).peekable();
     let mut fired: u64 = 0;
     for k in 0..rows {
-        let t = if k > n { total } else { (k as f64 * period_s).min(total) };
+        let t = if k > n {
+            total
+        } else {
+            (k as f64 * period_s).min(total)
+        };
         let t_plan = t - job.initial_dwell_s;
         let sample = job.plan.sample(t_plan.max(0.0));
         let lit = t_plan >= 0.0
