@@ -105,13 +105,22 @@ pub fn load(path: &Path) -> Result<Recipe, (SourceMap, Failure)> {
     let main = map.add(path.to_string_lossy(), text);
     let (program, errors) = lase_lang::load(&mut map, main, &mut FsLoader);
     if !errors.is_empty() {
-        return Err((map, Failure { diagnostics: boxed(errors) }));
+        return Err((
+            map,
+            Failure {
+                diagnostics: boxed(errors),
+            },
+        ));
     }
     Ok(Recipe { map, main, program })
 }
 
-fn boxed<E: Diagnostic + Send + Sync + 'static>(v: Vec<E>) -> Vec<Box<dyn Diagnostic + Send + Sync>> {
-    v.into_iter().map(|e| Box::new(e) as Box<dyn Diagnostic + Send + Sync>).collect()
+fn boxed<E: Diagnostic + Send + Sync + 'static>(
+    v: Vec<E>,
+) -> Vec<Box<dyn Diagnostic + Send + Sync>> {
+    v.into_iter()
+        .map(|e| Box::new(e) as Box<dyn Diagnostic + Send + Sync>)
+        .collect()
 }
 
 /// Checks a loaded recipe.
@@ -120,7 +129,9 @@ pub fn check(recipe: &Recipe) -> Result<(), Failure> {
     if errors.is_empty() {
         Ok(())
     } else {
-        Err(Failure { diagnostics: boxed(errors) })
+        Err(Failure {
+            diagnostics: boxed(errors),
+        })
     }
 }
 
@@ -239,9 +250,13 @@ impl Diagnostic for WithSource<'_> {
 
 /// Parse errors of the REPL and of files, as one list.
 pub fn parse_failure(errors: Vec<ParseError>) -> Failure {
-    Failure { diagnostics: boxed(errors) }
+    Failure {
+        diagnostics: boxed(errors),
+    }
 }
 
 pub fn check_failure(errors: Vec<CheckError>) -> Failure {
-    Failure { diagnostics: boxed(errors) }
+    Failure {
+        diagnostics: boxed(errors),
+    }
 }

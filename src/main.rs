@@ -17,7 +17,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, Parser)]
-#[command(name = "lase", version, about = "A recipe language for laser processing machines")]
+#[command(
+    name = "lase",
+    version,
+    about = "A recipe language for laser processing machines"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -136,10 +140,7 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
     let dialect = parse_dialect(dialect)?;
     let (recipe, job) = driver::compile(file)?;
     let locate = |s: lase_lang::Span| recipe.locate(s);
-    let options = EmitOptions {
-        locate: Some(&locate),
-        comments: true,
-    };
+    let options = emit_options(&locate);
     let write = |w: &mut dyn Write| -> Result<(), (SourceMap, Failure)> {
         let mut io_err = None;
         let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
@@ -169,8 +170,20 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
     }
 }
 
+/// The options of every NC text lase produces, so `emit` and `run` send identical lines.
+fn emit_options(locate: &dyn Fn(lase_lang::Span) -> String) -> EmitOptions<'_> {
+    EmitOptions {
+        locate: Some(locate),
+        comments: true,
+    }
+}
+
 fn parse_period(p: &str) -> Result<f64, (SourceMap, Failure)> {
-    let bad = || io_fail(format!("bad --period `{p}`: give a time with a unit, e.g. 1ms or 0.5ms"));
+    let bad = || {
+        io_fail(format!(
+            "bad --period `{p}`: give a time with a unit, e.g. 1ms or 0.5ms"
+        ))
+    };
     let split = p
         .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
         .ok_or_else(bad)?;
@@ -189,8 +202,7 @@ fn cmd_plan(file: &Path, summary: Option<&Path>, trace: Option<&Path>, period: &
     let s = lase_runtime::report::summarize(&job);
     if let Some(path) = summary {
         output::write_atomic(path, |w| {
-            serde_json::to_writer_pretty(&mut *w, &s)
-                .map_err(|e| io_fail(e.to_string()))?;
+            serde_json::to_writer_pretty(&mut *w, &s).map_err(|e| io_fail(e.to_string()))?;
             writeln!(w).map_err(|e| io_fail(e.to_string()))
         })?;
     }
@@ -199,15 +211,35 @@ fn cmd_plan(file: &Path, summary: Option<&Path>, trace: Option<&Path>, period: &
             lase_runtime::report::write_trace(&job, period, w).map_err(|e| io_fail(e.to_string()))
         })?;
     }
-    println!("{} on `{}` ({:?} ramps)", recipe.name(), job.program.machine.name, job.program.planner.ramp);
+    println!(
+        "{} on `{}` ({:?} ramps)",
+        recipe.name(),
+        job.program.machine.name,
+        job.program.planner.ramp
+    );
     println!("  cycle time      {:.4} s", s.cycle_time_s);
-    println!("  path length     {:.4} mm ({:.4} mm rapid)", s.path_length_mm, s.rapid_length_mm);
-    println!("  laser on        {:.4} mm, {:.4} s", s.laser_on_length_mm, s.laser_on_time_s);
+    println!(
+        "  path length     {:.4} mm ({:.4} mm rapid)",
+        s.path_length_mm, s.rapid_length_mm
+    );
+    println!(
+        "  laser on        {:.4} mm, {:.4} s",
+        s.laser_on_length_mm, s.laser_on_time_s
+    );
     println!("  pulses          {}", s.pulses);
-    println!("  blocks          {} planned moves from {} ops", s.blocks, s.ops);
+    println!(
+        "  blocks          {} planned moves from {} ops",
+        s.blocks, s.ops
+    );
     for (axis, p) in &s.axes {
-        let j = p.j_max.map(|j| format!("{j:.1}")).unwrap_or_else(|| "unbounded (trapezoid)".into());
-        println!("  axis {axis:<3}  v {:.3}  a {:.3}  j {j}", p.v_max, p.a_max);
+        let j = p
+            .j_max
+            .map(|j| format!("{j:.1}"))
+            .unwrap_or_else(|| "unbounded (trapezoid)".into());
+        println!(
+            "  axis {axis:<3}  v {:.3}  a {:.3}  j {j}",
+            p.v_max, p.a_max
+        );
     }
     Ok(())
 }
@@ -217,7 +249,10 @@ fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
     let svg = lase_runtime::report::plot_svg(&job).map_err(|e| io_fail(e.to_string()))?;
     let default = file.with_extension("svg");
     let path = output.unwrap_or(&default);
-    output::write_atomic(path, |w| w.write_all(svg.as_bytes()).map_err(|e| io_fail(e.to_string())))?;
+    output::write_atomic(path, |w| {
+        w.write_all(svg.as_bytes())
+            .map_err(|e| io_fail(e.to_string()))
+    })?;
     println!("{}: wrote {}", recipe.name(), path.display());
     Ok(())
 }
@@ -225,10 +260,12 @@ fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
 fn cmd_run(file: &Path, link_url: Option<&str>, dialect: &str) -> CmdResult {
     let dialect = parse_dialect(dialect)?;
     let (recipe, job) = driver::compile(file)?;
-    let mut link = link::open(link_url, &job.program.machine).map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
+    let mut link = link::open(link_url, &job.program.machine)
+        .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
     // Emit the whole program first: nothing is sent unless all of it is valid.
     let mut lines: Vec<NcLine> = Vec::new();
-    lase_runtime::emit::emit(&job, dialect, &EmitOptions::default(), &mut |l: &NcLine| {
+    let locate = |s: lase_lang::Span| recipe.locate(s);
+    lase_runtime::emit::emit(&job, dialect, &emit_options(&locate), &mut |l: &NcLine| {
         lines.push(l.clone());
         Ok(())
     })
@@ -242,14 +279,16 @@ fn cmd_run(file: &Path, link_url: Option<&str>, dialect: &str) -> CmdResult {
         summary.cycle_time_s
     );
     for (i, l) in lines.iter().enumerate() {
-        match link.send(&l.text).map_err(|e| (recipe.map.clone(), Failure::one(e)))? {
+        match link
+            .send(&l.text)
+            .map_err(|e| (recipe.map.clone(), Failure::one(e)))?
+        {
             Reply::Ok => {}
             Reply::Error { code, message } => {
-                let span = l
-                    .op
-                    .and_then(|o| job.program.ops.get(o as usize))
-                    .map(|o| o.span)
-                    .unwrap_or_default();
+                let span =
+                    l.op.and_then(|o| job.program.ops.get(o as usize))
+                        .map(|o| o.span)
+                        .unwrap_or_default();
                 return Err((
                     recipe.map.clone(),
                     Failure::one(output::ControllerRejected {

@@ -86,7 +86,10 @@ impl Session {
                     self.report(&driver::check_failure(errs));
                     return false;
                 }
-                if let Err(e) = self.eval.run(&stmts, &self.program, &mut self.map, &mut FsLoader) {
+                if let Err(e) = self
+                    .eval
+                    .run(&stmts, &self.program, &mut self.map, &mut FsLoader)
+                {
                     self.report(&Failure::one(e));
                     return false;
                 }
@@ -99,7 +102,10 @@ impl Session {
                     self.report(&driver::check_failure(errs));
                     return false;
                 }
-                match self.eval.eval_expr(&e, &self.program, &mut self.map, &mut FsLoader) {
+                match self
+                    .eval
+                    .eval_expr(&e, &self.program, &mut self.map, &mut FsLoader)
+                {
                     Ok(v) => {
                         println!("{v}");
                         true
@@ -189,7 +195,9 @@ impl Session {
                     match lase_runtime::emit::emit_to_string(&job, Dialect::LinuxCnc) {
                         Ok(text) => {
                             for l in text.lines() {
-                                if let Ok(lase_runtime::link::Reply::Error { message, .. }) = link.send(l) {
+                                if let Ok(lase_runtime::link::Reply::Error { message, .. }) =
+                                    link.send(l)
+                                {
                                     eprintln!("error: controller rejected `{l}`: {message}");
                                     return true;
                                 }
@@ -252,7 +260,11 @@ fn run_piped(s: &mut Session) -> ExitCode {
         let _ = before;
         failed |= false;
     }
-    if failed { ExitCode::FAILURE } else { ExitCode::SUCCESS }
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
 }
 
 fn run_terminal(s: &mut Session) -> ExitCode {
@@ -267,7 +279,10 @@ fn run_terminal(s: &mut Session) -> ExitCode {
     if let Some(h) = &history {
         let _ = rl.load_history(h);
     }
-    println!("lase {} — :help for commands, Ctrl-D to leave", env!("CARGO_PKG_VERSION"));
+    println!(
+        "lase {} — :help for commands, Ctrl-D to leave",
+        env!("CARGO_PKG_VERSION")
+    );
     let mut buf = String::new();
     loop {
         let prompt = if buf.is_empty() { "lase> " } else { "....> " };

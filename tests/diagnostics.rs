@@ -22,7 +22,11 @@ fn reported(stderr: &str) -> Vec<(String, usize)> {
             && let Some(c) = code.take()
         {
             let loc = rest.trim_end_matches(']');
-            let line: usize = loc.rsplit(':').nth(1).and_then(|n| n.parse().ok()).unwrap_or(0);
+            let line: usize = loc
+                .rsplit(':')
+                .nth(1)
+                .and_then(|n| n.parse().ok())
+                .unwrap_or(0);
             out.push((c, line));
         }
     }
@@ -52,7 +56,11 @@ fn every_bad_recipe_reports_exactly_its_errors() {
     let files = lase_files(&root().join("tests/err"));
     assert!(files.len() >= 10);
     for f in files {
-        let rel = f.strip_prefix(root()).unwrap().to_string_lossy().into_owned();
+        let rel = f
+            .strip_prefix(root())
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
         let (code, _out, err) = lase(&["check", &rel]);
         assert_eq!(code, 1, "{rel} must fail with exit code 1:\n{err}");
         assert!(!err.contains("panicked"), "{rel} panicked:\n{err}");
@@ -72,7 +80,10 @@ fn three_independent_mistakes_are_all_reported() {
     assert_eq!(reported(&err).len(), 3, "{err}");
     assert!(err.contains("3 errors"));
     // Both sides of the mismatch are labelled.
-    assert!(err.contains("this is a length") && err.contains("this is a speed"), "{err}");
+    assert!(
+        err.contains("this is a length") && err.contains("this is a speed"),
+        "{err}"
+    );
     assert!(err.contains("did you mean `spot`?"), "{err}");
     assert!(err.contains("write `5 mm`"), "{err}");
 }

@@ -12,7 +12,11 @@ fn examples_match_their_goldens() {
     let examples = lase_files(&root().join("examples"));
     assert!(examples.len() >= 3, "examples/ holds the example recipes");
     for ex in examples {
-        let rel = ex.strip_prefix(root()).unwrap().to_string_lossy().into_owned();
+        let rel = ex
+            .strip_prefix(root())
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
         let stem = ex.file_stem().unwrap().to_string_lossy().into_owned();
         for dialect in ["linuxcnc", "grbl", "iso"] {
             let (code, out, err) = lase(&["emit", &rel, "--dialect", dialect]);
@@ -20,15 +24,24 @@ fn examples_match_their_goldens() {
                 "linuxcnc" => "ngc",
                 _ => "nc",
             };
-            assert_eq!(code, 0, "lase emit {rel} --dialect {dialect} failed:\n{err}");
-            golden(&root().join(format!("tests/golden/{stem}.{dialect}.{ext}")), &out);
+            assert_eq!(
+                code, 0,
+                "lase emit {rel} --dialect {dialect} failed:\n{err}"
+            );
+            golden(
+                &root().join(format!("tests/golden/{stem}.{dialect}.{ext}")),
+                &out,
+            );
         }
         let dir = tempfile::tempdir().unwrap();
         let summary = dir.path().join("summary.json");
         let (code, _, err) = lase(&["plan", &rel, "--summary", summary.to_str().unwrap()]);
         assert_eq!(code, 0, "lase plan {rel} failed:\n{err}");
         let text = std::fs::read_to_string(&summary).unwrap();
-        golden(&root().join(format!("tests/golden/{stem}.summary.json")), &text);
+        golden(
+            &root().join(format!("tests/golden/{stem}.summary.json")),
+            &text,
+        );
     }
 }
 
@@ -47,7 +60,11 @@ fn linuxcnc_interpreter_accepts_every_example() {
         return;
     }
     for ex in lase_files(&root().join("examples")) {
-        let rel = ex.strip_prefix(root()).unwrap().to_string_lossy().into_owned();
+        let rel = ex
+            .strip_prefix(root())
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
         let dir = tempfile::tempdir().unwrap();
         let ngc = dir.path().join("job.ngc");
         let (code, _, err) = lase(&["emit", &rel, "-o", ngc.to_str().unwrap()]);
@@ -64,7 +81,10 @@ fn linuxcnc_interpreter_accepts_every_example() {
             String::from_utf8_lossy(&out.stderr)
         );
         // The interpreter ran the whole program.
-        assert!(text.contains("PROGRAM_END"), "rs274 did not reach the end of {rel}:\n{text}");
+        assert!(
+            text.contains("PROGRAM_END"),
+            "rs274 did not reach the end of {rel}:\n{text}"
+        );
     }
 }
 
@@ -73,16 +93,26 @@ fn linuxcnc_interpreter_accepts_every_example() {
 #[test]
 fn grbl_programs_use_only_words_grbl_knows() {
     for ex in lase_files(&root().join("examples")) {
-        let rel = ex.strip_prefix(root()).unwrap().to_string_lossy().into_owned();
+        let rel = ex
+            .strip_prefix(root())
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
         let (code, out, err) = lase(&["emit", &rel, "--dialect", "grbl"]);
         assert_eq!(code, 0, "{err}");
         for line in out.lines() {
-            assert!(line.len() <= 80, "{rel}: line longer than GRBL's buffer: {line}");
+            assert!(
+                line.len() <= 80,
+                "{rel}: line longer than GRBL's buffer: {line}"
+            );
             for (c, v) in nc_words(line) {
                 match c {
                     'G' => assert!(
-                        [0.0, 1.0, 2.0, 3.0, 4.0, 17.0, 18.0, 19.0, 20.0, 21.0, 90.0, 91.0, 93.0, 94.0]
-                            .contains(&v),
+                        [
+                            0.0, 1.0, 2.0, 3.0, 4.0, 17.0, 18.0, 19.0, 20.0, 21.0, 90.0, 91.0,
+                            93.0, 94.0
+                        ]
+                        .contains(&v),
                         "{rel}: GRBL does not know G{v}: {line}"
                     ),
                     'M' => assert!(

@@ -30,7 +30,10 @@ fn p3(p: [f64; 3]) -> String {
 
 pub fn evaluate(path: &Path) -> (SourceMap, ProcessProgram) {
     let mut map = SourceMap::new();
-    let id = map.add(path.to_string_lossy(), std::fs::read_to_string(path).unwrap());
+    let id = map.add(
+        path.to_string_lossy(),
+        std::fs::read_to_string(path).unwrap(),
+    );
     let (program, perr) = lase_lang::load(&mut map, id, &mut Fs);
     assert!(perr.is_empty(), "{}: {perr:?}", path.display());
     let cerr = lase_lang::check_program(&program);
@@ -61,10 +64,25 @@ fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
         };
         let text = match &op.kind {
             OpKind::Rapid { to } => format!("rapid {}", p3(*to)),
-            OpKind::Line { to, feed_mm_s, laser: l } => {
-                format!("line  {} feed {}{}", p3(*to), n(*feed_mm_s), laser(l.as_ref()))
+            OpKind::Line {
+                to,
+                feed_mm_s,
+                laser: l,
+            } => {
+                format!(
+                    "line  {} feed {}{}",
+                    p3(*to),
+                    n(*feed_mm_s),
+                    laser(l.as_ref())
+                )
             }
-            OpKind::Arc { to, center, ccw, feed_mm_s, laser: l } => format!(
+            OpKind::Arc {
+                to,
+                center,
+                ccw,
+                feed_mm_s,
+                laser: l,
+            } => format!(
                 "arc   {} center ({}, {}) {} feed {}{}",
                 p3(*to),
                 n(center[0]),
@@ -95,15 +113,23 @@ fn ok_recipes_evaluate_to_their_programs() {
 #[test]
 fn units_convert_to_internal_units() {
     let (_, p) = evaluate(&root().join("tests/ok/units.lase"));
-    let OpKind::Line { to, feed_mm_s, .. } = &p.ops[0].kind else { panic!() };
+    let OpKind::Line { to, feed_mm_s, .. } = &p.ops[0].kind else {
+        panic!()
+    };
     assert_eq!(*to, [25.4, 50.8, 0.0]);
     assert!((feed_mm_s - 10.0).abs() < 1e-12);
-    let OpKind::Line { to, feed_mm_s, .. } = &p.ops[1].kind else { panic!() };
+    let OpKind::Line { to, feed_mm_s, .. } = &p.ops[1].kind else {
+        panic!()
+    };
     assert!((to[2] + 0.5).abs() < 1e-12);
     assert!((feed_mm_s - 500.0 / 60.0).abs() < 1e-12);
-    let OpKind::Dwell { seconds } = &p.ops[2].kind else { panic!() };
+    let OpKind::Dwell { seconds } = &p.ops[2].kind else {
+        panic!()
+    };
     assert!((seconds - 0.25).abs() < 1e-15);
-    let OpKind::Line { feed_mm_s, .. } = &p.ops[3].kind else { panic!() };
+    let OpKind::Line { feed_mm_s, .. } = &p.ops[3].kind else {
+        panic!()
+    };
     assert!((feed_mm_s - 20.0).abs() < 1e-12);
     let l = p.ops[4].laser().expect("lit");
     assert_eq!(l.power_w, 250.0);
@@ -114,7 +140,9 @@ fn units_convert_to_internal_units() {
 fn functions_and_loops_produce_the_expected_geometry() {
     let (_, p) = evaluate(&root().join("tests/ok/control.lase"));
     // fib(6) = 8: the squares start at x = 8 mm.
-    let OpKind::Rapid { to } = &p.ops[0].kind else { panic!("{:?}", p.ops[0]) };
+    let OpKind::Rapid { to } = &p.ops[0].kind else {
+        panic!("{:?}", p.ops[0])
+    };
     assert_eq!(*to, [8.0, 0.0, 0.0]);
     let lit: f64 = p
         .ops

@@ -23,7 +23,10 @@ fn pipeline(text: &str) -> usize {
     if !perr.is_empty() {
         // Every diagnostic's span lies inside the source map.
         for e in &perr {
-            assert!(map.file_of(e.span().start as usize).is_some() || e.span().start as usize == text.len());
+            assert!(
+                map.file_of(e.span().start as usize).is_some()
+                    || e.span().start as usize == text.len()
+            );
         }
         return 0;
     }
@@ -36,8 +39,12 @@ fn pipeline(text: &str) -> usize {
     if ev.run(&stmts, &program, &mut map, &mut StdlibOnly).is_err() {
         return 2;
     }
-    let Ok(p) = ev.program("fuzz", Default::default()) else { return 2 };
-    let Ok(job) = lase_runtime::motion::plan_program(p) else { return 3 };
+    let Ok(p) = ev.program("fuzz", Default::default()) else {
+        return 2;
+    };
+    let Ok(job) = lase_runtime::motion::plan_program(p) else {
+        return 3;
+    };
     let _ = lase_runtime::emit::emit_to_string(&job, lase_runtime::emit::Dialect::LinuxCnc);
     let _ = lase_runtime::report::summarize(&job);
     4
@@ -60,15 +67,19 @@ fn the_unmutated_corpus_runs_all_the_way() {
         if src.contains("import") {
             continue;
         }
-        assert_eq!(pipeline(src), 4, "corpus entry {i} did not get through:\n{src}");
+        assert_eq!(
+            pipeline(src),
+            4,
+            "corpus entry {i} did not get through:\n{src}"
+        );
     }
 }
 
 const TOKENS: &[&str] = &[
     "(", ")", "[", "]", "{", "}", ",", ";", ":", "..", "=", "==", "+", "-", "*", "/", "%", "mm",
-    "mm/s", "deg", "0", "1", "-1", "1e308", "\"", "let", "fn", "for", "in", "if", "else",
-    "follow", "move", "to", "rapid", "at", "profile", "circle", "offset", "laser", "pulse",
-    "limits", "machine", "xy_table", "return", "\n", " ", "µ", "°", "1e-300",
+    "mm/s", "deg", "0", "1", "-1", "1e308", "\"", "let", "fn", "for", "in", "if", "else", "follow",
+    "move", "to", "rapid", "at", "profile", "circle", "offset", "laser", "pulse", "limits",
+    "machine", "xy_table", "return", "\n", " ", "µ", "°", "1e-300",
 ];
 
 proptest! {

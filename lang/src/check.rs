@@ -88,6 +88,9 @@ struct FnSig {
     span: Span,
 }
 
+/// What an imported module defines: its variables and functions.
+type Exports = (HashMap<String, Ty>, HashMap<String, FnSig>);
+
 /// Where a statement stands, which decides what it may do.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Place {
@@ -111,7 +114,7 @@ pub struct Checker {
     /// Return types seen in the function being checked.
     returns: Vec<Vec<Ty>>,
     /// Modules already checked, with what they export.
-    checked_modules: HashMap<usize, (HashMap<String, Ty>, HashMap<String, FnSig>)>,
+    checked_modules: HashMap<usize, Exports>,
 }
 
 /// Checks a whole program; the main module is `program.modules[0]`.
@@ -223,9 +226,8 @@ impl Checker {
             self.err(CheckError::UnknownType {
                 name: ty.name.clone(),
                 span: ty.span,
-                help: did_you_mean(&ty.name, schema::TYPE_NAMES.iter().copied()).or_else(|| {
-                    Some(format!("types are: {}", schema::TYPE_NAMES.join(", ")))
-                }),
+                help: did_you_mean(&ty.name, schema::TYPE_NAMES.iter().copied())
+                    .or_else(|| Some(format!("types are: {}", schema::TYPE_NAMES.join(", ")))),
             });
             Ty::Unknown
         })
@@ -541,11 +543,8 @@ impl Checker {
                     found: format!("`{}`", self.snippet_of(v)),
                     context: format!("`{key}`"),
                     span: v.span,
-                    help: did_you_mean(
-                        &self.snippet_of(v),
-                        words.iter().copied(),
-                    )
-                    .or_else(|| Some(format!("write one of: {}", words.join(", ")))),
+                    help: did_you_mean(&self.snippet_of(v), words.iter().copied())
+                        .or_else(|| Some(format!("write one of: {}", words.join(", ")))),
                 }),
             }
             return;
@@ -824,11 +823,7 @@ impl Checker {
                                 Some(format!("{} has no fields", t.describe()))
                             } else {
                                 did_you_mean(&field.name, fields.iter().copied()).or_else(|| {
-                                    Some(format!(
-                                        "{} has: {}",
-                                        t.describe(),
-                                        fields.join(", ")
-                                    ))
+                                    Some(format!("{} has: {}", t.describe(), fields.join(", ")))
                                 })
                             },
                         });
@@ -973,7 +968,7 @@ impl Checker {
                 }
             }
             BinOp::Mul => match (&l, &r) {
-                (Num(a), Num(b)) => Num(a.mul(*b)),
+                (Num(a), Num(b)) => Num(*a * *b),
                 (Zero, Num(_)) => r.clone(),
                 (Num(_), Zero) | (Zero, Zero) => l.clone(),
                 (Point, Num(d)) | (Num(d), Point) if d.is_none() => Point,
@@ -981,8 +976,8 @@ impl Checker {
                 _ => mismatch(self, "multiply"),
             },
             BinOp::Div => match (&l, &r) {
-                (Num(a), Num(b)) => Num(a.div(*b)),
-                (Zero, Num(b)) => Num(Dim::NONE.div(*b)),
+                (Num(a), Num(b)) => Num(*a / *b),
+                (Zero, Num(b)) => Num(Dim::NONE / *b),
                 (_, Zero) => {
                     self.err(CheckError::WrongDimension {
                         expected: "a non-zero divisor".into(),
@@ -1128,7 +1123,10 @@ impl Checker {
             },
             Ret::SqrtOfFirst => match first {
                 Ty::Num(d) => {
-                    let even = d.length % 2 == 0 && d.time % 2 == 0 && d.angle % 2 == 0 && d.power % 2 == 0;
+                    let even = d.length % 2 == 0
+                        && d.time % 2 == 0
+                        && d.angle % 2 == 0
+                        && d.power % 2 == 0;
                     if even {
                         Ty::Num(Dim::new(d.length / 2, d.time / 2, d.angle / 2, d.power / 2))
                     } else {
@@ -1173,7 +1171,11 @@ impl Checker {
                                 || {
                                     Some(format!(
                                         "`{name}` takes: {}",
-                                        params.iter().map(|p| p.name).collect::<Vec<_>>().join(", ")
+                                        params
+                                            .iter()
+                                            .map(|p| p.name)
+                                            .collect::<Vec<_>>()
+                                            .join(", ")
                                     ))
                                 },
                             ),

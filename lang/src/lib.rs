@@ -56,7 +56,15 @@ pub fn load(
         Ok(m) => {
             program.modules.push(m);
             let stmts = program.modules[0].stmts.clone();
-            resolve_imports(&mut program, map, main, &stmts, loader, &mut errors, &mut vec![main]);
+            resolve_imports(
+                &mut program,
+                map,
+                main,
+                &stmts,
+                loader,
+                &mut errors,
+                &mut vec![main],
+            );
         }
         Err(e) => {
             program.modules.push(Module {
@@ -112,7 +120,9 @@ pub fn resolve_imports(
                 continue;
             }
             if let Some(idx) = program.modules.iter().position(|m| m.file == existing) {
-                program.imports.insert(path.span.start, Resolved::Module(idx));
+                program
+                    .imports
+                    .insert(path.span.start, Resolved::Module(idx));
                 continue;
             }
         }
@@ -122,7 +132,9 @@ pub fn resolve_imports(
                 let sub = m.stmts.clone();
                 program.modules.push(m);
                 let idx = program.modules.len() - 1;
-                program.imports.insert(path.span.start, Resolved::Module(idx));
+                program
+                    .imports
+                    .insert(path.span.start, Resolved::Module(idx));
                 stack.push(id);
                 resolve_imports(program, map, id, &sub, loader, errors, stack);
                 stack.pop();
@@ -164,7 +176,10 @@ impl Loader for NoImports {
 
 /// Parses and checks a recipe given as text, with no imports: the quick path for tests and
 /// tools.
-pub fn check_source(name: &str, text: &str) -> (SourceMap, Program, Vec<ParseError>, Vec<CheckError>) {
+pub fn check_source(
+    name: &str,
+    text: &str,
+) -> (SourceMap, Program, Vec<ParseError>, Vec<CheckError>) {
     let mut map = SourceMap::new();
     let id = map.add(name, text);
     let (program, perr) = load(&mut map, id, &mut NoImports);

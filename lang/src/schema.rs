@@ -291,7 +291,11 @@ pub const PROFILE_KINDS: &[ProfileKind] = &[
     },
     ProfileKind {
         name: "circle",
-        params: &[req("center", PTy::Point), req("radius", L), opt("start", ANG)],
+        params: &[
+            req("center", PTy::Point),
+            req("radius", L),
+            opt("start", ANG),
+        ],
         flags: &["cw", "ccw"],
         doc: "A full circle, starting at angle `start` (0 by default), counter-clockwise unless `cw`.",
         unsupported: false,
@@ -350,12 +354,20 @@ const fn set(key: &'static str, ty: PTy, doc: &'static str) -> SettingSpec {
 }
 
 pub const LASER_SETTINGS: &[SettingSpec] = &[
-    set("power", PTy::Dim(Dim::POWER), "Laser power while the beam is on."),
+    set(
+        "power",
+        PTy::Dim(Dim::POWER),
+        "Laser power while the beam is on.",
+    ),
     set("spot", L, "Spot diameter on the surface."),
 ];
 
 pub const FOLLOW_SETTINGS: &[SettingSpec] = &[
-    set("power", PTy::Dim(Dim::POWER), "Laser power for this path only."),
+    set(
+        "power",
+        PTy::Dim(Dim::POWER),
+        "Laser power for this path only.",
+    ),
     set("spot", L, "Spot diameter for this path only."),
 ];
 
@@ -366,7 +378,11 @@ pub const PULSE_SETTINGS: &[SettingSpec] = &[
         "A length fires a pulse every so far along the lit path (position-synchronized); a \
          time fires on a timer.",
     ),
-    set("rate", PTy::Dim(Dim::FREQUENCY), "Pulse repetition rate (timer mode)."),
+    set(
+        "rate",
+        PTy::Dim(Dim::FREQUENCY),
+        "Pulse repetition rate (timer mode).",
+    ),
     set("width", PTy::Dim(Dim::TIME), "Pulse width."),
     set("energy", PTy::Dim(Dim::ENERGY), "Energy per pulse."),
 ];
@@ -440,6 +456,6 @@ pub const TYPE_NAMES: &[&str] = &[
 pub const KEYWORDS: &[&str] = &[
     "machine", "limits", "let", "fn", "import", "use", "if", "else", "for", "in", "return",
     "laser", "pulse", "planner", "move", "to", "by", "rapid", "at", "follow", "dwell", "mcode",
-    "event", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw", "ccw",
-    "on", "off", "interval",
+    "event", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw", "ccw", "on",
+    "off", "interval",
 ];

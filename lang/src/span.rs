@@ -181,10 +181,7 @@ impl SourceCode for SourceMap {
             .read_span(&local, context_lines_before, context_lines_after)?;
         // The renderer places labels relative to the contents' span, so hand it back in global
         // coordinates.
-        let global = SourceSpan::new(
-            (inner.span().offset() + f.base).into(),
-            inner.span().len(),
-        );
+        let global = SourceSpan::new((inner.span().offset() + f.base).into(), inner.span().len());
         Ok(Box::new(MietteSpanContents::new_named(
             f.name.clone(),
             inner.data(),

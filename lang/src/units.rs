@@ -41,19 +41,6 @@ impl Dim {
         }
     }
 
-    pub fn mul(self, o: Dim) -> Dim {
-        Dim::new(
-            self.length + o.length,
-            self.time + o.time,
-            self.angle + o.angle,
-            self.power + o.power,
-        )
-    }
-
-    pub fn div(self, o: Dim) -> Dim {
-        self.mul(o.powi(-1))
-    }
-
     pub fn powi(self, n: i8) -> Dim {
         Dim::new(
             self.length * n,
@@ -89,7 +76,13 @@ impl Dim {
         let num: Vec<String> = parts
             .iter()
             .filter(|(_, e)| *e > 0)
-            .map(|(u, e)| if *e == 1 { u.to_string() } else { format!("{u}^{e}") })
+            .map(|(u, e)| {
+                if *e == 1 {
+                    u.to_string()
+                } else {
+                    format!("{u}^{e}")
+                }
+            })
             .collect();
         let den: Vec<String> = parts
             .iter()
@@ -102,7 +95,11 @@ impl Dim {
                 }
             })
             .collect();
-        let mut s = if num.is_empty() { "1".to_string() } else { num.join("*") };
+        let mut s = if num.is_empty() {
+            "1".to_string()
+        } else {
+            num.join("*")
+        };
         for d in den {
             s.push('/');
             s.push_str(&d);
@@ -127,6 +124,25 @@ const NAMED_DIMS: &[(Dim, &str)] = &[
     (Dim::ENERGY, "energy"),
 ];
 
+impl std::ops::Mul for Dim {
+    type Output = Dim;
+    fn mul(self, o: Dim) -> Dim {
+        Dim::new(
+            self.length + o.length,
+            self.time + o.time,
+            self.angle + o.angle,
+            self.power + o.power,
+        )
+    }
+}
+
+impl std::ops::Div for Dim {
+    type Output = Dim;
+    fn div(self, o: Dim) -> Dim {
+        self * o.powi(-1)
+    }
+}
+
 impl fmt::Display for Dim {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(&self.name())
@@ -142,7 +158,10 @@ pub fn dim_by_name(name: &str) -> Option<Dim> {
         "angular_jerk" => "angular jerk",
         other => other,
     };
-    NAMED_DIMS.iter().find(|(_, n)| *n == alias).map(|(d, _)| *d)
+    NAMED_DIMS
+        .iter()
+        .find(|(_, n)| *n == alias)
+        .map(|(d, _)| *d)
 }
 
 /// Atomic units: name, dimension, factor to the internal unit.
@@ -211,14 +230,15 @@ pub fn parse_unit(text: &str) -> Result<Unit, UnknownUnit> {
             Some((n, p)) => (n, p.parse::<i8>().unwrap_or(1)),
             None => (term, 1),
         };
-        let (_, d, f) = ATOMS.iter().find(|(n, _, _)| *n == name).ok_or_else(|| {
-            UnknownUnit {
+        let (_, d, f) = ATOMS
+            .iter()
+            .find(|(n, _, _)| *n == name)
+            .ok_or_else(|| UnknownUnit {
                 atom: name.to_string(),
                 suggestion: suggest(name, unit_names()),
-            }
-        })?;
+            })?;
         let p = pow * sign;
-        dim = dim.mul(d.powi(p));
+        dim = dim * d.powi(p);
         factor *= f.powi(p as i32);
         if tail.is_empty() {
             break;
@@ -266,7 +286,11 @@ pub fn format_quantity(value: f64, dim: Dim) -> String {
 pub fn format_number(v: f64) -> String {
     let s = format!("{v:.6}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".to_string() } else { s.to_string() }
+    if s == "-0" {
+        "0".to_string()
+    } else {
+        s.to_string()
+    }
 }
 
 #[cfg(test)]

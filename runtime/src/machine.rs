@@ -196,9 +196,7 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             message: e.message().to_string(),
             span,
             label: "here".into(),
-            help: Some(
-                "see stdlib/machines/README.md for every field of a machine file".into(),
-            ),
+            help: Some("see stdlib/machines/README.md for every field of a machine file".into()),
         }
     })?;
     let qty = |s: &toml::Spanned<String>, want: &[Dim], what: &str| -> Result<f64, MachineError> {
@@ -227,7 +225,11 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             }
             return Err(bad(
                 "no unit".into(),
-                format!("{what} is {}; give a unit, e.g. \"{value} {}\"", want[0], want[0].base_unit()),
+                format!(
+                    "{what} is {}; give a unit, e.g. \"{value} {}\"",
+                    want[0],
+                    want[0].base_unit()
+                ),
             ));
         }
         let u = units::parse_unit(unit).map_err(|e| {
@@ -235,7 +237,9 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
                 format!("unknown unit `{}`", e.atom),
                 e.suggestion
                     .map(|s| format!("did you mean `{s}`?"))
-                    .unwrap_or_else(|| "units are written as in recipes: mm, deg, mm/s, m/s^2".into()),
+                    .unwrap_or_else(|| {
+                        "units are written as in recipes: mm, deg, mm/s, m/s^2".into()
+                    }),
             )
         })?;
         if !want.contains(&u.dim) {
@@ -243,7 +247,10 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
                 format!("this is {}", u.dim),
                 format!(
                     "{what} must be {}",
-                    want.iter().map(|d| d.name()).collect::<Vec<_>>().join(" or ")
+                    want.iter()
+                        .map(|d| d.name())
+                        .collect::<Vec<_>>()
+                        .join(" or ")
                 ),
             ));
         }
@@ -294,11 +301,26 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
                 help: None,
             });
         }
-        let v_max = positive(qty(&a.v_max, &d(Dim::SPEED, Dim::ANGULAR_SPEED), "v_max")?, &a.v_max, "v_max")?;
-        let a_max = positive(qty(&a.a_max, &d(Dim::ACCEL, Dim::ANGULAR_ACCEL), "a_max")?, &a.a_max, "a_max")?;
-        let j_max = positive(qty(&a.j_max, &d(Dim::JERK, Dim::ANGULAR_JERK), "j_max")?, &a.j_max, "j_max")?;
+        let v_max = positive(
+            qty(&a.v_max, &d(Dim::SPEED, Dim::ANGULAR_SPEED), "v_max")?,
+            &a.v_max,
+            "v_max",
+        )?;
+        let a_max = positive(
+            qty(&a.a_max, &d(Dim::ACCEL, Dim::ANGULAR_ACCEL), "a_max")?,
+            &a.a_max,
+            "a_max",
+        )?;
+        let j_max = positive(
+            qty(&a.j_max, &d(Dim::JERK, Dim::ANGULAR_JERK), "j_max")?,
+            &a.j_max,
+            "j_max",
+        )?;
         let name = a.name.get_ref().to_ascii_uppercase();
-        if !matches!(name.as_str(), "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W") {
+        if !matches!(
+            name.as_str(),
+            "X" | "Y" | "Z" | "A" | "B" | "C" | "U" | "V" | "W"
+        ) {
             return Err(MachineError::Invalid {
                 message: format!("axis name `{}` is not an NC axis letter", a.name.get_ref()),
                 span: at(a.name.span()),
@@ -353,7 +375,8 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         for (i, a) in file.axes.iter().enumerate() {
             if axes[i].kind != AxisKind::Linear || axes[i].part_axis.is_none() {
                 return Err(MachineError::Invalid {
-                    message: "a cartesian machine's axes are linear and each names its part_axis".into(),
+                    message: "a cartesian machine's axes are linear and each names its part_axis"
+                        .into(),
                     span: at(a.name.span()),
                     label: "this axis".into(),
                     help: Some("add `part_axis = \"x\"` (or y, z) and `kind = \"linear\"`".into()),
@@ -368,13 +391,21 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             "max_power",
         )?,
         max_pulse_rate_hz: positive(
-            qty(&file.laser.max_pulse_rate, &[Dim::FREQUENCY], "max_pulse_rate")?,
+            qty(
+                &file.laser.max_pulse_rate,
+                &[Dim::FREQUENCY],
+                "max_pulse_rate",
+            )?,
             &file.laser.max_pulse_rate,
             "max_pulse_rate",
         )?,
     };
     let junction_deviation_mm = match &file.planner.junction_deviation {
-        Some(s) => positive(qty(s, &[Dim::LENGTH], "junction_deviation")?, s, "junction_deviation")?,
+        Some(s) => positive(
+            qty(s, &[Dim::LENGTH], "junction_deviation")?,
+            s,
+            "junction_deviation",
+        )?,
         None => 0.01,
     };
     let arc_tolerance_mm = match &file.planner.arc_tolerance {

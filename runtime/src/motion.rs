@@ -16,7 +16,9 @@ pub enum MotionError {
     #[error("axis {axis} would leave its travel: {value} outside [{min}, {max}]")]
     #[diagnostic(
         code(lase::plan::travel),
-        help("move the part origin or the path so that every point lies inside the machine's travel")
+        help(
+            "move the part origin or the path so that every point lies inside the machine's travel"
+        )
     )]
     Travel {
         axis: String,
@@ -28,7 +30,10 @@ pub enum MotionError {
     },
 
     #[error("the machine cannot reach this pose: {reason}")]
-    #[diagnostic(code(lase::plan::unreachable), help("check the machine selected with `machine`"))]
+    #[diagnostic(
+        code(lase::plan::unreachable),
+        help("check the machine selected with `machine`")
+    )]
     Unreachable {
         reason: String,
         #[label("unreachable")]
@@ -81,23 +86,19 @@ pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
     let mut pos = program.start;
     let mut q_prev = start;
     let switch_stops = |dialect_any: bool| dialect_any;
-    let laser_switch_stops = switch_stops(
-        program
-            .machine
-            .post
-            .values()
-            .any(|p| p.laser_switch_stops),
-    );
+    let laser_switch_stops =
+        switch_stops(program.machine.post.values().any(|p| p.laser_switch_stops));
     let mut lit_prev = false;
     for (i, op) in program.ops.iter().enumerate() {
         let tag = i as u32;
-        let stop_here = |moves: &mut Vec<Move>, initial: &mut f64, dwell: f64| match moves.last_mut() {
-            Some(m) => {
-                m.stop_after = true;
-                m.dwell_after += dwell;
-            }
-            None => *initial += dwell,
-        };
+        let stop_here =
+            |moves: &mut Vec<Move>, initial: &mut f64, dwell: f64| match moves.last_mut() {
+                Some(m) => {
+                    m.stop_after = true;
+                    m.dwell_after += dwell;
+                }
+                None => *initial += dwell,
+            };
         let lit = op.laser().is_some();
         if op.target().is_some() && lit != lit_prev && laser_switch_stops {
             // The machine switches the beam with an M-function that needs it at rest (§4).

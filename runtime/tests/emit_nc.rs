@@ -200,7 +200,10 @@ fn word(text: &str, letter: char) -> Option<f64> {
 }
 
 /// Replays the motion of a program: for each G2/G3 block, (start, center from I/J, end).
-fn arcs_of(text: &str) -> Vec<([f64; 2], [f64; 2], [f64; 2], bool)> {
+/// An arc block replayed: start, center, end, counter-clockwise.
+type ArcBlock = ([f64; 2], [f64; 2], [f64; 2], bool);
+
+fn arcs_of(text: &str) -> Vec<ArcBlock> {
     let mut pos = [0.0, 0.0];
     let mut mode = 0.0;
     let mut out = Vec::new();

@@ -328,7 +328,12 @@ impl Evaluator {
                 let v = self.expr(code, cx)?;
                 let c = self.as_count(&v, code.span, "an M-code")?;
                 if !(0..1000).contains(&c) {
-                    return Err(bad(code.span, "M-codes run from 0 to 999", "out of range", None));
+                    return Err(bad(
+                        code.span,
+                        "M-codes run from 0 to 999",
+                        "out of range",
+                        None,
+                    ));
                 }
                 self.need_machine(s.span)?;
                 self.push(
@@ -388,7 +393,11 @@ impl Evaluator {
     fn select_machine(&mut self, m: &MachineRef, span: Span, cx: &mut Cx) -> R<()> {
         let (name, text, at) = match m {
             MachineRef::Named(id) => match lase_stdlib::machine(&id.name) {
-                Some(t) => (format!("<stdlib>/machines/{}.toml", id.name), t.to_string(), id.span),
+                Some(t) => (
+                    format!("<stdlib>/machines/{}.toml", id.name),
+                    t.to_string(),
+                    id.span,
+                ),
                 None => {
                     return Err(EvalError::UnknownMachine {
                         name: id.name.clone(),
@@ -408,13 +417,14 @@ impl Evaluator {
                     .file_of(p.span.start as usize)
                     .map(|f| cx.map.name(f).to_string())
                     .unwrap_or_default();
-                let (name, text) = cx.host.machine_file(&importer, &p.value).map_err(|reason| {
-                    EvalError::MachineFile {
+                let (name, text) = cx
+                    .host
+                    .machine_file(&importer, &p.value)
+                    .map_err(|reason| EvalError::MachineFile {
                         path: p.value.clone(),
                         reason,
                         span: p.span,
-                    }
-                })?;
+                    })?;
                 (name, text, p.span)
             }
         };
@@ -445,25 +455,28 @@ impl Evaluator {
         let machine = self.need_machine(span)?.clone();
         for g in groups {
             let path = g.axis.name == "path";
-            let axis = if path {
-                None
-            } else {
-                Some(machine.axis_index(&g.axis.name).ok_or_else(|| EvalError::UnknownAxis {
-                    machine: machine.name.clone(),
-                    axis: g.axis.name.clone(),
-                    span: g.axis.span,
-                    help: Some(format!(
-                        "`{}` has axes {}; `path:` limits the motion along the path",
-                        machine.name,
-                        machine
-                            .axes
-                            .iter()
-                            .map(|a| a.name.to_ascii_lowercase())
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    )),
-                })?)
-            };
+            let axis =
+                if path {
+                    None
+                } else {
+                    Some(machine.axis_index(&g.axis.name).ok_or_else(|| {
+                        EvalError::UnknownAxis {
+                            machine: machine.name.clone(),
+                            axis: g.axis.name.clone(),
+                            span: g.axis.span,
+                            help: Some(format!(
+                                "`{}` has axes {}; `path:` limits the motion along the path",
+                                machine.name,
+                                machine
+                                    .axes
+                                    .iter()
+                                    .map(|a| a.name.to_ascii_lowercase())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            )),
+                        }
+                    })?)
+                };
             let rotary = axis.is_some_and(|i| machine.axes[i].kind == AxisKind::Rotary);
             for s in &g.settings {
                 let Some(e) = &s.value else { continue };
@@ -478,7 +491,12 @@ impl Evaluator {
                 };
                 let x = self.as_dim(&v, want, e.span, &format!("limit `{}`", s.key.name))?;
                 if !(x > 0.0) {
-                    return Err(bad(e.span, "limits must be greater than zero", "not positive", None));
+                    return Err(bad(
+                        e.span,
+                        "limits must be greater than zero",
+                        "not positive",
+                        None,
+                    ));
                 }
                 match axis {
                     None => match s.key.name.as_str() {
@@ -528,7 +546,12 @@ impl Evaluator {
                 "power" => {
                     let p = self.as_dim(&v, Dim::POWER, e.span, "`power`")?;
                     if p < 0.0 {
-                        return Err(bad(e.span, "laser power cannot be negative", "negative", None));
+                        return Err(bad(
+                            e.span,
+                            "laser power cannot be negative",
+                            "negative",
+                            None,
+                        ));
                     }
                     let m = self.need_machine(e.span)?;
                     if p > m.laser.max_power_w * (1.0 + 1e-12) {
@@ -537,7 +560,11 @@ impl Evaluator {
                             value: format_quantity(p, Dim::POWER),
                             limit: format_quantity(m.laser.max_power_w, Dim::POWER),
                             span: e.span,
-                            help: Some(format!("`{}`'s laser gives at most {}", m.name, format_quantity(m.laser.max_power_w, Dim::POWER))),
+                            help: Some(format!(
+                                "`{}`'s laser gives at most {}",
+                                m.name,
+                                format_quantity(m.laser.max_power_w, Dim::POWER)
+                            )),
                         });
                     }
                     power = Some(p);
@@ -545,7 +572,12 @@ impl Evaluator {
                 _ => {
                     let d = self.as_dim(&v, Dim::LENGTH, e.span, "`spot`")?;
                     if !(d > 0.0) {
-                        return Err(bad(e.span, "the spot diameter must be greater than zero", "not positive", None));
+                        return Err(bad(
+                            e.span,
+                            "the spot diameter must be greater than zero",
+                            "not positive",
+                            None,
+                        ));
                     }
                     spot = Some(d);
                 }
@@ -556,7 +588,9 @@ impl Evaluator {
 
     fn pulse_settings(&mut self, set: &[Setting], cx: &mut Cx) -> R<()> {
         let mut pulse = self.pulse.clone().unwrap_or(Pulse {
-            mode: PulseMode::Time { period_s: f64::INFINITY },
+            mode: PulseMode::Time {
+                period_s: f64::INFINITY,
+            },
             width_s: None,
             energy_j: None,
         });
@@ -568,17 +602,31 @@ impl Evaluator {
                 if x > 0.0 {
                     Ok(x)
                 } else {
-                    Err(bad(e.span, "pulse settings must be greater than zero", "not positive", None))
+                    Err(bad(
+                        e.span,
+                        "pulse settings must be greater than zero",
+                        "not positive",
+                        None,
+                    ))
                 }
             };
             match s.key.name.as_str() {
                 "interval" => {
                     mode_set = true;
                     pulse.mode = match &v {
-                        Value::Num(x, d) if *d == Dim::LENGTH => PulseMode::Distance { pitch_mm: positive(*x)? },
-                        Value::Num(x, d) if *d == Dim::TIME => PulseMode::Time { period_s: positive(*x)? },
+                        Value::Num(x, d) if *d == Dim::LENGTH => PulseMode::Distance {
+                            pitch_mm: positive(*x)?,
+                        },
+                        Value::Num(x, d) if *d == Dim::TIME => PulseMode::Time {
+                            period_s: positive(*x)?,
+                        },
                         other => {
-                            return Err(type_err("a length or a time", other, e.span, "`interval`"));
+                            return Err(type_err(
+                                "a length or a time",
+                                other,
+                                e.span,
+                                "`interval`",
+                            ));
                         }
                     }
                 }
@@ -596,8 +644,18 @@ impl Evaluator {
                     }
                     pulse.mode = PulseMode::Time { period_s: 1.0 / f };
                 }
-                "width" => pulse.width_s = Some(positive(self.as_dim(&v, Dim::TIME, e.span, "`width`")?)?),
-                _ => pulse.energy_j = Some(positive(self.as_dim(&v, Dim::ENERGY, e.span, "`energy`")?)?),
+                "width" => {
+                    pulse.width_s =
+                        Some(positive(self.as_dim(&v, Dim::TIME, e.span, "`width`")?)?)
+                }
+                _ => {
+                    pulse.energy_j = Some(positive(self.as_dim(
+                        &v,
+                        Dim::ENERGY,
+                        e.span,
+                        "`energy`",
+                    )?)?)
+                }
             }
         }
         if !mode_set {
@@ -606,7 +664,9 @@ impl Evaluator {
                 span,
                 "pulses need an interval or a rate",
                 "no interval",
-                Some("add `interval 0.2 mm` (by distance), `interval 50 us` or `rate 20 kHz` (by time)"),
+                Some(
+                    "add `interval 0.2 mm` (by distance), `interval 50 us` or `rate 20 kHz` (by time)",
+                ),
             ));
         }
         self.pulse = Some(pulse);
@@ -634,7 +694,12 @@ impl Evaluator {
                     let v = self.expr(e, cx)?;
                     let x = self.as_dim(&v, Dim::LENGTH, e.span, &format!("`{}`", s.key.name))?;
                     if !(x > 0.0) {
-                        return Err(bad(e.span, "must be greater than zero", "not positive", None));
+                        return Err(bad(
+                            e.span,
+                            "must be greater than zero",
+                            "not positive",
+                            None,
+                        ));
                     }
                     if s.key.name == "corner" {
                         p.junction_deviation_mm = x;
@@ -646,7 +711,12 @@ impl Evaluator {
                     let v = self.expr(e, cx)?;
                     let n = self.as_count(&v, e.span, "`lookahead`")?;
                     if n < 1 {
-                        return Err(bad(e.span, "look-ahead needs at least 1 move", "too small", None));
+                        return Err(bad(
+                            e.span,
+                            "look-ahead needs at least 1 move",
+                            "too small",
+                            None,
+                        ));
                     }
                     p.lookahead = Some(n as usize);
                 }
@@ -657,7 +727,9 @@ impl Evaluator {
     }
 
     fn current_laser(&self, span: Span, power: Option<f64>, spot: Option<f64>) -> R<Laser> {
-        let power_w = power.or(self.laser.power_w).ok_or(EvalError::NoPower { span })?;
+        let power_w = power
+            .or(self.laser.power_w)
+            .ok_or(EvalError::NoPower { span })?;
         Ok(Laser {
             power_w,
             spot_mm: spot.unwrap_or(self.laser.spot_mm),
@@ -691,7 +763,14 @@ impl Evaluator {
         Ok(())
     }
 
-    fn move_stmt(&mut self, kind: MoveKind, target: &Expr, speed: &MoveSpeed, span: Span, cx: &mut Cx) -> R<()> {
+    fn move_stmt(
+        &mut self,
+        kind: MoveKind,
+        target: &Expr,
+        speed: &MoveSpeed,
+        span: Span,
+        cx: &mut Cx,
+    ) -> R<()> {
         let v = self.expr(target, cx)?;
         let (p, n) = self.as_point(&v, target.span, "the target of `move`")?;
         self.need_machine(span)?;
@@ -730,12 +809,24 @@ impl Evaluator {
     fn feed(&self, v: &Value, span: Span) -> R<f64> {
         let f = self.as_dim(v, Dim::SPEED, span, "a speed")?;
         if !(f > 0.0) {
-            return Err(bad(span, "a speed must be greater than zero", "not positive", None));
+            return Err(bad(
+                span,
+                "a speed must be greater than zero",
+                "not positive",
+                None,
+            ));
         }
         Ok(f)
     }
 
-    fn follow(&mut self, path: &Expr, speed: &Expr, settings: &[Setting], span: Span, cx: &mut Cx) -> R<()> {
+    fn follow(
+        &mut self,
+        path: &Expr,
+        speed: &Expr,
+        settings: &[Setting],
+        span: Span,
+        cx: &mut Cx,
+    ) -> R<()> {
         let v = self.expr(path, cx)?;
         let Value::Profile(profile) = v else {
             return Err(type_err("a profile", &v, path.span, "the path of `follow`"));
@@ -750,7 +841,12 @@ impl Evaluator {
         let start = profile.start();
         if (start.x - self.pos[0]).hypot(start.y - self.pos[1]) > 1e-9 {
             // Going to the start of a path is part of following it: a rapid, laser off.
-            self.push(OpKind::Rapid { to: [start.x, start.y, z] }, span);
+            self.push(
+                OpKind::Rapid {
+                    to: [start.x, start.y, z],
+                },
+                span,
+            );
         }
         for seg in &profile.segs {
             match seg {
@@ -762,10 +858,16 @@ impl Evaluator {
                     },
                     span,
                 ),
-                Seg::Arc { center, r, a0, sweep } => {
+                Seg::Arc {
+                    center,
+                    r,
+                    a0,
+                    sweep,
+                } => {
                     // Arcs longer than a half turn are split so every dialect reads them
                     // unambiguously.
-                    let pieces = (sweep.abs() / std::f64::consts::PI - 1e-9).ceil().max(1.0) as usize;
+                    let pieces =
+                        (sweep.abs() / std::f64::consts::PI - 1e-9).ceil().max(1.0) as usize;
                     for k in 1..=pieces {
                         let a = a0 + sweep * k as f64 / pieces as f64;
                         let to = if k == pieces {
@@ -792,7 +894,11 @@ impl Evaluator {
 
     fn for_loop(&mut self, var: &Ident, iter: &ForIter, body: &[Stmt], cx: &mut Cx) -> R<Flow> {
         let items: Box<dyn Iterator<Item = Value>> = match iter {
-            ForIter::Range { start, end, inclusive } => {
+            ForIter::Range {
+                start,
+                end,
+                inclusive,
+            } => {
                 let a = self.expr(start, cx)?;
                 let a = self.as_count(&a, start.span, "a range bound")?;
                 let b = self.expr(end, cx)?;
@@ -820,7 +926,12 @@ impl Evaluator {
 
     fn import(&mut self, path: &StrLit, cx: &mut Cx) -> R<()> {
         let Some(Resolved::Module(idx)) = cx.program.imports.get(&path.span.start).cloned() else {
-            return Err(bad(path.span, "this import could not be loaded", "not loaded", None));
+            return Err(bad(
+                path.span,
+                "this import could not be loaded",
+                "not loaded",
+                None,
+            ));
         };
         if !self.imported.insert(idx) {
             return Ok(());
@@ -852,16 +963,30 @@ impl Evaluator {
                 found: lase_lang::Ty::Num(*d).describe(),
                 context: ctx.into(),
                 span,
-                help: Some(format!("{} is measured in {}", lase_lang::Ty::Num(want).describe(), want.base_unit())),
+                help: Some(format!(
+                    "{} is measured in {}",
+                    lase_lang::Ty::Num(want).describe(),
+                    want.base_unit()
+                )),
             }),
-            other => Err(type_err(&lase_lang::Ty::Num(want).describe(), other, span, ctx)),
+            other => Err(type_err(
+                &lase_lang::Ty::Num(want).describe(),
+                other,
+                span,
+                ctx,
+            )),
         }
     }
 
     fn as_count(&self, v: &Value, span: Span, ctx: &str) -> R<i64> {
         let x = self.as_dim(v, Dim::NONE, span, ctx)?;
         if x.fract() != 0.0 || !x.is_finite() || x.abs() > 1e15 {
-            return Err(bad(span, &format!("{ctx} must be a whole number"), "not a whole number", None));
+            return Err(bad(
+                span,
+                &format!("{ctx} must be a whole number"),
+                "not a whole number",
+                None,
+            ));
         }
         Ok(x as i64)
     }
@@ -888,7 +1013,8 @@ impl Evaluator {
                 None if *value == 0.0 => Ok(Value::Zero),
                 None => Ok(Value::Num(*value, Dim::NONE)),
                 Some((u, uspan)) => {
-                    let unit = units::parse_unit(u).map_err(|_| bad(*uspan, "unknown unit", "not a unit", None))?;
+                    let unit = units::parse_unit(u)
+                        .map_err(|_| bad(*uspan, "unknown unit", "not a unit", None))?;
                     Ok(Value::Num(value * unit.factor, unit.dim))
                 }
             },
@@ -900,7 +1026,14 @@ impl Evaluator {
                 .rev()
                 .find_map(|s| s.get(name))
                 .cloned()
-                .ok_or_else(|| bad(e.span, &format!("`{name}` is not defined here"), "undefined", None)),
+                .ok_or_else(|| {
+                    bad(
+                        e.span,
+                        &format!("`{name}` is not defined here"),
+                        "undefined",
+                        None,
+                    )
+                }),
             ExprKind::Point(items) => {
                 let mut p = [0.0; 3];
                 for (k, it) in items.iter().enumerate().take(3) {
@@ -940,7 +1073,12 @@ impl Evaluator {
                     (UnOp::Neg, Value::Zero) => Ok(Value::Zero),
                     (UnOp::Neg, Value::Point(p, n)) => Ok(Value::Point([-p[0], -p[1], -p[2]], n)),
                     (UnOp::Not, Value::Bool(b)) => Ok(Value::Bool(!b)),
-                    (_, other) => Err(type_err("a number, point or bool", &other, expr.span, "a unary operator")),
+                    (_, other) => Err(type_err(
+                        "a number, point or bool",
+                        &other,
+                        expr.span,
+                        "a unary operator",
+                    )),
                 }
             }
             ExprKind::Field { expr, field } => {
@@ -952,7 +1090,12 @@ impl Evaluator {
                     (Value::Profile(p), "length") => Ok(Value::Num(p.length(), Dim::LENGTH)),
                     (Value::Profile(p), "start") => Ok(point2(p.start())),
                     (Value::Profile(p), "end") => Ok(point2(p.end())),
-                    _ => Err(bad(field.span, &format!("{} has no field `{}`", v.type_name(), field.name), "no such field", None)),
+                    _ => Err(bad(
+                        field.span,
+                        &format!("{} has no field `{}`", v.type_name(), field.name),
+                        "no such field",
+                        None,
+                    )),
                 }
             }
             ExprKind::Index { expr, index } => {
@@ -963,9 +1106,18 @@ impl Evaluator {
                     Value::List(items) => {
                         let len = items.len() as i64;
                         let k = if i < 0 { len + i } else { i };
-                        items.get(k as usize).filter(|_| k >= 0).cloned().ok_or_else(|| {
-                            bad(index.span, &format!("index {i} is out of range for a list of {len}"), "out of range", Some("indices run from 0; negative ones count from the end"))
-                        })
+                        items
+                            .get(k as usize)
+                            .filter(|_| k >= 0)
+                            .cloned()
+                            .ok_or_else(|| {
+                                bad(
+                                    index.span,
+                                    &format!("index {i} is out of range for a list of {len}"),
+                                    "out of range",
+                                    Some("indices run from 0; negative ones count from the end"),
+                                )
+                            })
                     }
                     other => Err(type_err("a list", &other, expr.span, "indexing")),
                 }
@@ -976,7 +1128,12 @@ impl Evaluator {
     }
 
     /// Binds arguments to named parameters (positional first, then by name).
-    fn bind_args(&mut self, names: &[&str], args: &[Arg], cx: &mut Cx) -> R<Vec<Option<(Value, Span)>>> {
+    fn bind_args(
+        &mut self,
+        names: &[&str],
+        args: &[Arg],
+        cx: &mut Cx,
+    ) -> R<Vec<Option<(Value, Span)>>> {
         let mut out: Vec<Option<(Value, Span)>> = vec![None; names.len()];
         let mut pos = 0;
         for a in args {
@@ -1008,9 +1165,21 @@ impl Evaluator {
             }
             let mut scope = HashMap::new();
             for (p, b) in f.params.iter().zip(bound) {
-                let (v, vspan) = b.ok_or_else(|| bad(span, &format!("missing argument `{}`", p.name.name), "in this call", None))?;
+                let (v, vspan) = b.ok_or_else(|| {
+                    bad(
+                        span,
+                        &format!("missing argument `{}`", p.name.name),
+                        "in this call",
+                        None,
+                    )
+                })?;
                 if let Some(ty) = &p.ty {
-                    self.check_annotation(&v, &ty.name, vspan, &format!("parameter `{}`", p.name.name))?;
+                    self.check_annotation(
+                        &v,
+                        &ty.name,
+                        vspan,
+                        &format!("parameter `{}`", p.name.name),
+                    )?;
                 }
                 scope.insert(p.name.name.clone(), v);
             }
@@ -1027,22 +1196,46 @@ impl Evaluator {
                 Flow::Normal => Value::Nothing,
             };
             if let Some(ty) = &f.ret {
-                self.check_annotation(&v, &ty.name, span, &format!("the result of `{}`", callee.name))?;
+                self.check_annotation(
+                    &v,
+                    &ty.name,
+                    span,
+                    &format!("the result of `{}`", callee.name),
+                )?;
             }
             return Ok(v);
         }
         let Some(b) = schema::builtin(&callee.name) else {
-            return Err(bad(callee.span, &format!("unknown function `{}`", callee.name), "unknown", None));
+            return Err(bad(
+                callee.span,
+                &format!("unknown function `{}`", callee.name),
+                "unknown",
+                None,
+            ));
         };
         let names: Vec<&str> = b.params.iter().map(|p| p.name).collect();
         let a = self.bind_args(&names, args, cx)?;
-        let arg = |i: usize| a.get(i).cloned().flatten().ok_or_else(|| bad(span, &format!("missing argument `{}`", names[i]), "in this call", None));
+        let arg = |i: usize| {
+            a.get(i).cloned().flatten().ok_or_else(|| {
+                bad(
+                    span,
+                    &format!("missing argument `{}`", names[i]),
+                    "in this call",
+                    None,
+                )
+            })
+        };
         let num = |_: &Self, i: usize| -> R<(f64, Dim, Span)> {
             let (v, sp) = arg(i)?;
             match v {
                 Value::Num(x, d) => Ok((x, d, sp)),
                 Value::Zero => Ok((0.0, Dim::NONE, sp)),
-                other => Err(type_err("a number", &other, sp, &format!("`{}`", callee.name))),
+                other => Err(type_err(
+                    "a number",
+                    &other,
+                    sp,
+                    &format!("`{}`", callee.name),
+                )),
             }
         };
         let prof = |s: &Self, i: usize| -> R<Rc<Profile>> {
@@ -1102,17 +1295,36 @@ impl Evaluator {
             "distance" => {
                 let p = pt(self, 0)?;
                 let q = pt(self, 1)?;
-                Value::Num(((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt(), Dim::LENGTH)
+                Value::Num(
+                    ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2)).sqrt(),
+                    Dim::LENGTH,
+                )
             }
             "sqrt" => {
                 let (x, d, sp) = num(self, 0)?;
                 if x < 0.0 {
-                    return Err(bad(sp, "square root of a negative number", "negative", None));
+                    return Err(bad(
+                        sp,
+                        "square root of a negative number",
+                        "negative",
+                        None,
+                    ));
                 }
-                if [d.length, d.time, d.angle, d.power].iter().any(|e| e % 2 != 0) {
-                    return Err(bad(sp, "sqrt needs even unit powers", "odd unit power", None));
+                if [d.length, d.time, d.angle, d.power]
+                    .iter()
+                    .any(|e| e % 2 != 0)
+                {
+                    return Err(bad(
+                        sp,
+                        "sqrt needs even unit powers",
+                        "odd unit power",
+                        None,
+                    ));
                 }
-                Value::Num(x.sqrt(), Dim::new(d.length / 2, d.time / 2, d.angle / 2, d.power / 2))
+                Value::Num(
+                    x.sqrt(),
+                    Dim::new(d.length / 2, d.time / 2, d.angle / 2, d.power / 2),
+                )
             }
             "abs" => {
                 let (x, d, _) = num(self, 0)?;
@@ -1123,7 +1335,12 @@ impl Evaluator {
                 let (y, dy, sy) = num(self, 1)?;
                 let d = if a_is_zero(&a, 0) { dy } else { dx };
                 if dx != dy && !a_is_zero(&a, 0) && !a_is_zero(&a, 1) {
-                    return Err(bad(sy, "both operands need one dimension", "different dimension", None));
+                    return Err(bad(
+                        sy,
+                        "both operands need one dimension",
+                        "different dimension",
+                        None,
+                    ));
                 }
                 Value::Num(if b.name == "min" { x.min(y) } else { x.max(y) }, d)
             }
@@ -1138,7 +1355,12 @@ impl Evaluator {
             "floor" | "ceil" | "round" => {
                 let (x, d, sp) = num(self, 0)?;
                 if !d.is_none() {
-                    return Err(bad(sp, "rounding needs a plain number", "has a unit", Some("divide by a unit first: `round(x / 1 mm)`")));
+                    return Err(bad(
+                        sp,
+                        "rounding needs a plain number",
+                        "has a unit",
+                        Some("divide by a unit first: `round(x / 1 mm)`"),
+                    ));
                 }
                 Value::Num(
                     match b.name {
@@ -1156,13 +1378,24 @@ impl Evaluator {
                     other => return Err(type_err("a list", &other, sp, "`len`")),
                 }
             }
-            other => return Err(bad(callee.span, &format!("`{other}` is not available"), "not available", None)),
+            other => {
+                return Err(bad(
+                    callee.span,
+                    &format!("`{other}` is not available"),
+                    "not available",
+                    None,
+                ));
+            }
         })
     }
 
     fn check_annotation(&self, v: &Value, ty: &str, span: Span, ctx: &str) -> R<()> {
         let ok = match (ty, v) {
-            ("bool", Value::Bool(_)) | ("string", Value::Str(_)) | ("point", Value::Point(..)) | ("profile", Value::Profile(_)) | ("list", Value::List(_)) => true,
+            ("bool", Value::Bool(_))
+            | ("string", Value::Str(_))
+            | ("point", Value::Point(..))
+            | ("profile", Value::Profile(_))
+            | ("list", Value::List(_)) => true,
             (_, Value::Zero) => units::dim_by_name(ty).is_some(),
             (t, Value::Num(_, d)) => units::dim_by_name(t) == Some(*d),
             _ => false,
@@ -1180,14 +1413,30 @@ impl Evaluator {
         }
     }
 
-    fn profile(&mut self, kind: &Ident, args: &[Arg], flags: &[Ident], span: Span, cx: &mut Cx) -> R<Value> {
+    fn profile(
+        &mut self,
+        kind: &Ident,
+        args: &[Arg],
+        flags: &[Ident],
+        span: Span,
+        cx: &mut Cx,
+    ) -> R<Value> {
         let Some(pk) = schema::profile_kind(&kind.name) else {
             return Err(bad(kind.span, "unknown profile", "unknown", None));
         };
         let names: Vec<&str> = pk.params.iter().map(|p| p.name).collect();
         let a = self.bind_args(&names, args, cx)?;
         let has = |f: &str| flags.iter().any(|x| x.name == f);
-        let get = |i: usize| a.get(i).cloned().flatten().ok_or_else(|| bad(span, &format!("missing `{}`", names[i]), "in this profile", None));
+        let get = |i: usize| {
+            a.get(i).cloned().flatten().ok_or_else(|| {
+                bad(
+                    span,
+                    &format!("missing `{}`", names[i]),
+                    "in this profile",
+                    None,
+                )
+            })
+        };
         let pt = |s: &Self, i: usize| -> R<V2> {
             let (v, sp) = get(i)?;
             let (p, _) = s.as_point(&v, sp, &format!("`{}`", names[i]))?;
@@ -1215,7 +1464,13 @@ impl Evaluator {
                 Profile::polyline(&pts, has("closed"))
             }
             "line" => Profile::polyline(&[pt(self, 0)?, pt(self, 1)?], false),
-            "arc" => Profile::arc(pt(self, 0)?, len(self, 1)?, ang(self, 2)?, ang(self, 3)?, !has("cw")),
+            "arc" => Profile::arc(
+                pt(self, 0)?,
+                len(self, 1)?,
+                ang(self, 2)?,
+                ang(self, 3)?,
+                !has("cw"),
+            ),
             "circle" => {
                 let a0 = match a.get(2).cloned().flatten() {
                     Some((v, sp)) => self.as_dim(&v, Dim::ANGLE, sp, "`start`")?,
@@ -1228,13 +1483,34 @@ impl Evaluator {
                 let w = len(self, 1)?;
                 let h = len(self, 2)?;
                 if !(w > 0.0 && h > 0.0) {
-                    return Err(bad(span, "a rectangle needs a positive width and height", "empty rectangle", None));
+                    return Err(bad(
+                        span,
+                        "a rectangle needs a positive width and height",
+                        "empty rectangle",
+                        None,
+                    ));
                 }
-                Profile::polyline(&[c, c + V2::new(w, 0.0), c + V2::new(w, h), c + V2::new(0.0, h)], true)
+                Profile::polyline(
+                    &[
+                        c,
+                        c + V2::new(w, 0.0),
+                        c + V2::new(w, h),
+                        c + V2::new(0.0, h),
+                    ],
+                    true,
+                )
             }
-            other => return Err(bad(kind.span, &format!("`profile {other}` is not supported yet"), "not supported", None)),
+            other => {
+                return Err(bad(
+                    kind.span,
+                    &format!("`profile {other}` is not supported yet"),
+                    "not supported",
+                    None,
+                ));
+            }
         };
-        r.map(|p| Value::Profile(Rc::new(p))).map_err(|g| geom_error(g, span, None))
+        r.map(|p| Value::Profile(Rc::new(p)))
+            .map_err(|g| geom_error(g, span, None))
     }
 }
 
@@ -1293,7 +1569,11 @@ fn geom_error(g: GeomError, span: Span, offset: Option<f64>) -> EvalError {
     EvalError::Geometry {
         message: g.to_string(),
         span,
-        label: if offset.is_some() { "this offset".into() } else { "this profile".into() },
+        label: if offset.is_some() {
+            "this offset".into()
+        } else {
+            "this profile".into()
+        },
         help,
     }
 }
@@ -1340,7 +1620,7 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
                 })
             }
             BinOp::Mul => Ok(match (da, db) {
-                (Some(x), Some(y)) => Num(a * b, x.mul(y)),
+                (Some(x), Some(y)) => Num(a * b, x * y),
                 (Some(x), None) | (None, Some(x)) => Num(0.0, x),
                 (None, None) => Zero,
             }),
@@ -1348,7 +1628,10 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
                 if b == 0.0 {
                     return Err(bad(rs, "division by zero", "this is zero", None));
                 }
-                Ok(Num(a / b, da.unwrap_or(Dim::NONE).div(db.unwrap_or(Dim::NONE))))
+                Ok(Num(
+                    a / b,
+                    da.unwrap_or(Dim::NONE) / db.unwrap_or(Dim::NONE),
+                ))
             }
             _ => {
                 same(da, db).ok_or_else(|| mismatch(&l, &r))?;
@@ -1364,9 +1647,17 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
         };
     }
     match (op, &l, &r) {
-        (BinOp::Add, Point(a, n), Point(b, m)) => Ok(Point([a[0] + b[0], a[1] + b[1], a[2] + b[2]], (*n).max(*m))),
-        (BinOp::Sub, Point(a, n), Point(b, m)) => Ok(Point([a[0] - b[0], a[1] - b[1], a[2] - b[2]], (*n).max(*m))),
-        (BinOp::Mul, Point(a, n), Num(k, d)) | (BinOp::Mul, Num(k, d), Point(a, n)) if d.is_none() => Ok(Point([a[0] * k, a[1] * k, a[2] * k], *n)),
+        (BinOp::Add, Point(a, n), Point(b, m)) => {
+            Ok(Point([a[0] + b[0], a[1] + b[1], a[2] + b[2]], (*n).max(*m)))
+        }
+        (BinOp::Sub, Point(a, n), Point(b, m)) => {
+            Ok(Point([a[0] - b[0], a[1] - b[1], a[2] - b[2]], (*n).max(*m)))
+        }
+        (BinOp::Mul, Point(a, n), Num(k, d)) | (BinOp::Mul, Num(k, d), Point(a, n))
+            if d.is_none() =>
+        {
+            Ok(Point([a[0] * k, a[1] * k, a[2] * k], *n))
+        }
         (BinOp::Div, Point(a, n), Num(k, d)) if d.is_none() => {
             if *k == 0.0 {
                 return Err(bad(rs, "division by zero", "this is zero", None));

@@ -62,7 +62,11 @@ impl Seg {
     /// Point at arc length `s` from the segment start (clamped to the segment).
     pub fn point_at(&self, s: f64) -> V2 {
         let len = self.length();
-        let f = if len > 0.0 { (s / len).clamp(0.0, 1.0) } else { 0.0 };
+        let f = if len > 0.0 {
+            (s / len).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         match self {
             Seg::Line { a, b } => a + (b - a) * f,
             Seg::Arc {
@@ -83,7 +87,11 @@ impl Seg {
             Seg::Line { a, b } => (b - a).try_normalize(0.0).unwrap_or(V2::x()),
             Seg::Arc { a0, sweep, .. } => {
                 let len = self.length();
-                let f = if len > 0.0 { (s / len).clamp(0.0, 1.0) } else { 0.0 };
+                let f = if len > 0.0 {
+                    (s / len).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                };
                 let a = a0 + sweep * f;
                 let t = V2::new(-a.sin(), a.cos());
                 if *sweep >= 0.0 { t } else { -t }
@@ -151,14 +159,18 @@ pub enum GeomError {
         distance: f64,
     },
     /// The offset splits into several loops or vanishes.
-    Split { loops: usize },
+    Split {
+        loops: usize,
+    },
 }
 
 impl std::fmt::Display for GeomError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         use lase_lang::units::format_number as n;
         match self {
-            GeomError::TooFewPoints(k) => write!(f, "a polyline needs at least 2 distinct points, got {k}"),
+            GeomError::TooFewPoints(k) => {
+                write!(f, "a polyline needs at least 2 distinct points, got {k}")
+            }
             GeomError::Degenerate(why) => write!(f, "{why}"),
             GeomError::FoldOver {
                 segment,
@@ -171,8 +183,13 @@ impl std::fmt::Display for GeomError {
                 n(*radius),
                 n(*distance)
             ),
-            GeomError::Split { loops: 0 } => write!(f, "the offset vanishes: the profile is narrower than twice the distance"),
-            GeomError::Split { loops } => write!(f, "the offset splits into {loops} separate loops"),
+            GeomError::Split { loops: 0 } => write!(
+                f,
+                "the offset vanishes: the profile is narrower than twice the distance"
+            ),
+            GeomError::Split { loops } => {
+                write!(f, "the offset splits into {loops} separate loops")
+            }
         }
     }
 }
@@ -192,7 +209,10 @@ impl Profile {
         if p.len() < 2 || (closed && p.len() < 3) {
             return Err(GeomError::TooFewPoints(p.len()));
         }
-        let mut segs: Vec<Seg> = p.windows(2).map(|w| Seg::Line { a: w[0], b: w[1] }).collect();
+        let mut segs: Vec<Seg> = p
+            .windows(2)
+            .map(|w| Seg::Line { a: w[0], b: w[1] })
+            .collect();
         if closed {
             segs.push(Seg::Line {
                 a: p[p.len() - 1],
@@ -204,7 +224,9 @@ impl Profile {
 
     pub fn arc(center: V2, r: f64, a0: f64, a1: f64, ccw: bool) -> Result<Profile, GeomError> {
         if !(r > 0.0) {
-            return Err(GeomError::Degenerate(format!("an arc needs a positive radius, got {r} mm")));
+            return Err(GeomError::Degenerate(format!(
+                "an arc needs a positive radius, got {r} mm"
+            )));
         }
         let mut sweep = a1 - a0;
         if ccw {
@@ -235,7 +257,9 @@ impl Profile {
 
     pub fn circle(center: V2, r: f64, a0: f64, ccw: bool) -> Result<Profile, GeomError> {
         if !(r > 0.0) {
-            return Err(GeomError::Degenerate(format!("a circle needs a positive radius, got {r} mm")));
+            return Err(GeomError::Degenerate(format!(
+                "a circle needs a positive radius, got {r} mm"
+            )));
         }
         let s = if ccw { PI } else { -PI };
         // Two half circles: every NC dialect and every offset library takes those unambiguously.
@@ -303,7 +327,11 @@ impl Profile {
 
     pub fn transformed(&self, angle: f64, shift: V2) -> Profile {
         Profile {
-            segs: self.segs.iter().map(|s| s.transformed(angle, shift)).collect(),
+            segs: self
+                .segs
+                .iter()
+                .map(|s| s.transformed(angle, shift))
+                .collect(),
             closed: self.closed,
         }
     }
@@ -339,7 +367,11 @@ impl Profile {
 
     fn from_pline(pl: &Polyline<f64>) -> Profile {
         let n = pl.vertex_count();
-        let count = if pl.is_closed() { n } else { n.saturating_sub(1) };
+        let count = if pl.is_closed() {
+            n
+        } else {
+            n.saturating_sub(1)
+        };
         let mut segs = Vec::with_capacity(count);
         for i in 0..count {
             let v = pl.at(i);
@@ -358,7 +390,11 @@ impl Profile {
                 let mid = (a + b) / 2.0;
                 let left = V2::new(-chord.y, chord.x) / c;
                 let h = (r * r - c * c / 4.0).max(0.0).sqrt();
-                let side = if (sweep.abs() < PI) == (sweep > 0.0) { 1.0 } else { -1.0 };
+                let side = if (sweep.abs() < PI) == (sweep > 0.0) {
+                    1.0
+                } else {
+                    -1.0
+                };
                 let center = mid + left * h * side;
                 let a0 = (a.y - center.y).atan2(a.x - center.x);
                 segs.push(Seg::Arc {
@@ -402,8 +438,9 @@ impl Profile {
             }
         }
         let pl = self.to_pline();
-        let result = std::panic::catch_unwind(|| pl.parallel_offset(left))
-            .map_err(|_| GeomError::Degenerate("the offset could not be computed for this profile".into()))?;
+        let result = std::panic::catch_unwind(|| pl.parallel_offset(left)).map_err(|_| {
+            GeomError::Degenerate("the offset could not be computed for this profile".into())
+        })?;
         if result.len() != 1 {
             return Err(GeomError::Split {
                 loops: result.len(),
@@ -466,10 +503,16 @@ mod tests {
         // 4 sides kept, 4 quarter arcs of radius 1.5 added at the corners.
         let expected = 2.0 * (40.0 + 20.0) + TAU * 1.5;
         assert!((o.length() - expected).abs() < 1e-9, "{}", o.length());
-        let arcs: Vec<_> = o.segs.iter().filter(|s| matches!(s, Seg::Arc { .. })).collect();
+        let arcs: Vec<_> = o
+            .segs
+            .iter()
+            .filter(|s| matches!(s, Seg::Arc { .. }))
+            .collect();
         assert_eq!(arcs.len(), 4);
         for a in arcs {
-            let Seg::Arc { r, .. } = a else { unreachable!() };
+            let Seg::Arc { r, .. } = a else {
+                unreachable!()
+            };
             assert!((r - 1.5).abs() < 1e-12);
         }
         // Every point of the offset lies at exactly 1.5 mm from the rectangle.
@@ -479,15 +522,24 @@ mod tests {
             let dy = (p.y.clamp(0.0, 20.0) - p.y).abs();
             assert!(((dx * dx + dy * dy).sqrt() - 1.5).abs() < 1e-9, "{p:?}");
         }
-        assert!((o.start() - V2::new(0.0, -1.5)).norm() < 1e-9 || (o.start() - V2::new(-1.5, 0.0)).norm() < 1e-9);
+        assert!(
+            (o.start() - V2::new(0.0, -1.5)).norm() < 1e-9
+                || (o.start() - V2::new(-1.5, 0.0)).norm() < 1e-9
+        );
     }
 
     #[test]
     fn inward_offset_shrinks() {
         let o = rect().offset(-2.0).unwrap();
         assert!((o.length() - 2.0 * (36.0 + 16.0)).abs() < 1e-9);
-        assert!(matches!(rect().offset(-10.0), Err(GeomError::Split { loops: 0 })));
-        assert!(matches!(rect().offset(-11.0), Err(GeomError::Split { loops: 0 })));
+        assert!(matches!(
+            rect().offset(-10.0),
+            Err(GeomError::Split { loops: 0 })
+        ));
+        assert!(matches!(
+            rect().offset(-11.0),
+            Err(GeomError::Split { loops: 0 })
+        ));
     }
 
     #[test]

@@ -9,7 +9,7 @@ mod cartesian;
 
 pub use cartesian::Cartesian;
 
-use crate::machine::{Machine, KinematicsKind};
+use crate::machine::{KinematicsKind, Machine};
 use crate::planner::{Axes, MAX_AXES};
 use nalgebra::Vector3;
 

@@ -12,7 +12,10 @@ pub mod sim;
 pub enum Reply {
     Ok,
     /// The controller refused the line (GRBL's `error:N`), with its reason.
-    Error { code: u32, message: String },
+    Error {
+        code: u32,
+        message: String,
+    },
 }
 
 /// Transport-level failure.
@@ -35,7 +38,10 @@ pub trait Link {
 }
 
 /// Opens a link from a URL. Only the built-in simulator (`sim`) is available in this version.
-pub fn open(url: Option<&str>, machine: &crate::machine::Machine) -> Result<Box<dyn Link>, LinkError> {
+pub fn open(
+    url: Option<&str>,
+    machine: &crate::machine::Machine,
+) -> Result<Box<dyn Link>, LinkError> {
     match url {
         None | Some("sim") | Some("sim://") => Ok(Box::new(sim::SimController::new(machine))),
         Some(other) => Err(LinkError::Unsupported {

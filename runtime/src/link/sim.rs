@@ -22,7 +22,11 @@ pub struct SimController {
 impl SimController {
     pub fn new(m: &Machine) -> SimController {
         SimController {
-            letters: m.axes.iter().map(|a| a.name.chars().next().unwrap_or('X')).collect(),
+            letters: m
+                .axes
+                .iter()
+                .map(|a| a.name.chars().next().unwrap_or('X'))
+                .collect(),
             travel: m.axes.iter().map(|a| (a.min, a.max)).collect(),
             pos: vec![0.0; m.axes.len()],
             feed_mm_min: 0.0,
@@ -103,13 +107,22 @@ impl Link for SimController {
                     930 => self.inverse_time = true,
                     940 => self.inverse_time = false,
                     40 | 170 | 210 | 900 | 640 | 610 => {}
-                    g => return Self::reject(20, format!("unsupported G-code G{}", g as f64 / 10.0)),
+                    g => {
+                        return Self::reject(
+                            20,
+                            format!("unsupported G-code G{}", g as f64 / 10.0),
+                        );
+                    }
                 },
                 'M' => match *v as i64 {
                     3 | 4 => self.laser_on = true,
                     5 => self.laser_on = false,
-                    62 | 64 if ws.iter().any(|(c, p)| *c == 'P' && *p == 0.0) => self.laser_on = true,
-                    63 | 65 if ws.iter().any(|(c, p)| *c == 'P' && *p == 0.0) => self.laser_on = false,
+                    62 | 64 if ws.iter().any(|(c, p)| *c == 'P' && *p == 0.0) => {
+                        self.laser_on = true
+                    }
+                    63 | 65 if ws.iter().any(|(c, p)| *c == 'P' && *p == 0.0) => {
+                        self.laser_on = false
+                    }
                     _ => {}
                 },
                 'F' => {
@@ -139,10 +152,7 @@ impl Link for SimController {
             for (i, v) in target.iter().enumerate() {
                 let (lo, hi) = self.travel[i];
                 if *v < lo - 1e-6 || *v > hi + 1e-6 {
-                    return Self::reject(
-                        15,
-                        format!("travel exceeded: {} = {v}", self.letters[i]),
-                    );
+                    return Self::reject(15, format!("travel exceeded: {} = {v}", self.letters[i]));
                 }
             }
             self.pos = target;
@@ -175,7 +185,16 @@ mod tests {
     #[test]
     fn words_skip_comments_and_parse_numbers() {
         let w = words("N10 G1 X-1.5 (go) Y2 F1200").unwrap();
-        assert_eq!(w, vec![('N', 10.0), ('G', 1.0), ('X', -1.5), ('Y', 2.0), ('F', 1200.0)]);
+        assert_eq!(
+            w,
+            vec![
+                ('N', 10.0),
+                ('G', 1.0),
+                ('X', -1.5),
+                ('Y', 2.0),
+                ('F', 1200.0)
+            ]
+        );
         assert!(words("G1 X1.2.3").is_err());
         assert!(words("G1 #5").is_err());
     }

@@ -1,0 +1,223 @@
+//! Physical properties measured from lase's real outputs (the emitted NC program, the trace
+//! CSV, the summary), not from its internals: the marked path keeps its offset distance, the
+//! laser-on speed never exceeds the programmed feed and reaches it, the machine's limits are
+//! respected at every sample, pulses land where and as often as asked.
+
+mod common;
+
+use common::*;
+use std::collections::HashMap;
+
+/// Lit points of a LinuxCNC program, sampled along lines and arcs (laser on = after M62 P0).
+fn lit_points(ngc: &str) -> Vec<[f64; 2]> {
+    let mut pos = [0.0f64; 2];
+    let mut lit = false;
+    let mut motion = 0;
+    let mut out = Vec::new();
+    for line in ngc.lines() {
+        let w = nc_words(line);
+        let get = |c: char| w.iter().find(|(l, _)| *l == c).map(|(_, v)| *v);
+        if w.iter().any(|&(c, v)| c == 'M' && v == 62.0) {
+            lit = true;
+        }
+        if w.iter().any(|&(c, v)| c == 'M' && v == 63.0) {
+            lit = false;
+        }
+        if let Some(g) = w
+            .iter()
+            .find(|(c, v)| *c == 'G' && *v <= 3.0)
+            .map(|(_, v)| *v as i32)
+        {
+            motion = g;
+        }
+        let (x, y) = (get('X'), get('Y'));
+        if x.is_none() && y.is_none() {
+            continue;
+        }
+        let to = [x.unwrap_or(pos[0]), y.unwrap_or(pos[1])];
+        if lit && motion > 0 {
+            for k in 0..=20 {
+                let f = k as f64 / 20.0;
+                let p = if motion == 1 {
+                    [pos[0] + (to[0] - pos[0]) * f, pos[1] + (to[1] - pos[1]) * f]
+                } else {
+                    let c = [pos[0] + get('I').unwrap(), pos[1] + get('J').unwrap()];
+                    let r = ((pos[0] - c[0]).powi(2) + (pos[1] - c[1]).powi(2)).sqrt();
+                    let a0 = (pos[1] - c[1]).atan2(pos[0] - c[0]);
+                    let a1 = (to[1] - c[1]).atan2(to[0] - c[0]);
+                    let mut d = a1 - a0;
+                    let tau = std::f64::consts::TAU;
+                    if motion == 3 {
+                        while d <= 0.0 {
+                            d += tau;
+                        }
+                    } else {
+                        while d >= 0.0 {
+                            d -= tau;
+                        }
+                    }
+                    let a = a0 + d * f;
+                    [c[0] + r * a.cos(), c[1] + r * a.sin()]
+                };
+                out.push(p);
+            }
+        }
+        pos = to;
+    }
+    out
+}
+
+fn dist_to_rect(p: [f64; 2], w: f64, h: f64) -> f64 {
+    let dx = (p[0].clamp(0.0, w) - p[0]).abs();
+    let dy = (p[1].clamp(0.0, h) - p[1]).abs();
+    (dx * dx + dy * dy).sqrt()
+}
+
+#[test]
+fn the_marked_frame_keeps_its_offset_distance() {
+    let (code, ngc, err) = lase(&["emit", "examples/frame_marking.lase"]);
+    assert_eq!(code, 0, "{err}");
+    let pts = lit_points(&ngc);
+    assert!(pts.len() > 100);
+    let mut worst: f64 = 0.0;
+    for p in &pts {
+        // Three passes shifted by i·0.2 mm in y: each point is 1.5 mm from one of them.
+        let e = (0..3)
+            .map(|i| (dist_to_rect([p[0], p[1] - 0.2 * i as f64], 40.0, 20.0) - 1.5).abs())
+            .fold(f64::INFINITY, f64::min);
+        worst = worst.max(e);
+    }
+    // The NC program carries 4 decimals: 0.1 µm.
+    assert!(worst < 1e-4, "worst offset error {worst} mm");
+}
+
+struct Trace {
+    cols: HashMap<String, usize>,
+    rows: Vec<Vec<f64>>,
+}
+
+impl Trace {
+    fn col(&self, name: &str) -> impl Iterator<Item = f64> + '_ {
+        let i = self.cols[name];
+        self.rows.iter().map(move |r| r[i])
+    }
+}
+
+fn trace(example: &str, period: &str) -> (Trace, serde_json::Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("t.csv");
+    let json = dir.path().join("s.json");
+    let (code, _, err) = lase(&[
+        "plan",
+        example,
+        "--trace",
+        csv.to_str().unwrap(),
+        "--period",
+        period,
+        "--summary",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines();
+    let cols = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .enumerate()
+        .map(|(i, c)| (c.to_string(), i))
+        .collect();
+    let rows = lines
+        .map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect())
+        .collect();
+    let summary = serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    (Trace { cols, rows }, summary)
+}
+
+#[test]
+fn laser_on_speed_is_the_programmed_feed_and_never_above() {
+    let (t, s) = trace("examples/frame_marking.lase", "1ms");
+    let lit: Vec<(f64, f64)> = t
+        .col("laser")
+        .zip(t.col("v"))
+        .filter(|(l, _)| *l == 1.0)
+        .map(|(_, v)| (0.0, v))
+        .collect();
+    assert!(lit.len() > 10_000);
+    let vmax = lit.iter().map(|(_, v)| *v).fold(0.0, f64::max);
+    assert!(
+        vmax <= 20.0 * (1.0 + 1e-6),
+        "lit speed {vmax} above 20 mm/s"
+    );
+    // Most of the lit time is spent at exactly the programmed speed (the long straight edges).
+    let at_feed = lit.iter().filter(|(_, v)| (v - 20.0).abs() < 1e-6).count();
+    assert!(
+        at_feed as f64 > 0.9 * lit.len() as f64,
+        "{at_feed} of {}",
+        lit.len()
+    );
+    // The trace ends at the cycle time of the summary.
+    let last_t = t.col("t").last().unwrap();
+    let cycle = s["cycle_time_s"].as_f64().unwrap();
+    assert!((last_t - cycle).abs() < 1e-6, "{last_t} vs {cycle}");
+}
+
+#[test]
+fn machine_limits_hold_at_every_sample() {
+    // xy_table: a = 2 m/s^2 per axis; the recipe caps v at 200 mm/s per axis.
+    for ex in ["examples/frame_marking.lase", "examples/dial_marks.lase"] {
+        let (t, s) = trace(ex, "1ms");
+        // Each axis may accelerate at 2 m/s^2, so the path (two axes) at most √2 times that.
+        let a_max = t.col("a").map(f64::abs).fold(0.0, f64::max);
+        assert!(
+            a_max <= 2000.0 * 2f64.sqrt() * (1.0 + 1e-9),
+            "{ex}: path acceleration {a_max}"
+        );
+        for axis in ["X", "Y"] {
+            let xs: Vec<f64> = t.col(axis).collect();
+            let ts: Vec<f64> = t.col("t").collect();
+            let vmax = xs
+                .windows(2)
+                .zip(ts.windows(2))
+                .map(|(x, t)| ((x[1] - x[0]) / (t[1] - t[0])).abs())
+                .fold(0.0, f64::max);
+            let limit = if ex.contains("frame") { 200.0 } else { 250.0 };
+            assert!(
+                vmax <= limit * (1.0 + 1e-3),
+                "{ex}: axis {axis} at {vmax} mm/s"
+            );
+            let peak = s["axes"][axis]["v_max"].as_f64().unwrap();
+            assert!(peak <= limit * (1.0 + 1e-9), "{ex}: summary peak {peak}");
+            let a = s["axes"][axis]["a_max"].as_f64().unwrap();
+            assert!(a <= 2000.0 * (1.0 + 1e-9), "{ex}: summary a peak {a}");
+            let j = s["axes"][axis]["j_max"].as_f64().unwrap();
+            assert!(j <= 50_000.0 * (1.0 + 1e-9), "{ex}: summary j peak {j}");
+        }
+    }
+}
+
+#[test]
+fn position_synchronized_pulses_are_counted_exactly() {
+    // The dotted arc: radius 33 mm over 120°, a pulse every 0.5 mm including its start.
+    let (t, s) = trace("examples/dial_marks.lase", "1ms");
+    let length = 33.0 * 120f64.to_radians();
+    let expected = (length / 0.5).floor() as u64 + 1;
+    assert_eq!(s["pulses"].as_u64().unwrap(), expected);
+    assert_eq!(t.col("pulses").last().unwrap() as u64, expected);
+    // The cumulative count never decreases and pulses only grow while the laser is on.
+    let p: Vec<f64> = t.col("pulses").collect();
+    assert!(p.windows(2).all(|w| w[1] >= w[0]));
+}
+
+#[test]
+fn run_executes_every_line_on_the_simulator() {
+    let (code, out, err) = lase(&["run", "examples/frame_marking.lase"]);
+    assert_eq!(code, 0, "{err}");
+    let (_, ngc, _) = lase(&["emit", "examples/frame_marking.lase"]);
+    let lines = ngc.lines().count();
+    assert!(out.contains(&format!("{lines} lines")), "{out}");
+    assert!(
+        out.contains("X0 Y0"),
+        "the job ends back at the origin: {out}"
+    );
+}
