@@ -1,0 +1,51 @@
+//! The REPL driven through piped input: a scripted session (with an error in the middle that
+//! the session survives) whose whole output is a golden file.
+
+mod common;
+
+use common::*;
+use std::io::Write;
+use std::process::{Command, Stdio};
+
+fn session(input: &str) -> (i32, String, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lase"))
+        .arg("repl")
+        .current_dir(root())
+        .env("NO_COLOR", "1")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
+    let out = child.wait_with_output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn scripted_session_matches_its_golden() {
+    let input = std::fs::read_to_string(root().join("tests/repl/session.txt")).unwrap();
+    let (code, out, err) = session(&input);
+    assert_eq!(code, 0, "{err}");
+    // The error in the middle is reported and the session goes on.
+    assert!(err.contains("lase::check::unit_mismatch"), "{err}");
+    assert!(out.contains("10 mm"), "{out}");
+    assert!(out.contains("profile (2 segments, closed, 31.415927 mm)"), "{out}");
+    // Two rings were planned: 2π·5 + 2π·10 mm lit (arcs run as chords within the 2 µm chord
+    // tolerance, so a little shorter).
+    let lit = std::f64::consts::TAU * 15.0;
+    let reported: f64 = out
+        .split("laser on ")
+        .nth(1)
+        .and_then(|r| r.split(" mm").next())
+        .and_then(|n| n.parse().ok())
+        .expect("the :plan line reports the lit length");
+    assert!((reported - lit).abs() < 1e-3 * lit, "{reported} vs {lit}");
+    // After :run the session's motion was sent and cleared.
+    assert!(out.contains("0 ops"), "{out}");
+    golden(&root().join("tests/repl/session.out"), &format!("--- stdout\n{out}--- stderr\n{err}"));
+}
