@@ -46,6 +46,28 @@ pub enum AxisKind {
 pub enum KinematicsKind {
     /// Axes move the spot along part x, y, z directly.
     Cartesian,
+    /// PROCESS.md §1: table X, rotary table ω turning the part about the origin, head swivel
+    /// B turning the beam in the horizontal plane. Axes in that order.
+    CamXwb,
+    /// PROCESS.md §2: a slide along the joint axes, then the planar arm's joints A, B, C.
+    /// Axes in that order.
+    Arm3r,
+}
+
+/// Link lengths and offsets of oriented machines, mm (internal units).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct Geometry {
+    /// cam_xwb: where the lens sits on the machine's x line when X = 0.
+    pub head_x: f64,
+    /// arm_3r: the base joint A in part x, y.
+    pub base: [f64; 2],
+    /// arm_3r: A→B and B→C link lengths.
+    pub link1: f64,
+    pub link2: f64,
+    /// arm_3r: C joint to lens along the beam.
+    pub head: f64,
+    /// arm_3r: elbow branch, +1 (elbow left of the line base→wrist) or −1.
+    pub elbow: f64,
 }
 
 /// One machine axis, in internal units (mm or rad).
@@ -98,6 +120,7 @@ pub struct Machine {
     pub name: String,
     pub description: String,
     pub kinematics: KinematicsKind,
+    pub geometry: Geometry,
     pub axes: Vec<Axis>,
     pub laser: LaserSpec,
     pub ramp: crate::program::Ramp,
@@ -124,6 +147,8 @@ struct FileMachine {
     #[serde(default)]
     description: String,
     kinematics: toml::Spanned<String>,
+    #[serde(default)]
+    geometry: FileGeometry,
     axes: Vec<FileAxis>,
     laser: FileLaser,
     #[serde(default)]
@@ -143,6 +168,17 @@ struct FileAxis {
     v_max: toml::Spanned<String>,
     a_max: toml::Spanned<String>,
     j_max: toml::Spanned<String>,
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct FileGeometry {
+    head_x: Option<toml::Spanned<String>>,
+    base: Option<[toml::Spanned<String>; 2]>,
+    link1: Option<toml::Spanned<String>>,
+    link2: Option<toml::Spanned<String>>,
+    head: Option<toml::Spanned<String>>,
+    elbow: Option<toml::Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -274,12 +310,14 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
     };
     let kinematics = match file.kinematics.get_ref().as_str() {
         "cartesian" => KinematicsKind::Cartesian,
+        "cam_xwb" => KinematicsKind::CamXwb,
+        "arm_3r" => KinematicsKind::Arm3r,
         other => {
             return Err(MachineError::Invalid {
                 message: format!("unknown kinematics `{other}`"),
                 span: at(file.kinematics.span()),
                 label: "not a kinematics model".into(),
-                help: Some("available: cartesian".into()),
+                help: Some("available: cartesian, cam_xwb, arm_3r".into()),
             });
         }
     };
@@ -371,6 +409,66 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             help: None,
         });
     }
+    let kinematics_span = at(file.kinematics.span());
+    let need = |v: &Option<toml::Spanned<String>>, what: &str| -> Result<f64, MachineError> {
+        match v {
+            Some(s) => qty(s, &[Dim::LENGTH], what),
+            None => Err(MachineError::Invalid {
+                message: format!("this kinematics needs `geometry.{what}`"),
+                span: kinematics_span,
+                label: "here".into(),
+                help: Some(format!("add `{what} = \"... mm\"` under [geometry]")),
+            }),
+        }
+    };
+    let roles = |kinds: &[AxisKind], names: &str| -> Result<(), MachineError> {
+        let ok = axes.len() == kinds.len() && axes.iter().zip(kinds).all(|(a, k)| a.kind == *k);
+        if ok {
+            Ok(())
+        } else {
+            Err(MachineError::Invalid {
+                message: format!("this kinematics needs exactly the axes {names}, in that order"),
+                span: kinematics_span,
+                label: "here".into(),
+                help: None,
+            })
+        }
+    };
+    let mut geometry = Geometry::default();
+    match kinematics {
+        KinematicsKind::Cartesian => {}
+        KinematicsKind::CamXwb => {
+            roles(
+                &[AxisKind::Linear, AxisKind::Rotary, AxisKind::Rotary],
+                "table (linear), rotary table (rotary), head swivel (rotary)",
+            )?;
+            geometry.head_x = need(&file.geometry.head_x, "head_x")?;
+        }
+        KinematicsKind::Arm3r => {
+            roles(
+                &[AxisKind::Linear, AxisKind::Rotary, AxisKind::Rotary, AxisKind::Rotary],
+                "slide (linear), A, B, C (rotary)",
+            )?;
+            geometry.link1 = positive(need(&file.geometry.link1, "link1")?, file.geometry.link1.as_ref().expect("checked"), "link1")?;
+            geometry.link2 = positive(need(&file.geometry.link2, "link2")?, file.geometry.link2.as_ref().expect("checked"), "link2")?;
+            geometry.head = need(&file.geometry.head, "head")?;
+            if let Some([bx, by]) = &file.geometry.base {
+                geometry.base = [qty(bx, &[Dim::LENGTH], "base")?, qty(by, &[Dim::LENGTH], "base")?];
+            }
+            geometry.elbow = match file.geometry.elbow.as_ref().map(|e| e.get_ref().as_str()) {
+                None | Some("up") => 1.0,
+                Some("down") => -1.0,
+                Some(other) => {
+                    return Err(MachineError::Invalid {
+                        message: format!("elbow `{other}` must be \"up\" or \"down\""),
+                        span: at(file.geometry.elbow.as_ref().expect("present").span()),
+                        label: "here".into(),
+                        help: None,
+                    });
+                }
+            };
+        }
+    }
     if kinematics == KinematicsKind::Cartesian {
         for (i, a) in file.axes.iter().enumerate() {
             if axes[i].kind != AxisKind::Linear || axes[i].part_axis.is_none() {
@@ -447,6 +545,7 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         name: file.name,
         description: file.description,
         kinematics,
+        geometry,
         axes,
         laser,
         ramp: file.planner.ramp.unwrap_or(crate::program::Ramp::Scurve),

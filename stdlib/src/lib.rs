@@ -7,6 +7,8 @@ pub const MACHINES: &[(&str, &str)] = &[
     ("xy_table", include_str!("../machines/xy_table.toml")),
     ("xyz", include_str!("../machines/xyz.toml")),
     ("notcher", include_str!("../machines/notcher.toml")),
+    ("cam_xwb", include_str!("../machines/cam_xwb.toml")),
+    ("arm_3r", include_str!("../machines/arm_3r.toml")),
 ];
 
 /// The TOML text of a stock machine.

@@ -64,15 +64,19 @@ impl Kinematics for Cartesian {
         Ok(q)
     }
 
-    fn forward(&self, q: &Axes) -> ToolPose {
+    fn forward_at(&self, q: &Axes, standoff: f64) -> ToolPose {
         let mut spot = [0.0; 3];
         for (i, &k) in self.map.iter().enumerate() {
             spot[k] = q[i];
         }
-        ToolPose::down(spot)
+        // The head's focus is the machine's calibration: the axes place the spot itself.
+        ToolPose {
+            standoff,
+            ..ToolPose::down(spot)
+        }
     }
 
-    fn jacobian(&self, _q: &Axes) -> Matrix3xX<f64> {
+    fn jacobian(&self, _q: &Axes, _standoff: f64) -> Matrix3xX<f64> {
         let mut j = Matrix3xX::zeros(self.map.len());
         for (i, &k) in self.map.iter().enumerate() {
             j[(k, i)] = 1.0;

@@ -5,20 +5,26 @@
 //! calls `inverse` for every point it plans and `check` for every axis position before
 //! anything is emitted.
 
+mod arm_3r;
+mod cam_xwb;
 mod cartesian;
 
+pub use arm_3r::Arm3r;
+pub use cam_xwb::CamXwb;
 pub use cartesian::Cartesian;
 
 use crate::machine::{KinematicsKind, Machine};
 use crate::planner::{Axes, MAX_AXES};
 use nalgebra::Vector3;
 
-/// Where the spot is on the part and which way the beam points (unit vector, from the head
-/// toward the surface).
+/// Where the spot is on the part, which way the beam points (unit vector, from the lens
+/// toward the surface) and how far the lens stands off the spot along the beam, mm. All in
+/// part coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ToolPose {
     pub spot: Vector3<f64>,
     pub beam: Vector3<f64>,
+    pub standoff: f64,
 }
 
 impl ToolPose {
@@ -27,7 +33,13 @@ impl ToolPose {
         ToolPose {
             spot: Vector3::new(spot[0], spot[1], spot[2]),
             beam: Vector3::new(0.0, 0.0, -1.0),
+            standoff: 0.0,
         }
+    }
+
+    /// The lens position: `standoff` back from the spot along the beam.
+    pub fn lens(&self) -> Vector3<f64> {
+        self.spot - self.beam * self.standoff
     }
 }
 
@@ -51,10 +63,34 @@ pub trait Kinematics: std::fmt::Debug {
     /// Axis positions that put the spot and beam at `pose`. `prev` is the previous solution
     /// along the path, so branch choices and rotary angles stay continuous.
     fn inverse(&self, pose: &ToolPose, prev: Option<&Axes>) -> Result<Axes, KinError>;
-    /// The pose that axis positions produce.
-    fn forward(&self, q: &Axes) -> ToolPose;
-    /// ∂spot/∂q: columns are axes, rows part x, y, z.
-    fn jacobian(&self, q: &Axes) -> nalgebra::Matrix3xX<f64>;
+    /// The pose that axis positions produce when the lens stands `standoff` off the surface.
+    fn forward_at(&self, q: &Axes, standoff: f64) -> ToolPose;
+    /// The pose with the spot at the lens (standoff 0). On a Cartesian machine that is the
+    /// spot; on an oriented one, pass the op's standoff to [`Kinematics::forward_at`].
+    fn forward(&self, q: &Axes) -> ToolPose {
+        self.forward_at(q, 0.0)
+    }
+    /// ∂spot/∂q at the given standoff: columns are axes, rows part x, y, z. Models without a
+    /// closed form use central differences of [`Kinematics::forward_at`].
+    fn jacobian(&self, q: &Axes, standoff: f64) -> nalgebra::Matrix3xX<f64> {
+        let n = self.axis_count();
+        let mut j = nalgebra::Matrix3xX::zeros(n);
+        for i in 0..n {
+            let h = 1e-6;
+            let mut a = *q;
+            let mut b = *q;
+            a[i] -= h;
+            b[i] += h;
+            let d = (self.forward_at(&b, standoff).spot - self.forward_at(&a, standoff).spot) / (2.0 * h);
+            j.set_column(i, &d);
+        }
+        j
+    }
+    /// Whether the machine orients the beam (the evaluator then samples paths into poses
+    /// with exact normals instead of emitting lines and arcs).
+    fn oriented(&self) -> bool {
+        false
+    }
     /// Checks axis positions against travel.
     fn check(&self, q: &Axes) -> Result<(), KinError>;
 }
@@ -63,7 +99,16 @@ pub trait Kinematics: std::fmt::Debug {
 pub fn for_machine(m: &Machine) -> Box<dyn Kinematics> {
     match m.kinematics {
         KinematicsKind::Cartesian => Box::new(Cartesian::new(m)),
+        KinematicsKind::CamXwb => Box::new(CamXwb::new(m)),
+        KinematicsKind::Arm3r => Box::new(Arm3r::new(m)),
     }
+}
+
+/// `a` shifted by whole turns to lie within half a turn of `near`: rotary axes move
+/// continuously along a path instead of jumping at ±180° (replaces seed 1's quadrant cases).
+pub fn unwrap_near(a: f64, near: f64) -> f64 {
+    use std::f64::consts::TAU;
+    a - ((a - near) / TAU).round() * TAU
 }
 
 /// Travel check shared by all models: every axis inside [min, max] (with a nanometre of slack
