@@ -1,10 +1,28 @@
-//! Geometry: exact planar profiles made of lines and circular arcs, their queries (length,
-//! point and tangent at an arc length) and offsets.
+//! Geometry: exact planar profiles — lines, circular arcs and interpolating cubic B-splines
+//! (PROCESS.md §2, step 1) — and their exact queries (point, unit tangent, normals, signed
+//! curvature at a parameter or an arc length), resampling, offsets, cam profiles and import.
 //!
-//! Offsets of line/arc profiles are exact (cavalier_contours computes them on bulge
-//! polylines). The seed-2 rule — a concave region whose radius is smaller than the offset
-//! distance folds the offset over itself — is checked before offsetting and reported rather
-//! than silently trimmed.
+//! A `Profile` is a chain of `Seg`s (lines and arcs). A profile built from a spline also keeps
+//! the exact `Spline`: every query and offset then uses the spline, and `segs` hold its biarc
+//! rendition within `SPLINE_RENDER_TOL_MM`, so code that only knows lines and arcs (NC output)
+//! keeps working. `to_line_arc(tol)` renders a spline at another tolerance.
+//!
+//! Submodules: `spline` (interpolation, arc length), `biarc` (line/arc approximation of smooth
+//! curves), `resample` (constant arc-length steps with a chord bound), `offset` (C0 = C ± d·n
+//! and the seed-2 fold-over rule), `cam` (lift tables and motion laws), `import` (DXF, SVG).
+
+pub mod biarc;
+pub mod cam;
+pub mod import;
+pub mod offset;
+pub mod resample;
+pub mod spline;
+
+pub use cam::{CamLaw, CamSegment, CamSegmentKind};
+pub use import::{ImportError, ImportOptions};
+pub use offset::{FoldRegion, OffsetOptions};
+pub use resample::{Resampled, Sample};
+pub use spline::Spline;
 
 use cavalier_contours::polyline::{PlineSource, PlineSourceMut, Polyline};
 use nalgebra::Vector2;
@@ -99,6 +117,25 @@ impl Seg {
         }
     }
 
+    /// Signed curvature (positive when turning counter-clockwise).
+    pub fn curvature(&self) -> f64 {
+        match self {
+            Seg::Line { .. } => 0.0,
+            Seg::Arc { r, sweep, .. } => {
+                if *sweep >= 0.0 {
+                    1.0 / r
+                } else {
+                    -1.0 / r
+                }
+            }
+        }
+    }
+
+    /// Distance from `p` to the segment.
+    pub fn distance_to(&self, p: V2) -> f64 {
+        biarc::seg_distance(self, p)
+    }
+
     pub fn reversed(&self) -> Seg {
         match self {
             Seg::Line { a, b } => Seg::Line { a: *b, b: *a },
@@ -139,28 +176,83 @@ impl Seg {
     }
 }
 
+/// How far a spline profile's line/arc rendition (`Profile::segs`) may stray from the exact
+/// spline, in mm.
+pub const SPLINE_RENDER_TOL_MM: f64 = 1e-3;
+
 /// A planar profile: connected segments, optionally closed (the last ends where the first
 /// starts).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Profile {
+    /// Lines and arcs; for a spline profile, the spline's biarc rendition.
     pub segs: Vec<Seg>,
     pub closed: bool,
+    /// The exact curve when the profile is a spline: queries and offsets use it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spline: Option<Box<Spline>>,
 }
 
-/// Why a profile could not be built or offset.
+/// The local frame of a profile at one place (PROCESS.md §1: the beam runs along the normal).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Frame {
+    /// Arc length from the profile start, mm.
+    pub s: f64,
+    pub point: V2,
+    /// Unit tangent in the direction of travel.
+    pub tangent: V2,
+    /// Unit normal to the left of travel (the tangent turned +90°).
+    pub left: V2,
+    /// Unit principal normal, pointing to the concave side (seed 1's n(t)); equal to `left`
+    /// where the profile is straight.
+    pub normal: V2,
+    /// Signed curvature, 1/mm: positive where the profile turns left (counter-clockwise).
+    pub curvature: f64,
+}
+
+impl Frame {
+    fn new(s: f64, point: V2, tangent: V2, curvature: f64) -> Frame {
+        let left = V2::new(-tangent.y, tangent.x);
+        Frame {
+            s,
+            point,
+            tangent,
+            left,
+            normal: if curvature < 0.0 { -left } else { left },
+            curvature,
+        }
+    }
+
+    /// Radius of curvature, mm (infinite where straight).
+    pub fn radius(&self) -> f64 {
+        1.0 / self.curvature.abs()
+    }
+}
+
+/// Why a profile could not be built, queried or offset.
 #[derive(Debug, Clone, PartialEq)]
 pub enum GeomError {
     TooFewPoints(usize),
     Degenerate(String),
-    /// A concave arc whose radius is not larger than the offset distance (seed 2's rule).
+    /// A concave region whose radius of curvature is not larger than the offset distance
+    /// (seed 2's rule). `segment` is the segment (line/arc profiles) or spline span holding the
+    /// smallest radius; `s_start..s_end` is the region's arc-length range on the source profile.
     FoldOver {
         segment: usize,
         radius: f64,
         distance: f64,
+        s_start: f64,
+        s_end: f64,
+        /// The source is a spline (the message then names the arc-length range).
+        spline: bool,
     },
     /// The offset splits into several loops or vanishes.
     Split {
         loops: usize,
+    },
+    /// The offset crosses itself away from any fold-over (the profile is narrower than twice
+    /// the distance somewhere); `near` is a crossing point.
+    SelfIntersects {
+        near: V2,
     },
 }
 
@@ -173,9 +265,25 @@ impl std::fmt::Display for GeomError {
             }
             GeomError::Degenerate(why) => write!(f, "{why}"),
             GeomError::FoldOver {
+                radius,
+                distance,
+                s_start,
+                s_end,
+                spline: true,
+                ..
+            } => write!(
+                f,
+                "the offset folds over itself: the profile is concave with radius down to {} mm between {} mm and {} mm along it, smaller than the offset distance {} mm",
+                n(*radius),
+                n(*s_start),
+                n(*s_end),
+                n(*distance)
+            ),
+            GeomError::FoldOver {
                 segment,
                 radius,
                 distance,
+                ..
             } => write!(
                 f,
                 "the offset folds over itself: segment {} is concave with radius {} mm, smaller than the offset distance {} mm",
@@ -190,13 +298,26 @@ impl std::fmt::Display for GeomError {
             GeomError::Split { loops } => {
                 write!(f, "the offset splits into {loops} separate loops")
             }
+            GeomError::SelfIntersects { near } => write!(
+                f,
+                "the offset crosses itself near ({}, {}) mm: the profile is narrower than twice the distance there",
+                n(near.x),
+                n(near.y)
+            ),
         }
     }
 }
 
+impl std::error::Error for GeomError {}
+
 impl Profile {
     /// Straight segments through `pts`; repeated points are dropped.
     pub fn polyline(pts: &[V2], closed: bool) -> Result<Profile, GeomError> {
+        if pts.iter().any(|p| !(p.x.is_finite() && p.y.is_finite())) {
+            return Err(GeomError::Degenerate(
+                "a polyline point is not a finite number".into(),
+            ));
+        }
         let mut p: Vec<V2> = Vec::with_capacity(pts.len());
         for q in pts {
             if p.last().is_none_or(|l: &V2| (l - q).norm() > 1e-9) {
@@ -219,52 +340,67 @@ impl Profile {
                 b: p[0],
             });
         }
-        Ok(Profile { segs, closed })
+        Ok(Profile::from_segs(segs, closed))
+    }
+
+    /// A line/arc profile from its segments (no spline).
+    pub fn from_segs(segs: Vec<Seg>, closed: bool) -> Profile {
+        Profile {
+            segs,
+            closed,
+            spline: None,
+        }
     }
 
     pub fn arc(center: V2, r: f64, a0: f64, a1: f64, ccw: bool) -> Result<Profile, GeomError> {
-        if !(r > 0.0) {
+        if !(r > 0.0 && r.is_finite()) {
             return Err(GeomError::Degenerate(format!(
                 "an arc needs a positive radius, got {r} mm"
             )));
         }
+        if !(center.x.is_finite() && center.y.is_finite() && a0.is_finite() && a1.is_finite()) {
+            return Err(GeomError::Degenerate(
+                "an arc's center and angles must be finite numbers".into(),
+            ));
+        }
         let mut sweep = a1 - a0;
         if ccw {
-            while sweep <= 0.0 {
-                sweep += TAU;
-            }
-            while sweep > TAU {
-                sweep -= TAU;
+            sweep = sweep.rem_euclid(TAU);
+            if sweep <= 0.0 {
+                sweep = TAU;
             }
         } else {
-            while sweep >= 0.0 {
-                sweep -= TAU;
-            }
-            while sweep < -TAU {
-                sweep += TAU;
+            sweep = -(-sweep).rem_euclid(TAU);
+            if sweep >= 0.0 {
+                sweep = -TAU;
             }
         }
-        Ok(Profile {
-            segs: vec![Seg::Arc {
+        Ok(Profile::from_segs(
+            vec![Seg::Arc {
                 center,
                 r,
                 a0,
                 sweep,
             }],
-            closed: false,
-        })
+            false,
+        ))
     }
 
     pub fn circle(center: V2, r: f64, a0: f64, ccw: bool) -> Result<Profile, GeomError> {
-        if !(r > 0.0) {
+        if !(r > 0.0 && r.is_finite()) {
             return Err(GeomError::Degenerate(format!(
                 "a circle needs a positive radius, got {r} mm"
             )));
         }
+        if !(center.x.is_finite() && center.y.is_finite() && a0.is_finite()) {
+            return Err(GeomError::Degenerate(
+                "a circle's center and start angle must be finite numbers".into(),
+            ));
+        }
         let s = if ccw { PI } else { -PI };
         // Two half circles: every NC dialect and every offset library takes those unambiguously.
-        Ok(Profile {
-            segs: vec![
+        Ok(Profile::from_segs(
+            vec![
                 Seg::Arc {
                     center,
                     r,
@@ -278,50 +414,185 @@ impl Profile {
                     sweep: s,
                 },
             ],
-            closed: true,
-        })
+            true,
+        ))
+    }
+
+    /// A cubic B-spline through measured points (PROCESS.md §2 step 1); see `Spline`.
+    pub fn interpolate(points: &[V2], closed: bool) -> Result<Profile, GeomError> {
+        Ok(Profile::from_spline(Spline::interpolate(points, closed)?))
+    }
+
+    /// A profile following `spline` exactly, with its biarc rendition in `segs`.
+    pub fn from_spline(spline: Spline) -> Profile {
+        let segs = spline_biarcs(&spline, SPLINE_RENDER_TOL_MM);
+        Profile {
+            segs,
+            closed: spline.is_closed(),
+            spline: Some(Box::new(spline)),
+        }
+    }
+
+    /// The exact spline, when the profile is one.
+    pub fn as_spline(&self) -> Option<&Spline> {
+        self.spline.as_deref()
+    }
+
+    /// The profile as lines and arcs only: spline profiles become biarcs within `tol` mm
+    /// (tangent-continuous); line/arc profiles are returned unchanged.
+    pub fn to_line_arc(&self, tol: f64) -> Result<Profile, GeomError> {
+        match &self.spline {
+            None => Ok(self.clone()),
+            Some(sp) => {
+                if !(tol > 0.0 && tol.is_finite()) {
+                    return Err(GeomError::Degenerate(format!(
+                        "a rendering tolerance must be positive, got {tol} mm"
+                    )));
+                }
+                Ok(Profile::from_segs(spline_biarcs(sp, tol), self.closed))
+            }
+        }
     }
 
     pub fn start(&self) -> V2 {
-        self.segs[0].start()
+        match &self.spline {
+            Some(sp) => sp.derivs(0.0).0,
+            None => self.segs[0].start(),
+        }
     }
 
     pub fn end(&self) -> V2 {
-        self.segs[self.segs.len() - 1].end()
+        match &self.spline {
+            Some(sp) => sp.derivs(sp.span_count() as f64).0,
+            None => self.segs[self.segs.len() - 1].end(),
+        }
     }
 
     pub fn length(&self) -> f64 {
-        self.segs.iter().map(Seg::length).sum()
+        match &self.spline {
+            Some(sp) => sp.length(),
+            None => self.segs.iter().map(Seg::length).sum(),
+        }
     }
 
     /// The segment holding arc length `s` and the arc length within it.
-    fn locate(&self, s: f64) -> (&Seg, f64) {
-        let mut rest = s.max(0.0);
-        for seg in &self.segs {
+    fn locate(&self, s: f64) -> (usize, f64) {
+        let mut rest = if s.is_nan() { 0.0 } else { s.max(0.0) };
+        for (i, seg) in self.segs.iter().enumerate() {
             let l = seg.length();
             if rest <= l {
-                return (seg, rest);
+                return (i, rest);
             }
             rest -= l;
         }
-        let last = &self.segs[self.segs.len() - 1];
-        (last, last.length())
+        let last = self.segs.len() - 1;
+        (last, self.segs[last].length())
     }
 
     pub fn point_at(&self, s: f64) -> V2 {
-        let (seg, t) = self.locate(s);
-        seg.point_at(t)
+        match &self.spline {
+            Some(_) => self.frame_at(s).point,
+            None => {
+                let (i, t) = self.locate(s);
+                self.segs[i].point_at(t)
+            }
+        }
     }
 
     pub fn tangent_at(&self, s: f64) -> V2 {
-        let (seg, t) = self.locate(s);
-        seg.tangent_at(t)
+        match &self.spline {
+            Some(_) => self.frame_at(s).tangent,
+            None => {
+                let (i, t) = self.locate(s);
+                self.segs[i].tangent_at(t)
+            }
+        }
+    }
+
+    /// Unit normal at arc length `s`, pointing to the concave side (seed 1's n(t)).
+    pub fn normal_at(&self, s: f64) -> V2 {
+        self.frame_at(s).normal
+    }
+
+    /// Unit normal to the left of travel at arc length `s`.
+    pub fn left_normal_at(&self, s: f64) -> V2 {
+        self.frame_at(s).left
+    }
+
+    /// Signed curvature at arc length `s` (positive turning counter-clockwise), 1/mm.
+    pub fn curvature_at(&self, s: f64) -> f64 {
+        self.frame_at(s).curvature
+    }
+
+    /// Upper end of the parameter range. The parameter `u = i + f` means piece `i` at fraction
+    /// `f` of its own parameter: for lines and arcs the fraction of the segment's length, for a
+    /// spline the B-spline parameter of span `i` (the curve passes Q_i at `u = i`).
+    pub fn param_end(&self) -> f64 {
+        match &self.spline {
+            Some(sp) => sp.span_count() as f64,
+            None => self.segs.len() as f64,
+        }
+    }
+
+    /// The parameter at arc length `s` (clamped to the profile).
+    pub fn param_at(&self, s: f64) -> f64 {
+        match &self.spline {
+            Some(sp) => sp.param_at_length(s),
+            None => {
+                let (i, t) = self.locate(s);
+                let l = self.segs[i].length();
+                i as f64 + if l > 0.0 { t / l } else { 0.0 }
+            }
+        }
+    }
+
+    /// Arc length from the start to parameter `u`.
+    pub fn length_at_param(&self, u: f64) -> f64 {
+        match &self.spline {
+            Some(sp) => sp.length_at_param(u),
+            None => {
+                let n = self.segs.len();
+                let u = if u.is_nan() {
+                    0.0
+                } else {
+                    u.clamp(0.0, n as f64)
+                };
+                let i = (u.floor() as usize).min(n - 1);
+                let before: f64 = self.segs[..i].iter().map(Seg::length).sum();
+                before + self.segs[i].length() * (u - i as f64)
+            }
+        }
+    }
+
+    /// Exact frame at arc length `s`.
+    pub fn frame_at(&self, s: f64) -> Frame {
+        match &self.spline {
+            Some(sp) => {
+                let u = sp.param_at_length(s);
+                spline_frame(sp, u, s.clamp(0.0, sp.length()))
+            }
+            None => {
+                let (i, t) = self.locate(s);
+                let seg = &self.segs[i];
+                let s_here = self.segs[..i].iter().map(Seg::length).sum::<f64>() + t;
+                Frame::new(s_here, seg.point_at(t), seg.tangent_at(t), seg.curvature())
+            }
+        }
+    }
+
+    /// Exact frame at parameter `u` (see `param_end`).
+    pub fn frame_at_param(&self, u: f64) -> Frame {
+        match &self.spline {
+            Some(sp) => spline_frame(sp, u, sp.length_at_param(u)),
+            None => self.frame_at(self.length_at_param(u)),
+        }
     }
 
     pub fn reversed(&self) -> Profile {
         Profile {
             segs: self.segs.iter().rev().map(Seg::reversed).collect(),
             closed: self.closed,
+            spline: self.spline.as_ref().map(|s| Box::new(s.reversed())),
         }
     }
 
@@ -333,6 +604,10 @@ impl Profile {
                 .map(|s| s.transformed(angle, shift))
                 .collect(),
             closed: self.closed,
+            spline: self
+                .spline
+                .as_ref()
+                .map(|s| Box::new(s.transformed(angle, shift))),
         }
     }
 
@@ -341,10 +616,13 @@ impl Profile {
         if !self.closed {
             return 0.0;
         }
-        self.to_pline().area()
+        match &self.spline {
+            Some(sp) => sp.signed_area(),
+            None => self.to_pline().area(),
+        }
     }
 
-    fn to_pline(&self) -> Polyline<f64> {
+    pub(crate) fn to_pline(&self) -> Polyline<f64> {
         let mut pl = if self.closed {
             Polyline::new_closed()
         } else {
@@ -359,13 +637,13 @@ impl Profile {
             pl.add(p.x, p.y, bulge);
         }
         if !self.closed {
-            let e = self.end();
+            let e = self.segs[self.segs.len() - 1].end();
             pl.add(e.x, e.y, 0.0);
         }
         pl
     }
 
-    fn from_pline(pl: &Polyline<f64>) -> Profile {
+    pub(crate) fn from_pline(pl: &Polyline<f64>) -> Profile {
         let n = pl.vertex_count();
         let count = if pl.is_closed() {
             n
@@ -405,67 +683,13 @@ impl Profile {
                 });
             }
         }
-        Profile {
-            segs,
-            closed: pl.is_closed(),
-        }
-    }
-
-    /// The offset curve C0 = C ± d·n (PROCESS.md §1, eq. 2). For a closed profile a positive
-    /// `d` grows it outward; for an open one it moves it to the left of travel.
-    pub fn offset(&self, d: f64) -> Result<Profile, GeomError> {
-        if d == 0.0 {
-            return Ok(self.clone());
-        }
-        // cavalier_contours offsets to the left of travel for positive values.
-        let left = if self.closed {
-            let ccw = self.signed_area() > 0.0;
-            if ccw { -d } else { d }
-        } else {
-            d
-        };
-        // Seed 2: a concave arc (turning toward the offset side) with r ≤ |d| collapses.
-        for (i, seg) in self.segs.iter().enumerate() {
-            if let Seg::Arc { r, sweep, .. } = seg {
-                let center_on_left = *sweep > 0.0;
-                if center_on_left == (left > 0.0) && *r <= left.abs() + 1e-12 {
-                    return Err(GeomError::FoldOver {
-                        segment: i,
-                        radius: *r,
-                        distance: d.abs(),
-                    });
-                }
-            }
-        }
-        let pl = self.to_pline();
-        let result = std::panic::catch_unwind(|| pl.parallel_offset(left)).map_err(|_| {
-            GeomError::Degenerate("the offset could not be computed for this profile".into())
-        })?;
-        if result.len() != 1 {
-            return Err(GeomError::Split {
-                loops: result.len(),
-            });
-        }
-        if self.closed {
-            // An inward offset that collapses to a sliver (zero area) or turns inside out has
-            // vanished, whatever the library returned.
-            let a0 = pl.area();
-            let a1 = result[0].area();
-            if a1.abs() < 1e-9 || a1.signum() != a0.signum() {
-                return Err(GeomError::Split { loops: 0 });
-            }
-        }
-        let mut p = Profile::from_pline(&result[0]);
-        if self.closed {
-            p = p.rotated_to_start_near(self.start());
-        }
-        Ok(p)
+        Profile::from_segs(segs, pl.is_closed())
     }
 
     /// A closed profile restarted at the vertex nearest `p` (an offset starts beside its
     /// source, not wherever the library put vertex 0).
-    fn rotated_to_start_near(mut self, p: V2) -> Profile {
-        if !self.closed || self.segs.is_empty() {
+    pub(crate) fn rotated_to_start_near(mut self, p: V2) -> Profile {
+        if !self.closed || self.segs.is_empty() || self.spline.is_some() {
             return self;
         }
         let k = (0..self.segs.len())
@@ -478,6 +702,34 @@ impl Profile {
         self.segs.rotate_left(k);
         self
     }
+}
+
+/// Frame of a spline at parameter `u` and arc length `s`: tangent C'/|C'|, curvature
+/// (C' × C'')/|C'|³.
+fn spline_frame(sp: &Spline, u: f64, s: f64) -> Frame {
+    let (p, d1, d2) = sp.derivs(u);
+    let speed = d1.norm();
+    if speed > 0.0 {
+        let k = (d1.x * d2.y - d1.y * d2.x) / (speed * speed * speed);
+        Frame::new(s, p, d1 / speed, k)
+    } else {
+        // A cusp (the control polygon doubles back): the second derivative gives the direction.
+        let t = d2.try_normalize(0.0).unwrap_or(V2::x());
+        Frame::new(s, p, t, 0.0)
+    }
+}
+
+/// Biarcs of every span of `sp` within `tol`.
+pub(crate) fn spline_biarcs(sp: &Spline, tol: f64) -> Vec<Seg> {
+    let mut out = Vec::with_capacity(2 * sp.span_count());
+    for j in 0..sp.span_count() {
+        let f = |t: f64| {
+            let (p, d, _) = sp.span_derivs(j, t);
+            (p, d)
+        };
+        biarc::fit_biarcs(&f, 0.0, 1.0, tol, &mut out);
+    }
+    out
 }
 
 #[cfg(test)]
