@@ -360,7 +360,15 @@ pub const LASER_SETTINGS: &[SettingSpec] = &[
         "Laser power while the beam is on.",
     ),
     set("spot", L, "Spot diameter on the surface."),
+    set(
+        "couple",
+        PTy::Word(COUPLINGS),
+        "`speed`: power follows the planned speed (P = P_set · v / feed), constant energy per \
+         length where the speed must ramp with the beam on; `none` (default): constant power.",
+    ),
 ];
+
+pub const COUPLINGS: &[&str] = &["none", "speed"];
 
 pub const FOLLOW_SETTINGS: &[SettingSpec] = &[
     set(
@@ -369,6 +377,11 @@ pub const FOLLOW_SETTINGS: &[SettingSpec] = &[
         "Laser power for this path only.",
     ),
     set("spot", L, "Spot diameter for this path only."),
+    set(
+        "couple",
+        PTy::Word(COUPLINGS),
+        "Power coupling for this path only: `speed` or `none`.",
+    ),
 ];
 
 pub const PULSE_SETTINGS: &[SettingSpec] = &[
@@ -410,7 +423,15 @@ pub const PLANNER_SETTINGS: &[SettingSpec] = &[
         NUM,
         "How many moves the planner looks ahead when streaming (the offline plan sees all).",
     ),
+    set(
+        "leadin",
+        PTy::Word(LEADINS),
+        "`auto` (default): lead-ins and lead-outs so that the beam is only on at the programmed \
+         speed; `none`: the program as written (`off` is a keyword).",
+    ),
 ];
+
+pub const LEADINS: &[&str] = &["auto", "none"];
 
 pub const LIMIT_SETTINGS: &[SettingSpec] = &[
     set(

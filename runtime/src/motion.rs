@@ -4,10 +4,19 @@
 //!
 //! Nothing is planned unless every point of the program is reachable: a job never starts if
 //! it could fail halfway.
+//!
+//! Before lowering, [`leadin`] adds lead-ins and lead-outs around every lit section (PROCESS.md
+//! §4's transition points), so the beam is only on at the programmed speed; [`power`] computes
+//! the per-block power of a lit move whose power follows the speed (PROCESS.md §1, eq. 1).
+
+pub mod leadin;
+pub mod power;
+
+pub use leadin::{Lead, LeadKind, LitSection};
 
 use crate::kinematics::{self, KinError, ToolPose};
 use crate::planner::{self, Axes, AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind};
-use crate::program::{Op, OpKind, P3, ProcessProgram, Ramp};
+use crate::program::{LeadIn, Op, OpKind, P3, ProcessProgram, Ramp};
 use lase_lang::Span;
 
 /// Planning errors that point at the recipe.
@@ -40,6 +49,39 @@ pub enum MotionError {
         span: Span,
     },
 
+    #[error("no room for the lead-in: it needs {needed}, the travel leaves {available}")]
+    #[diagnostic(code(lase::plan::no_room_for_lead_in))]
+    NoRoomForLeadIn {
+        needed: String,
+        available: String,
+        #[label("the beam goes on here at full speed, after a ramp of {needed}")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("no room for the lead-out: it needs {needed}, the travel leaves {available}")]
+    #[diagnostic(code(lase::plan::no_room_for_lead_out))]
+    NoRoomForLeadOut {
+        needed: String,
+        available: String,
+        #[label("the beam goes off here at full speed, then a ramp of {needed}")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("the lit feed {feed} is above what the axes allow along this cut ({limit})")]
+    #[diagnostic(code(lase::plan::feed_unreachable))]
+    FeedUnreachable {
+        feed: String,
+        limit: String,
+        #[label("the beam would be on below the programmed speed")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
     #[error("{message}")]
     #[diagnostic(code(lase::plan::planner))]
     Planner {
@@ -62,6 +104,11 @@ pub struct Job {
     /// Standstill before the first move (dwells and events ahead of any motion), s.
     pub initial_dwell_s: f64,
     pub plan: Plan,
+    /// The lit sections as the recipe wrote them, located in `program.ops` (which holds the
+    /// leads lase added).
+    pub sections: Vec<LitSection>,
+    /// The lead-in and lead-out moves lase added (empty with `planner { leadin none }`).
+    pub leads: Vec<Lead>,
 }
 
 impl Job {
@@ -75,19 +122,54 @@ impl Job {
     }
 }
 
-/// Lowers and plans a program.
-pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
+/// Adds leads, lowers and plans a program.
+pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     let kin = kinematics::for_machine(&program.machine);
     let n_axes = kin.axis_count();
     let start_span = program.ops.first().map(|o| o.span).unwrap_or_default();
     let start = inverse(&*kin, program.start, start_span, &program)?;
+    let mut limits = AxisLimits {
+        v: [f64::INFINITY; MAX_AXES],
+        a: [f64::INFINITY; MAX_AXES],
+        j: [f64::INFINITY; MAX_AXES],
+    };
+    for (i, l) in program.limits.iter().enumerate().take(MAX_AXES) {
+        limits.v[i] = l.v;
+        limits.a[i] = l.a;
+        limits.j[i] = l.j;
+    }
+    let cfg = PlannerConfig {
+        profile: match program.planner.ramp {
+            Ramp::Trapezoid => ProfileKind::Trapezoid,
+            Ramp::Scurve => ProfileKind::SCurve,
+        },
+        junction_deviation: program.planner.junction_deviation_mm,
+        path_v: program.path_limits.v,
+        path_a: program.path_limits.a,
+        path_j: program.path_limits.j,
+        lookahead: program.planner.lookahead,
+        n_axes,
+    };
+    // A machine whose beam switch needs rest (seed 4's M27) on any of its posts: plan for the
+    // strictest, so one plan serves every dialect.
+    let laser_switch_stops = program.machine.post.values().any(|p| p.laser_switch_stops);
+    let led = leadin::add_leads(
+        program.start,
+        &program.ops,
+        &leadin::LeadContext {
+            kin: &*kin,
+            limits: &limits,
+            cfg: &cfg,
+            switch_stops: laser_switch_stops,
+            arc_tolerance_mm: program.planner.arc_tolerance_mm,
+            enabled: program.planner.leadin == LeadIn::Auto,
+        },
+    )?;
+    program.ops = led.ops;
     let mut moves: Vec<Move> = Vec::new();
     let mut initial_dwell_s = 0.0;
     let mut pos = program.start;
     let mut q_prev = start;
-    let switch_stops = |dialect_any: bool| dialect_any;
-    let laser_switch_stops =
-        switch_stops(program.machine.post.values().any(|p| p.laser_switch_stops));
     let mut lit_prev = false;
     for (i, op) in program.ops.iter().enumerate() {
         let tag = i as u32;
@@ -147,28 +229,6 @@ pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
             lit_prev = lit;
         }
     }
-    let mut limits = AxisLimits {
-        v: [f64::INFINITY; MAX_AXES],
-        a: [f64::INFINITY; MAX_AXES],
-        j: [f64::INFINITY; MAX_AXES],
-    };
-    for (i, l) in program.limits.iter().enumerate().take(MAX_AXES) {
-        limits.v[i] = l.v;
-        limits.a[i] = l.a;
-        limits.j[i] = l.j;
-    }
-    let cfg = PlannerConfig {
-        profile: match program.planner.ramp {
-            Ramp::Trapezoid => ProfileKind::Trapezoid,
-            Ramp::Scurve => ProfileKind::SCurve,
-        },
-        junction_deviation: program.planner.junction_deviation_mm,
-        path_v: program.path_limits.v,
-        path_a: program.path_limits.a,
-        path_j: program.path_limits.j,
-        lookahead: program.planner.lookahead,
-        n_axes,
-    };
     let plan = planner::plan(start, &moves, &limits, &cfg).map_err(|e| {
         let span = planner_error_move(&e)
             .and_then(|i| moves.get(i))
@@ -187,6 +247,8 @@ pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
         moves,
         initial_dwell_s,
         plan,
+        sections: led.sections,
+        leads: led.leads,
     })
 }
 
@@ -232,7 +294,7 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
     }
 }
 
-fn dist(a: P3, b: P3) -> f64 {
+pub(crate) fn dist(a: P3, b: P3) -> f64 {
     ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 

@@ -16,6 +16,35 @@ pub struct Laser {
     pub power_w: f64,
     pub spot_mm: f64,
     pub pulse: Option<Pulse>,
+    /// How power follows the motion (`laser { couple speed }`).
+    #[serde(default)]
+    pub couple: Coupling,
+}
+
+/// Whether laser power follows the planned speed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Coupling {
+    /// Constant power while the beam is on.
+    #[default]
+    None,
+    /// Constant energy per length (PROCESS.md §1, `Q ∝ P / (D · v)`): where the planned path
+    /// speed `v(t)` ramps with the beam on, the power is `P(t) = P_set · v(t) / v_programmed`.
+    Speed,
+}
+
+impl Laser {
+    /// The power at planned path speed `v_mm_s` on a move programmed at `feed_mm_s`: `P_set`,
+    /// or `P_set · v / feed` when coupled to speed (never above `P_set`, 0 for a rapid).
+    pub fn power_at(&self, v_mm_s: f64, feed_mm_s: f64) -> f64 {
+        match self.couple {
+            Coupling::None => self.power_w,
+            Coupling::Speed if feed_mm_s > 0.0 && feed_mm_s.is_finite() => {
+                self.power_w * (v_mm_s / feed_mm_s).clamp(0.0, 1.0)
+            }
+            Coupling::Speed => 0.0,
+        }
+    }
 }
 
 /// How pulses are fired while the laser is on.
@@ -99,6 +128,21 @@ pub struct PlannerSettings {
     pub junction_deviation_mm: f64,
     pub arc_tolerance_mm: f64,
     pub lookahead: Option<usize>,
+    /// Lead-ins and lead-outs around lit sections (`planner { leadin auto|none }`).
+    #[serde(default)]
+    pub leadin: LeadIn,
+}
+
+/// Whether lase adds lead-ins and lead-outs so that the beam is only on at the programmed speed
+/// (PROCESS.md §4, transition points).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LeadIn {
+    /// Lengths from the active profile and limits (see `motion::leadin`).
+    #[default]
+    Auto,
+    /// The program as written: the beam is on while the speed ramps (`leadin none`).
+    Off,
 }
 
 /// Per-axis limits in force (machine limits, tightened by `limits`), internal units.

@@ -8,7 +8,7 @@ use lase_runtime::emit::{
 use lase_runtime::machine::{Axis, AxisKind, parse_machine};
 use lase_runtime::motion::{Job, plan_program};
 use lase_runtime::program::{
-    AxisLimit, Laser, Op, OpKind, P3, PathLimits, PlannerSettings, ProcessProgram,
+    AxisLimit, Coupling, Laser, LeadIn, Op, OpKind, P3, PathLimits, PlannerSettings, ProcessProgram,
 };
 use std::collections::BTreeMap;
 
@@ -33,6 +33,8 @@ fn program(machine: &str, ops: Vec<Op>) -> ProcessProgram {
             junction_deviation_mm: m.junction_deviation_mm,
             arc_tolerance_mm: m.arc_tolerance_mm,
             lookahead: None,
+            // These tests pin the emitter on hand-built programs; leads have their own tests.
+            leadin: LeadIn::Off,
         },
         start: [0.0; 3],
         ops,
@@ -53,6 +55,7 @@ fn lit(power_w: f64) -> Option<Laser> {
         power_w,
         spot_mm: 0.1,
         pulse: None,
+        couple: Coupling::None,
     })
 }
 
@@ -341,10 +344,10 @@ fn laser_goes_on_before_the_first_lit_move_and_off_after_the_run() {
     };
     // Run 1: on before op 1's G1 (power 50 % of 100 W), power change before op 3, off after op 3.
     let on = at("M62 P0");
-    assert_eq!(texts[on - 1], "M68 E0 Q50");
+    assert_eq!(texts[on - 1], "M67 E0 Q50");
     assert_eq!(texts[on + 1], "G1 X30 F1200");
     assert_eq!(out[on].op, Some(1));
-    let q80 = at("M68 E0 Q80");
+    let q80 = at("M67 E0 Q80");
     assert_eq!(out[q80].op, Some(3));
     assert_eq!(texts[q80 + 1], "G1 Y40");
     assert_eq!(texts[q80 + 2], "M63 P0");
@@ -355,7 +358,7 @@ fn laser_goes_on_before_the_first_lit_move_and_off_after_the_run() {
     );
     // Run 2: the full circle, with its own power.
     let on2 = texts.iter().rposition(|x| *x == "M62 P0").unwrap();
-    assert_eq!(texts[on2 - 1], "M68 E0 Q30");
+    assert_eq!(texts[on2 - 1], "M67 E0 Q30");
     assert!(texts[on2 + 1].starts_with("G2"));
     assert_eq!(texts[on2 + 2], "M63 P0");
     // Every lit motion block sits between an on and an off.

@@ -5,8 +5,8 @@ use lase_lang::Span;
 use lase_runtime::machine::parse_machine;
 use lase_runtime::motion::{Job, plan_program};
 use lase_runtime::program::{
-    AxisLimit, Laser, Op, OpKind, P3, PathLimits, PlannerSettings, ProcessProgram, Pulse,
-    PulseMode, Ramp,
+    AxisLimit, Coupling, Laser, LeadIn, Op, OpKind, P3, PathLimits, PlannerSettings,
+    ProcessProgram, Pulse, PulseMode, Ramp,
 };
 use lase_runtime::report::{plot_svg, pulse_events, summarize, write_trace};
 
@@ -31,6 +31,9 @@ fn program(machine: &str, ops: Vec<Op>) -> ProcessProgram {
             junction_deviation_mm: m.junction_deviation_mm,
             arc_tolerance_mm: m.arc_tolerance_mm,
             lookahead: None,
+            // Closed forms and pulse counts of hand-built moves from rest; leads have their
+            // own tests (leadin.rs).
+            leadin: LeadIn::Off,
         },
         start: [0.0; 3],
         ops,
@@ -54,6 +57,7 @@ fn laser(power_w: f64, pulse: Option<PulseMode>) -> Option<Laser> {
             width_s: None,
             energy_j: None,
         }),
+        couple: Coupling::None,
     })
 }
 

@@ -2,20 +2,22 @@
 (recipe conrod_notch.lase)
 (machine notcher)
 G21 G90 G17 G94
-(conrod_notch.lase:11)
+(conrod_notch.lase:15)
 G1 X68.5 Z0 F3000
-(conrod_notch.lase:12)
+(conrod_notch.lase:16)
 M8
 G4 P0.5
-(conrod_notch.lase:13)
-Z-15.53 F5000
-(conrod_notch.lase:15)
-M3 S600
-Z-33.63 F950
-M5
 (conrod_notch.lase:17)
-X73.5 F3000
-(conrod_notch.lase:18)
+Z-15.0845 F5000
+(conrod_notch.lase:19)
+M3 S600
+Z-15.53 F950
+Z-33.63
+Z-34.0755
+M5
+(conrod_notch.lase:21)
+X73.5 Z-33.63 F3000
+(conrod_notch.lase:22)
 M9
 G4 P0.5
 M5

@@ -5,7 +5,7 @@ use super::format::{self, LaserWords};
 use super::{Dialect, EmitError, EmitWarning};
 use crate::machine::{AxisKind, DialectPost, Machine};
 use crate::motion::Job;
-use crate::program::{Op, OpKind};
+use crate::program::{Coupling, Op, OpKind};
 use lase_lang::Span;
 
 /// GRBL's serial line buffer (`LINE_BUFFER_SIZE`): longer lines overflow it.
@@ -130,6 +130,12 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
     if let Some(lit) = ops.iter().find(|o| o.laser().is_some()) {
         check_post(post, machine, dialect, lit.span)?;
     }
+    if let Some(coupled) = ops
+        .iter()
+        .find(|o| o.laser().is_some_and(|l| l.couple == Coupling::Speed))
+    {
+        check_coupling(post, machine, dialect, coupled.span)?;
+    }
     for (i, op) in ops.iter().enumerate() {
         match &op.kind {
             OpKind::MCode { code, .. } => {
@@ -225,6 +231,55 @@ fn check_post(
         }
     }
     Ok(())
+}
+
+/// Power that follows the speed needs a way to say so: GRBL's dynamic mode (an `M3` in
+/// `laser_on` to turn into `M4`), elsewhere a `power` line per sub-block.
+fn check_coupling(
+    post: &DialectPost,
+    machine: &Machine,
+    dialect: Dialect,
+    span: Span,
+) -> Result<(), EmitError> {
+    let ok = match dialect {
+        Dialect::Grbl => post
+            .laser_on
+            .iter()
+            .any(|t| format::m_words(t).iter().any(|&c| c == 3 || c == 4)),
+        Dialect::LinuxCnc | Dialect::Iso => !post.power.is_empty(),
+    };
+    if ok {
+        return Ok(());
+    }
+    let (message, help) = match dialect {
+        Dialect::Grbl => (
+            format!(
+                "power coupled to speed needs GRBL's M4, but [post.grbl] laser_on of machine `{}` \
+                 has no M3",
+                machine.name
+            ),
+            "switch the laser with `M3 S{s}` in [post.grbl] laser_on, or remove `couple speed`"
+                .to_string(),
+        ),
+        _ => (
+            format!(
+                "power coupled to speed needs a power line, but [post.{dialect}] power of \
+                 machine `{}` is empty",
+                machine.name
+            ),
+            format!(
+                "add e.g. `power = [\"S{{s}}\"]` to [post.{dialect}] in the machine file, emit for \
+                 another dialect, or remove `couple speed`"
+            ),
+        ),
+    };
+    Err(EmitError::Dialect {
+        message,
+        dialect,
+        span,
+        label: "the power follows the speed here".into(),
+        help,
+    })
 }
 
 fn check_event(op: &Op, name: &str, machine: &Machine, dialect: Dialect) -> Result<(), EmitError> {

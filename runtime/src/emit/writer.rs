@@ -1,14 +1,22 @@
 //! Streams a validated job as NC lines, keeping the modal state a controller keeps so that
 //! only what changes is written.
+//!
+//! Power coupled to speed (PROCESS.md §1, eq. 1): GRBL scales power by speed itself in its
+//! dynamic laser mode, so a coupled section is switched on with `M4` instead of `M3`. LinuxCNC
+//! and ISO controls cannot, so a coupled lit move is written as the sub-blocks of
+//! `motion::power` (ramps cut at 1 % speed steps, each with its time-mean power), each preceded
+//! by the post's power line when the value changes; LinuxCNC's immediate `M68` becomes the
+//! motion-synchronized `M67` there, so the change lands at the start of its sub-block and
+//! does not break blending.
 
 use super::format::{self, LaserWords};
 use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
 use crate::kinematics::{self, Kinematics, ToolPose};
 use crate::machine::AxisKind;
-use crate::motion::Job;
+use crate::motion::{Job, arc_sweep, power};
 use crate::planner::{Axes, MAX_AXES};
-use crate::program::{Op, OpKind, P3};
+use crate::program::{Coupling, Op, OpKind, P3};
 use std::io;
 
 /// ISO block numbers step by 10 (room to insert blocks by hand, as in the paper's program)
@@ -169,15 +177,30 @@ pub(super) fn write(
                 if !moves(op, m.pos) {
                     continue;
                 }
+                let coupled = op.laser().is_some_and(|l| l.couple == Coupling::Speed);
+                let blocks = if coupled && dialect != Dialect::Grbl {
+                    power::coupled_blocks(job, i)
+                } else {
+                    Vec::new()
+                };
                 if let Some(laser) = op.laser() {
+                    let first = blocks.first().map_or(laser.power_w, |b| b.power_w);
                     if !m.laser_on {
                         for t in &post.laser_on {
-                            out.put(&format::fill(t, words(laser.power_w)), tag)?;
+                            let line = format::fill(t, words(first));
+                            out.put(
+                                &if coupled {
+                                    dynamic(dialect, &line)
+                                } else {
+                                    line
+                                },
+                                tag,
+                            )?;
                         }
                         m.laser_on = true;
-                        m.power_w = laser.power_w;
-                    } else if (laser.power_w - m.power_w).abs()
-                        > 1e-9 * laser.power_w.abs().max(1.0)
+                        m.power_w = first;
+                    } else if blocks.is_empty()
+                        && (laser.power_w - m.power_w).abs() > 1e-9 * laser.power_w.abs().max(1.0)
                     {
                         for t in &post.power {
                             out.put(&format::fill(t, words(laser.power_w)), tag)?;
@@ -185,9 +208,35 @@ pub(super) fn write(
                         m.power_w = laser.power_w;
                     }
                 }
-                let line = motion_line(op, &mut m, &*kin, machine, arc_axes);
-                out.put(&line, tag)?;
-                out.stats.motion_blocks += 1;
+                if blocks.is_empty() {
+                    let line = motion_line(op, &mut m, &*kin, machine, arc_axes);
+                    out.put(&line, tag)?;
+                    out.stats.motion_blocks += 1;
+                } else {
+                    let from = m.pos;
+                    let total = blocks.last().map_or(0.0, |b| b.s_end);
+                    for (k, b) in blocks.iter().enumerate() {
+                        let changed = post.power.first().is_some_and(|t| {
+                            format::fill(t, words(b.power_w)) != format::fill(t, words(m.power_w))
+                        });
+                        if changed {
+                            for t in &post.power {
+                                let line = format::fill(t, words(b.power_w));
+                                out.put(&synchronized(dialect, &line), tag)?;
+                            }
+                            m.power_w = b.power_w;
+                        }
+                        let f = if k + 1 == blocks.len() || total <= 0.0 {
+                            1.0
+                        } else {
+                            b.s_end / total
+                        };
+                        let sub = sub_op(op, from, f);
+                        let line = motion_line(&sub, &mut m, &*kin, machine, arc_axes);
+                        out.put(&line, tag)?;
+                        out.stats.motion_blocks += 1;
+                    }
+                }
                 if m.laser_on && !next_move_lit(&ops[i + 1..], m.pos) {
                     for t in &post.laser_off {
                         out.put(&format::fill(t, words(0.0)), tag)?;
@@ -251,6 +300,62 @@ fn immediate(line: &str) -> String {
         .replace("m63", "m65")
         .replace("M62", "M64")
         .replace("m62", "m64")
+}
+
+/// GRBL's dynamic laser mode: `M4` scales the power by the current speed over the programmed
+/// feed, so a coupled section switches on with `M4` where the post writes `M3`.
+fn dynamic(dialect: Dialect, line: &str) -> String {
+    if dialect != Dialect::Grbl {
+        return line.to_string();
+    }
+    line.split(' ')
+        .map(|w| match w.to_ascii_uppercase().as_str() {
+            "M3" | "M03" => "M4",
+            _ => w,
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// LinuxCNC's `M68` sets the analog output immediately and breaks blending; `M67` sets it at
+/// the start of the next motion, which is where a coupled sub-block's power belongs.
+fn synchronized(dialect: Dialect, line: &str) -> String {
+    if dialect == Dialect::LinuxCnc {
+        line.replace("M68", "M67").replace("m68", "m67")
+    } else {
+        line.to_string()
+    }
+}
+
+/// The part of motion op `op` (starting at `from`) from its start to fraction `f` of its
+/// length: a shorter line, or an arc about the same center ending at `f` of the sweep.
+fn sub_op(op: &Op, from: P3, f: f64) -> Op {
+    let mut sub = op.clone();
+    if f >= 1.0 {
+        return sub;
+    }
+    let lerp = |to: P3| {
+        [
+            from[0] + f * (to[0] - from[0]),
+            from[1] + f * (to[1] - from[1]),
+            from[2] + f * (to[2] - from[2]),
+        ]
+    };
+    match &mut sub.kind {
+        OpKind::Rapid { to } | OpKind::Line { to, .. } => *to = lerp(*to),
+        OpKind::Arc {
+            to, center, ccw, ..
+        } => {
+            let r = (from[0] - center[0]).hypot(from[1] - center[1]);
+            let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
+            let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
+            let a = a0 + f * arc_sweep(a0, a1, *ccw, from, *to);
+            let z = from[2] + f * (to[2] - from[2]);
+            *to = [center[0] + r * a.cos(), center[1] + r * a.sin(), z];
+        }
+        _ => {}
+    }
+    sub
 }
 
 /// Whether a motion op moves the spot (a zero-length line is written as nothing, since G0/G1

@@ -54,7 +54,17 @@ enum Flow {
 struct LaserState {
     power_w: Option<f64>,
     spot_mm: f64,
+    couple: Coupling,
     on: bool,
+}
+
+/// What one `laser { ... }` or `follow ... { ... }` settings list sets; `None` keeps the value in
+/// force.
+#[derive(Debug, Default)]
+struct LaserSet {
+    power: Option<f64>,
+    spot: Option<f64>,
+    couple: Option<Coupling>,
 }
 
 /// The evaluator's state. A REPL session keeps one alive across lines.
@@ -100,6 +110,7 @@ impl Evaluator {
             laser: LaserState {
                 power_w: None,
                 spot_mm: 0.05,
+                couple: Coupling::None,
                 on: false,
             },
             pulse: None,
@@ -185,6 +196,7 @@ impl Evaluator {
             junction_deviation_mm: machine.junction_deviation_mm,
             arc_tolerance_mm: machine.arc_tolerance_mm,
             lookahead: None,
+            leadin: LeadIn::Auto,
         });
         Ok(ProcessProgram {
             recipe: recipe.to_string(),
@@ -293,12 +305,15 @@ impl Evaluator {
                 LaserStmt::On => self.laser.on = true,
                 LaserStmt::Off => self.laser.on = false,
                 LaserStmt::Settings(set) => {
-                    let (power, spot) = self.laser_settings(set, cx)?;
-                    if let Some(p) = power {
+                    let ls = self.laser_settings(set, cx)?;
+                    if let Some(p) = ls.power {
                         self.laser.power_w = Some(p);
                     }
-                    if let Some(d) = spot {
+                    if let Some(d) = ls.spot {
                         self.laser.spot_mm = d;
+                    }
+                    if let Some(c) = ls.couple {
+                        self.laser.couple = c;
                     }
                 }
             },
@@ -536,11 +551,20 @@ impl Evaluator {
         Ok(())
     }
 
-    fn laser_settings(&mut self, set: &[Setting], cx: &mut Cx) -> R<(Option<f64>, Option<f64>)> {
+    fn laser_settings(&mut self, set: &[Setting], cx: &mut Cx) -> R<LaserSet> {
         let mut power = None;
         let mut spot = None;
+        let mut couple = None;
         for s in set {
             let Some(e) = &s.value else { continue };
+            if s.key.name == "couple" {
+                // A word, checked against the schema's list: anything but `speed` is `none`.
+                couple = Some(match &e.kind {
+                    ExprKind::Var(w) if w == "speed" => Coupling::Speed,
+                    _ => Coupling::None,
+                });
+                continue;
+            }
             let v = self.expr(e, cx)?;
             match s.key.name.as_str() {
                 "power" => {
@@ -583,7 +607,11 @@ impl Evaluator {
                 }
             }
         }
-        Ok((power, spot))
+        Ok(LaserSet {
+            power,
+            spot,
+            couple,
+        })
     }
 
     fn pulse_settings(&mut self, set: &[Setting], cx: &mut Cx) -> R<()> {
@@ -680,6 +708,7 @@ impl Evaluator {
             junction_deviation_mm: m.junction_deviation_mm,
             arc_tolerance_mm: m.arc_tolerance_mm,
             lookahead: None,
+            leadin: LeadIn::Auto,
         });
         for s in set {
             let Some(e) = &s.value else { continue };
@@ -688,6 +717,12 @@ impl Evaluator {
                     p.ramp = match &e.kind {
                         ExprKind::Var(w) if w == "trapezoid" => Ramp::Trapezoid,
                         _ => Ramp::Scurve,
+                    }
+                }
+                "leadin" => {
+                    p.leadin = match &e.kind {
+                        ExprKind::Var(w) if w == "none" => LeadIn::Off,
+                        _ => LeadIn::Auto,
                     }
                 }
                 "corner" | "tolerance" => {
@@ -726,14 +761,16 @@ impl Evaluator {
         Ok(())
     }
 
-    fn current_laser(&self, span: Span, power: Option<f64>, spot: Option<f64>) -> R<Laser> {
-        let power_w = power
+    fn current_laser(&self, span: Span, set: &LaserSet) -> R<Laser> {
+        let power_w = set
+            .power
             .or(self.laser.power_w)
             .ok_or(EvalError::NoPower { span })?;
         Ok(Laser {
             power_w,
-            spot_mm: spot.unwrap_or(self.laser.spot_mm),
+            spot_mm: set.spot.unwrap_or(self.laser.spot_mm),
             pulse: self.pulse.clone(),
+            couple: set.couple.unwrap_or(self.laser.couple),
         })
     }
 
@@ -787,7 +824,7 @@ impl Evaluator {
                 let v = self.expr(e, cx)?;
                 let feed = self.feed(&v, e.span)?;
                 let laser = if self.laser.on {
-                    let l = self.current_laser(span, None, None)?;
+                    let l = self.current_laser(span, &LaserSet::default())?;
                     self.check_pulse_rate(&l, feed, e.span)?;
                     Some(l)
                 } else {
@@ -833,9 +870,9 @@ impl Evaluator {
         };
         let sv = self.expr(speed, cx)?;
         let feed = self.feed(&sv, speed.span)?;
-        let (power, spot) = self.laser_settings(settings, cx)?;
+        let set = self.laser_settings(settings, cx)?;
         self.need_machine(span)?;
-        let laser = self.current_laser(span, power, spot)?;
+        let laser = self.current_laser(span, &set)?;
         self.check_pulse_rate(&laser, feed, speed.span)?;
         let z = self.pos[2];
         let start = profile.start();

@@ -150,6 +150,64 @@ pub fn speed_change_distance(v_from: f64, v_to: f64, a: f64, j: f64) -> f64 {
     profile::ramp_distance(v_from.min(v_to), (v_to - v_from).abs(), a, j)
 }
 
+/// Path limits `(v, a, j)` of a straight move with axis motion `dq` over path length `length`
+/// at programmed `feed`: the tightest axis along the direction `u = Δq / length` sets each
+/// (`v ≤ min_i v_i / |u_i|`, likewise `a`, `j`), then the path limits and the feed. `j` is
+/// infinite for the trapezoid profile. This is the very computation [`plan`] makes for each
+/// move, so a caller that places transition points (PROCESS.md §4 look-ahead preprocessing)
+/// works with the limits the plan will use.
+// One index over the parallel axis arrays.
+#[allow(clippy::needless_range_loop)]
+pub fn move_limits(
+    dq: &Axes,
+    length: f64,
+    feed: f64,
+    limits: &AxisLimits,
+    cfg: &PlannerConfig,
+) -> (f64, f64, f64) {
+    let mut v = feed.min(cfg.path_v);
+    let mut a = cfg.path_a;
+    let mut j = cfg.path_j;
+    for axis in 0..cfg.n_axes.min(MAX_AXES) {
+        let u = dq[axis].abs() / length;
+        if u > 0.0 {
+            v = v.min(limits.v[axis] / u);
+            a = a.min(limits.a[axis] / u);
+            j = j.min(limits.j[axis] / u);
+        }
+    }
+    if cfg.profile == ProfileKind::Trapezoid {
+        j = f64::INFINITY;
+    }
+    (v, a, j)
+}
+
+/// Length a lead-in (or lead-out) needs so that a move of speed limit `v`, acceleration `a` and
+/// jerk `j` reaches `v` at its end (or slows from `v` to whatever follows) whatever its other
+/// end speed `w` in `[0, w_max]` turns out to be: `max_w ramp_distance(w → v)`.
+///
+/// From rest this is [`speed_change_distance`]`(0, v, a, j)`, the distance PROCESS.md §4 moves
+/// the transition point by. It is not always the maximum: a jerk-limited ramp that starts
+/// moving covers more ground than one from rest (see `profile::entry_limit`), so when the
+/// lead-in may be entered at speed the worst entry speed is searched. Each piece of
+/// `w ↦ ramp_distance(w, v − w)` is concave (with constant-acceleration phase:
+/// `(v + w)/2 · ((v − w)/a + a/J)`, stationary at `w = a²/2J`; without: `(v + w)·√((v − w)/J)`,
+/// stationary at `w = v/3`), so the maximum lies at one of those points, at the border
+/// `w = v − a²/J` between the pieces, or at an end of `[0, w_max]`. NaN for bad inputs.
+pub fn lead_distance(v: f64, w_max: f64, a: f64, j: f64) -> f64 {
+    if !(v >= 0.0 && w_max >= 0.0 && a > 0.0 && j > 0.0) {
+        return f64::NAN;
+    }
+    let hi = w_max.min(v);
+    let f = |w: f64| profile::ramp_distance(w, v - w, a, j);
+    let border = if j == f64::INFINITY { v } else { v - a * a / j };
+    [0.0, hi, v / 3.0, 0.5 * a * a / j, border]
+        .into_iter()
+        .filter(|w| w.is_finite())
+        .map(|w| f(w.clamp(0.0, hi)))
+        .fold(0.0, f64::max)
+}
+
 /// Plans `moves` from `start` (at rest) to the last target (at rest).
 ///
 /// Validates everything first and fails without a partial plan. Allocates the output segments
@@ -321,20 +379,8 @@ fn prepare(
                 length: mv.length,
             });
         }
-        // Per-move limits from the tightest axis along the direction u = Δq / length.
-        let mut v = mv.feed.min(cfg.path_v);
-        let mut a = cfg.path_a;
-        let mut j = cfg.path_j;
-        for axis in 0..n_axes {
-            let u = dq[axis].abs() / mv.length;
-            if u > 0.0 {
-                v = v.min(limits.v[axis] / u);
-                a = a.min(limits.a[axis] / u);
-                j = j.min(limits.j[axis] / u);
-            }
-        }
+        let (v, a, j) = move_limits(&dq, mv.length, mv.feed, limits, cfg);
         if !scurve {
-            j = f64::INFINITY;
             if a == f64::INFINITY {
                 return Err(PlanError::Unbounded {
                     index,

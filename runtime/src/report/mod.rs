@@ -23,6 +23,7 @@ pub use summary::{AxisPeaks, Summary, summarize};
 pub use trace::write_trace;
 
 use crate::motion::Job;
+use crate::planner::Sample;
 use crate::program::{Laser, OpKind};
 
 /// The laser setting of segment `i`'s move (None when unlit or out of range).
@@ -56,6 +57,25 @@ fn lit_at(job: &Job, i: usize, t_local: f64) -> bool {
         return false;
     }
     t_local < seg.motion_duration() || (dwell_lit(job, i) && t_local < seg.duration())
+}
+
+/// The plan's state at job time `t`, whether the beam is on, and its power in W (0 when off;
+/// `P_set · v / F` when the laser is coupled to speed, PROCESS.md §1 eq. 1). Exact: what the
+/// trace prints rounded.
+pub fn beam_at(job: &Job, t: f64) -> (Sample, bool, f64) {
+    let t_plan = t - job.initial_dwell_s;
+    let sample = job.plan.sample(t_plan.max(0.0));
+    let segs = job.plan.segments();
+    let lit = t_plan >= 0.0
+        && !segs.is_empty()
+        && lit_at(job, sample.segment, sample.t - segs[sample.segment].t_start);
+    let power = match (lit, segs.get(sample.segment)) {
+        (true, Some(seg)) => {
+            segment_laser(job, sample.segment).map_or(0.0, |l| l.power_at(sample.v, seg.feed))
+        }
+        _ => 0.0,
+    };
+    (sample, lit, power)
 }
 
 /// Rounds to 9 significant digits, so goldens do not change with the last bits of a platform's

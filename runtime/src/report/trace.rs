@@ -1,7 +1,7 @@
 //! The sampled trace: one CSV row per period of the job's timeline, streamed.
 
 use super::pulses::pulse_events;
-use super::{fixed6, lit_at, segment_laser};
+use super::{beam_at, fixed6};
 use crate::kinematics;
 use crate::machine::AxisKind;
 use crate::motion::Job;
@@ -11,7 +11,8 @@ use std::io::{self, Write};
 ///
 /// Rows at t = k·period from 0, and a last row exactly at the cycle time when that is not on
 /// the grid. Axis values in mm (deg for rotary axes), px/py/pz the spot in part coordinates,
-/// v and a the path speed and acceleration, laser 0/1, power in W (0 when off), pulses the
+/// v and a the path speed and acceleration, laser 0/1, power in W (0 when off; `P_set · v / F`
+/// when the laser is coupled to speed, PROCESS.md §1 eq. 1), pulses the
 /// number of pulses fired at or before t (within 1 ns). At most 6 decimals.
 ///
 /// Rows are written one at a time; wrap `out` in a `BufWriter` for files.
@@ -44,20 +45,7 @@ pub fn write_trace(job: &Job, period_s: f64, out: &mut dyn Write) -> io::Result<
         } else {
             (k as f64 * period_s).min(total)
         };
-        let t_plan = t - job.initial_dwell_s;
-        let sample = job.plan.sample(t_plan.max(0.0));
-        let lit = t_plan >= 0.0
-            && !job.plan.segments().is_empty()
-            && lit_at(
-                job,
-                sample.segment,
-                sample.t - job.plan.segments()[sample.segment].t_start,
-            );
-        let power = if lit {
-            segment_laser(job, sample.segment).map_or(0.0, |l| l.power_w)
-        } else {
-            0.0
-        };
+        let (sample, lit, power) = beam_at(job, t);
         while pulses.peek().is_some_and(|p| p.t <= t + 1e-9) {
             pulses.next();
             fired += 1;

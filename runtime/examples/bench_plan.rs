@@ -1,0 +1,250 @@
+//! End-to-end planner benchmark on a generated path (CONVENTIONS.md: the input is generated,
+//! not checked in), and a planning front end for `scripts/toppra_compare.py`.
+//!
+//! ```text
+//! cargo run --release --example bench_plan -- 1000000
+//! cargo run --release --example bench_plan -- --polyline path.csv [--jd 0.01] [--v 250]
+//!     [--a 2000] [--j 50000] [--profile trapezoid|scurve]
+//! ```
+//!
+//! The first form generates an N-segment cornered 2-axis path (chords of 0.2–2 mm turning by
+//! 0–150° at every junction, kept inside a 200 × 200 mm field, a stop every 10 000 moves),
+//! plans it offline with the trapezoid and the S-curve profile, and prints segments/s (best of
+//! three runs, one core), the memory planning takes per segment (peak resident memory during
+//! `plan` above the resident memory before it, over N: the output segments plus the look-ahead
+//! scratch) and the cycle time.
+//!
+//! The second form plans the polyline in a CSV file (one `x,y` point in mm per line, the first
+//! is the start) and prints `{"segments": n, "duration_s": t, ...}` as JSON.
+
+use lase_runtime::planner::{
+    AxisLimits, MAX_AXES, Move, PlannerConfig, ProfileKind, Segment, plan,
+};
+use std::time::Instant;
+
+/// Peak resident memory of the process since the last [`reset_peak`], bytes (Linux
+/// `/proc/self/status` VmHWM). The workspace forbids unsafe code, so a counting global allocator
+/// is out; the planner writes every byte it allocates, so the resident peak is its heap peak.
+fn peak_rss() -> Option<usize> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Current resident memory, bytes (VmRSS).
+fn rss() -> Option<usize> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+/// Resets the VmHWM peak to the current RSS (`echo 5 > /proc/self/clear_refs`, Linux ≥ 4.0).
+fn reset_peak() -> bool {
+    std::fs::write("/proc/self/clear_refs", "5").is_ok()
+}
+
+struct Options {
+    v: f64,
+    a: f64,
+    j: f64,
+    jd: f64,
+    profile: Option<ProfileKind>,
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut opts = Options {
+        v: 250.0,
+        a: 2000.0,
+        j: 50_000.0,
+        jd: 0.01,
+        profile: None,
+    };
+    let mut n = 1_000_000usize;
+    let mut polyline: Option<String> = None;
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| -> f64 {
+            it.next()
+                .and_then(|s| s.parse().ok())
+                .unwrap_or_else(|| fail(&format!("{name} needs a number")))
+        };
+        match a.as_str() {
+            "--v" => opts.v = value("--v"),
+            "--a" => opts.a = value("--a"),
+            "--j" => opts.j = value("--j"),
+            "--jd" => opts.jd = value("--jd"),
+            "--profile" => {
+                opts.profile = match it.next().map(String::as_str) {
+                    Some("trapezoid") => Some(ProfileKind::Trapezoid),
+                    Some("scurve") => Some(ProfileKind::SCurve),
+                    _ => fail("--profile is trapezoid or scurve"),
+                }
+            }
+            "--polyline" => polyline = it.next().cloned(),
+            s => {
+                n = s
+                    .parse()
+                    .unwrap_or_else(|_| fail(&format!("unknown argument `{s}`")))
+            }
+        }
+    }
+    match polyline {
+        Some(path) => plan_polyline(&path, &opts),
+        None => throughput(n, &opts),
+    }
+}
+
+fn fail(msg: &str) -> ! {
+    eprintln!("bench_plan: {msg}");
+    std::process::exit(2)
+}
+
+fn limits(o: &Options) -> AxisLimits {
+    AxisLimits {
+        v: [o.v; MAX_AXES],
+        a: [o.a; MAX_AXES],
+        j: [o.j; MAX_AXES],
+    }
+}
+
+fn config(profile: ProfileKind, jd: f64) -> PlannerConfig {
+    PlannerConfig {
+        profile,
+        junction_deviation: jd,
+        n_axes: 2,
+        ..PlannerConfig::default()
+    }
+}
+
+/// A deterministic cornered path: xorshift-driven turns and lengths, reflected at the field's
+/// edges, feed 100 mm/s, a stop every 10 000 moves.
+fn cornered_path(n: usize) -> Vec<Move> {
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut moves = Vec::with_capacity(n);
+    let mut q = [0.0; MAX_AXES];
+    let mut heading: f64 = 0.0;
+    for k in 0..n {
+        let turn = (rnd() * 150.0).to_radians() * if rnd() < 0.5 { 1.0 } else { -1.0 };
+        heading += turn;
+        let len = 0.2 + 1.8 * rnd();
+        let mut t = q;
+        t[0] += len * heading.cos();
+        t[1] += len * heading.sin();
+        for axis in 0..2 {
+            if t[axis].abs() > 100.0 {
+                t[axis] = q[axis] - (t[axis] - q[axis]);
+                heading = if axis == 0 {
+                    std::f64::consts::PI - heading
+                } else {
+                    -heading
+                };
+            }
+        }
+        let mut m = Move::linear(q, t, 100.0);
+        m.stop_after = k % 10_000 == 9_999;
+        m.tag = k as u32;
+        moves.push(m);
+        q = t;
+    }
+    moves
+}
+
+fn throughput(n: usize, o: &Options) {
+    let moves = cornered_path(n);
+    let lim = limits(o);
+    println!(
+        "{n} segments, input {} bytes/segment (Move), axis v {} mm/s, a {} mm/s², j {} mm/s³, \
+         junction deviation {} mm",
+        std::mem::size_of::<Move>(),
+        o.v,
+        o.a,
+        o.j,
+        o.jd
+    );
+    for (name, profile) in [
+        ("trapezoid", ProfileKind::Trapezoid),
+        ("s-curve", ProfileKind::SCurve),
+    ] {
+        let cfg = config(profile, o.jd);
+        let mut best = f64::INFINITY;
+        let mut bytes = None;
+        let mut cycle = 0.0;
+        for _ in 0..3 {
+            let base = if reset_peak() { rss() } else { None };
+            let t0 = Instant::now();
+            let p = plan([0.0; MAX_AXES], &moves, &lim, &cfg)
+                .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
+            best = best.min(t0.elapsed().as_secs_f64());
+            if let (Some(b), Some(peak)) = (base, peak_rss()) {
+                bytes = Some(peak.saturating_sub(b));
+            }
+            cycle = p.duration();
+            std::hint::black_box(&p);
+        }
+        let per = bytes.map_or("n/a".to_string(), |b| format!("{:.1}", b as f64 / n as f64));
+        println!(
+            "{name:>9}: {:6.2} M segments/s, {per} bytes/segment (peak RSS of plan; Segment is {} \
+             bytes), cycle time {:.3} s",
+            n as f64 / best / 1e6,
+            std::mem::size_of::<Segment>(),
+            cycle
+        );
+    }
+}
+
+fn plan_polyline(path: &str, o: &Options) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| fail(&format!("{path}: {e}")));
+    let mut pts = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let xy: Vec<f64> = line
+            .split(',')
+            .map(|s| s.trim().parse::<f64>())
+            .collect::<Result<_, _>>()
+            .unwrap_or_else(|e| fail(&format!("{path}:{}: {e}", i + 1)));
+        if xy.len() != 2 {
+            fail(&format!("{path}:{}: expected x,y", i + 1));
+        }
+        let mut q = [0.0; MAX_AXES];
+        q[0] = xy[0];
+        q[1] = xy[1];
+        pts.push(q);
+    }
+    let Some(&start) = pts.first() else {
+        fail("the polyline is empty")
+    };
+    let moves: Vec<Move> = pts
+        .windows(2)
+        .map(|w| Move::linear(w[0], w[1], f64::INFINITY))
+        .collect();
+    let profile = o.profile.unwrap_or(ProfileKind::Trapezoid);
+    let t0 = Instant::now();
+    let p = plan(start, &moves, &limits(o), &config(profile, o.jd))
+        .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
+    let dt = t0.elapsed().as_secs_f64();
+    println!(
+        "{{\"segments\": {}, \"duration_s\": {}, \"profile\": \"{}\", \"junction_deviation\": {}, \
+         \"plan_seconds\": {}}}",
+        p.segments().len(),
+        p.duration(),
+        if profile == ProfileKind::SCurve {
+            "scurve"
+        } else {
+            "trapezoid"
+        },
+        o.jd,
+        dt
+    );
+}

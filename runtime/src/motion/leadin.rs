@@ -1,0 +1,521 @@
+//! Lead-ins and lead-outs: the transition points of PROCESS.md §4, placed so that the beam is
+//! only on at the programmed speed.
+//!
+//! The paper's look-ahead preprocessing computes, for each M-function point, the distance the
+//! machine needs to reach the cutting feed from rest and moves the transition point back by it,
+//! "so that the cutting feed is reached exactly at the start of the cut". This module does that
+//! for every lit section (a maximal run of lit motion ops; non-motion ops between two lit moves
+//! stay inside it, as in `emit`'s laser model), as a pure transformation of the op list before
+//! lowering: no IO, no recipe syntax, no NC text.
+//!
+//! Two machine styles:
+//! * (a) the beam switch needs the machine at rest (`laser_switch_stops`, the notcher's M27):
+//!   the move before the section is redirected to end `d_in` back along the entry direction,
+//!   where the beam is switched on at rest; a *lit* lead-in of length `d_in` at the cutting feed
+//!   follows, reaching the feed exactly at the first programmed lit point. Symmetrically a lit
+//!   lead-out of `d_out` runs past the last lit point and the beam goes off at rest there. The
+//!   beam is on during both ramps, but outside the programmed section (in the paper, above the
+//!   notch).
+//! * (b) motion-synchronized outputs (xy_table, xyz: M62/M63, M3 in laser mode): the lead-in and
+//!   lead-out are *unlit* moves along the entry and exit tangents; the lit section runs at its
+//!   feed from its first to its last point and the beam switches at full speed on a
+//!   straight-through junction, so there is no speed dip.
+//!
+//! Lengths come from the profile and the limits the planner will use for that direction
+//! ([`planner::move_limits`]: tightest axis along the direction): `d = `[`planner::lead_distance`]
+//! `(v, w_max, a, j)`, the worst ramp between the feed `v` and any speed `w ≤ w_max` the lead's
+//! other end may have. After a stop (always in style a) `w_max = 0` and `d` is PROCESS.md §4's
+//! ramp distance from rest (for an S-curve with `v < a²/J`, `d = v · √(v/J)`). When the lead-in
+//! may be entered at speed (the move before ends in a corner) `w_max = v`, because a
+//! jerk-limited ramp entered at speed can need more room than one from rest.
+//!
+//! Positioning moves adjacent to a section change: the unlit move before it now ends at the
+//! lead-in start (or a rapid there is inserted when no straight move precedes), and the move
+//! after it starts at the lead-out end. An unlit arc after a section would lose its start, so a
+//! rapid back to the section's end is inserted before it.
+
+use super::{MotionError, arc_points, dist};
+use crate::kinematics::{Kinematics, ToolPose};
+use crate::planner::{self, Axes, AxisLimits, MAX_AXES, PlannerConfig};
+use crate::program::{Laser, Op, OpKind, P3};
+use lase_lang::units::format_number;
+
+/// What the lead computation needs to know about the machine and the planner.
+#[derive(Clone, Copy, Debug)]
+pub struct LeadContext<'a> {
+    pub kin: &'a dyn Kinematics,
+    pub limits: &'a AxisLimits,
+    pub cfg: &'a PlannerConfig,
+    /// The machine switches the beam at rest (style a above).
+    pub switch_stops: bool,
+    /// Chord tolerance of arcs, so that an arc's entry direction is its first chord's, as the
+    /// planner sees it.
+    pub arc_tolerance_mm: f64,
+    /// Add leads at all (`planner { leadin auto }`).
+    pub enabled: bool,
+}
+
+/// Whether an added move leads into or out of a section.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LeadKind {
+    In,
+    Out,
+}
+
+/// A move lase added in front of or behind a lit section.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lead {
+    /// Index of the added op in the transformed program.
+    pub op: u32,
+    pub kind: LeadKind,
+    /// Its length, mm.
+    pub length_mm: f64,
+    /// Whether the beam is on during it (style a).
+    pub lit: bool,
+}
+
+/// One lit section as the recipe wrote it, located in the transformed program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LitSection {
+    /// First and last lit motion op of the section (leads excluded).
+    pub first_op: u32,
+    pub last_op: u32,
+    /// The first programmed lit point and the feed of the op that starts there.
+    pub start: P3,
+    pub start_feed_mm_s: f64,
+    /// The last programmed lit point and the feed of the op that ends there.
+    pub end: P3,
+    pub end_feed_mm_s: f64,
+}
+
+/// The program with its leads.
+#[derive(Debug, Clone)]
+pub struct Leads {
+    pub ops: Vec<Op>,
+    pub sections: Vec<LitSection>,
+    pub leads: Vec<Lead>,
+}
+
+/// An op to insert, and what lead it is (kind, length, lit) if it is one.
+type Insert = (Op, Option<(LeadKind, f64, bool)>);
+
+/// Edits to the op list, collected first and applied in one pass.
+#[derive(Default)]
+struct Edits {
+    /// New target of op i (an unlit straight move redirected to a lead-in start).
+    redirect: Vec<Option<P3>>,
+    /// Ops to insert before op i (index `ops.len()` = at the end).
+    before: Vec<Vec<Insert>>,
+    /// Ops to insert after op i.
+    after: Vec<Vec<Insert>>,
+    /// Ops to insert before everything.
+    front: Vec<Op>,
+}
+
+/// Adds lead-ins and lead-outs around every lit section of `ops` (starting at `start`).
+///
+/// Fails, without a partial result, when a lead does not fit in the machine's travel or the
+/// lit feed is above what the axes allow along the cut (then no lead could reach it).
+pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, MotionError> {
+    let starts = start_points(start, ops);
+    let moving: Vec<bool> = ops
+        .iter()
+        .zip(&starts)
+        .map(|(op, from)| moves(op, *from))
+        .collect();
+    let runs = lit_runs(ops, &moving);
+    if !cx.enabled || runs.is_empty() {
+        let sections = runs
+            .iter()
+            .map(|&(f, l)| section(ops, &starts, f, l, f as u32, l as u32))
+            .collect();
+        return Ok(Leads {
+            ops: ops.to_vec(),
+            sections,
+            leads: Vec::new(),
+        });
+    }
+
+    let n = ops.len();
+    let mut ed = Edits {
+        redirect: vec![None; n],
+        before: vec![Vec::new(); n],
+        after: vec![Vec::new(); n],
+        front: Vec::new(),
+    };
+    for &(first, last) in &runs {
+        let prev_move = (0..first).rev().find(|&i| moving[i]);
+        let next_move = (last + 1..n).find(|&i| moving[i]);
+        let stop_between = |a: usize, b: usize| ops[a..b].iter().any(is_stop);
+
+        // Lead-in: ends at the first lit point P0 at full speed.
+        let op = &ops[first];
+        let p0 = starts[first];
+        let (u, chord_end) = entry_chord(op, p0, cx.arc_tolerance_mm);
+        let feed = feed_of(op);
+        let (v, a, j) = limits_along(cx, p0, chord_end, feed, op)?;
+        let w_max = match prev_move {
+            _ if cx.switch_stops => 0.0,
+            None => 0.0,
+            Some(pm) if stop_between(pm + 1, first) => 0.0,
+            Some(_) => v,
+        };
+        let d_in = planner::lead_distance(v, w_max, a, j);
+        let p_lead = along(p0, u, -d_in);
+        let room = room_along(cx.kin, p0, u, -1.0, d_in);
+        if room < d_in {
+            return Err(MotionError::NoRoomForLeadIn {
+                needed: mm(d_in),
+                available: mm(floor_nc(room)),
+                span: op.span,
+                help: no_room_help("before", "in"),
+            });
+        }
+        let lit_lead = cx.switch_stops.then(|| lead_laser(op.laser()));
+        match prev_move {
+            Some(pm)
+                if matches!(
+                    ops[pm].kind,
+                    OpKind::Rapid { .. } | OpKind::Line { laser: None, .. }
+                ) =>
+            {
+                ed.redirect[pm] = Some(p_lead)
+            }
+            Some(pm) => ed.after[pm].push((rapid(p_lead, op), None)),
+            None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op)),
+            None => {}
+        }
+        ed.before[first].push((
+            Op {
+                kind: OpKind::Line {
+                    to: p0,
+                    feed_mm_s: feed,
+                    laser: lit_lead.clone(),
+                },
+                span: op.span,
+            },
+            Some((LeadKind::In, d_in, cx.switch_stops)),
+        ));
+
+        // Lead-out: leaves the last lit point P1 at full speed.
+        let op = &ops[last];
+        let p1 = op.target().unwrap_or(starts[last]);
+        let (u, chord_start) = exit_chord(op, starts[last], cx.arc_tolerance_mm);
+        let feed = feed_of(op);
+        let (v, a, j) = limits_along(cx, chord_start, p1, feed, op)?;
+        let w_max = match next_move {
+            _ if cx.switch_stops => 0.0,
+            None => 0.0,
+            Some(nm) if stop_between(last + 1, nm) => 0.0,
+            Some(_) => v,
+        };
+        let d_out = planner::lead_distance(v, w_max, a, j);
+        let p_out = along(p1, u, d_out);
+        let room = room_along(cx.kin, p1, u, 1.0, d_out);
+        if room < d_out {
+            return Err(MotionError::NoRoomForLeadOut {
+                needed: mm(d_out),
+                available: mm(floor_nc(room)),
+                span: op.span,
+                help: no_room_help("after", "out"),
+            });
+        }
+        let lit_lead = cx.switch_stops.then(|| lead_laser(op.laser()));
+        ed.after[last].push((
+            Op {
+                kind: OpKind::Line {
+                    to: p_out,
+                    feed_mm_s: feed,
+                    laser: lit_lead,
+                },
+                span: op.span,
+            },
+            Some((LeadKind::Out, d_out, cx.switch_stops)),
+        ));
+        if let Some(nm) = next_move
+            && matches!(ops[nm].kind, OpKind::Arc { .. })
+        {
+            // An arc is defined from where it starts: go back to it.
+            ed.after[last].push((rapid(p1, op), None));
+        }
+    }
+    Ok(apply(ops, &starts, &runs, ed))
+}
+
+fn apply(ops: &[Op], starts: &[P3], runs: &[(usize, usize)], mut ed: Edits) -> Leads {
+    let mut out: Vec<Op> = Vec::with_capacity(ops.len() + 4 * runs.len() + 1);
+    let mut leads = Vec::new();
+    let mut new_index = vec![0u32; ops.len()];
+    out.append(&mut ed.front);
+    let mut push = |out: &mut Vec<Op>, (op, lead): Insert| {
+        if let Some((kind, length_mm, lit)) = lead {
+            leads.push(Lead {
+                op: out.len() as u32,
+                kind,
+                length_mm,
+                lit,
+            });
+        }
+        out.push(op);
+    };
+    for (i, op) in ops.iter().enumerate() {
+        for x in std::mem::take(&mut ed.before[i]) {
+            push(&mut out, x);
+        }
+        let mut op = op.clone();
+        if let Some(p) = ed.redirect[i] {
+            match &mut op.kind {
+                OpKind::Rapid { to } | OpKind::Line { to, .. } => *to = p,
+                _ => {}
+            }
+        }
+        new_index[i] = out.len() as u32;
+        out.push(op);
+        for x in std::mem::take(&mut ed.after[i]) {
+            push(&mut out, x);
+        }
+    }
+    let sections = runs
+        .iter()
+        .map(|&(f, l)| section(ops, starts, f, l, new_index[f], new_index[l]))
+        .collect();
+    Leads {
+        ops: out,
+        sections,
+        leads,
+    }
+}
+
+fn section(
+    ops: &[Op],
+    starts: &[P3],
+    first: usize,
+    last: usize,
+    first_op: u32,
+    last_op: u32,
+) -> LitSection {
+    LitSection {
+        first_op,
+        last_op,
+        start: starts[first],
+        start_feed_mm_s: feed_of(&ops[first]),
+        end: ops[last].target().unwrap_or(starts[last]),
+        end_feed_mm_s: feed_of(&ops[last]),
+    }
+}
+
+/// The point each op starts at.
+fn start_points(start: P3, ops: &[Op]) -> Vec<P3> {
+    let mut pos = start;
+    ops.iter()
+        .map(|op| {
+            let from = pos;
+            if let Some(t) = op.target() {
+                pos = t;
+            }
+            from
+        })
+        .collect()
+}
+
+/// Whether a motion op moves the spot (the same test as `emit` and the lowering use).
+fn moves(op: &Op, from: P3) -> bool {
+    match &op.kind {
+        OpKind::Arc { .. } => true,
+        OpKind::Rapid { to } | OpKind::Line { to, .. } => {
+            (0..3).any(|k| (to[k] - from[k]).abs() > 1e-12)
+        }
+        _ => false,
+    }
+}
+
+/// Lit sections: (first, last) indices of maximal runs of moving lit ops; non-motion ops and
+/// zero-length moves between two lit moves do not break a run.
+fn lit_runs(ops: &[Op], moving: &[bool]) -> Vec<(usize, usize)> {
+    let mut runs = Vec::new();
+    let mut current: Option<(usize, usize)> = None;
+    for (i, op) in ops.iter().enumerate() {
+        if !moving[i] {
+            continue;
+        }
+        match (op.laser().is_some(), current) {
+            (true, Some((f, _))) => current = Some((f, i)),
+            (true, None) => current = Some((i, i)),
+            (false, Some(run)) => {
+                runs.push(run);
+                current = None;
+            }
+            (false, None) => {}
+        }
+    }
+    runs.extend(current);
+    runs
+}
+
+/// Ops that bring the machine to rest where they stand.
+fn is_stop(op: &Op) -> bool {
+    matches!(
+        op.kind,
+        OpKind::Dwell { .. } | OpKind::MCode { .. } | OpKind::Event { .. }
+    )
+}
+
+fn feed_of(op: &Op) -> f64 {
+    match &op.kind {
+        OpKind::Line { feed_mm_s, .. } | OpKind::Arc { feed_mm_s, .. } => *feed_mm_s,
+        _ => f64::INFINITY,
+    }
+}
+
+/// The laser of a lit lead (style a): the section's, without pulses, so that pulse trains
+/// still start at the programmed first lit point.
+fn lead_laser(l: Option<&Laser>) -> Laser {
+    let mut l = l.cloned().unwrap_or(Laser {
+        power_w: 0.0,
+        spot_mm: 0.0,
+        pulse: None,
+        couple: Default::default(),
+    });
+    l.pulse = None;
+    l
+}
+
+fn rapid(to: P3, like: &Op) -> Op {
+    Op {
+        kind: OpKind::Rapid { to },
+        span: like.span,
+    }
+}
+
+/// Unit direction and end point of the first straight piece the planner will see for `op`
+/// starting at `from`.
+fn entry_chord(op: &Op, from: P3, tol: f64) -> (P3, P3) {
+    let end = match &op.kind {
+        OpKind::Arc {
+            to, center, ccw, ..
+        } => arc_points(from, *to, *center, *ccw, tol)
+            .first()
+            .copied()
+            .unwrap_or(*to),
+        _ => op.target().unwrap_or(from),
+    };
+    (unit(from, end), end)
+}
+
+/// Unit direction and start point of the last straight piece of `op` starting at `from`.
+fn exit_chord(op: &Op, from: P3, tol: f64) -> (P3, P3) {
+    let to = op.target().unwrap_or(from);
+    let begin = match &op.kind {
+        OpKind::Arc { center, ccw, .. } => {
+            let pts = arc_points(from, to, *center, *ccw, tol);
+            if pts.len() >= 2 {
+                pts[pts.len() - 2]
+            } else {
+                from
+            }
+        }
+        _ => from,
+    };
+    (unit(begin, to), begin)
+}
+
+fn unit(a: P3, b: P3) -> P3 {
+    let l = dist(a, b);
+    if l > 0.0 {
+        [(b[0] - a[0]) / l, (b[1] - a[1]) / l, (b[2] - a[2]) / l]
+    } else {
+        [0.0; 3]
+    }
+}
+
+fn along(p: P3, u: P3, t: f64) -> P3 {
+    [p[0] + t * u[0], p[1] + t * u[1], p[2] + t * u[2]]
+}
+
+fn axes_at(kin: &dyn Kinematics, p: P3) -> Option<Axes> {
+    let q = kin.inverse(&ToolPose::down(p), None).ok()?;
+    kin.check(&q).ok()?;
+    Some(q)
+}
+
+/// Speed, acceleration and jerk limits of the straight piece `from → to` at `feed`, as the
+/// planner derives them. The feed must be reachable along it: a lead cannot help otherwise.
+fn limits_along(
+    cx: &LeadContext<'_>,
+    from: P3,
+    to: P3,
+    feed: f64,
+    op: &Op,
+) -> Result<(f64, f64, f64), MotionError> {
+    let length = dist(from, to);
+    let (Some(q0), Some(q1)) = (axes_at(cx.kin, from), axes_at(cx.kin, to)) else {
+        // Unreachable ends are reported with their own diagnostic by the lowering; the feed
+        // is then all a lead can aim for.
+        return Ok((feed, f64::INFINITY, f64::INFINITY));
+    };
+    let mut dq = [0.0; MAX_AXES];
+    for k in 0..MAX_AXES {
+        dq[k] = q1[k] - q0[k];
+    }
+    let (v, a, j) = planner::move_limits(&dq, length, feed, cx.limits, cx.cfg);
+    if v < feed * (1.0 - 1e-9) {
+        return Err(MotionError::FeedUnreachable {
+            feed: speed(feed),
+            limit: speed(v),
+            span: op.span,
+            help: format!(
+                "lower the feed to at most {}, or turn lead-ins off with `planner {{ leadin none }}` \
+                 to let the planner cap it (the beam is then on below the programmed speed)",
+                speed(v)
+            ),
+        });
+    }
+    Ok((v, a, j))
+}
+
+/// How far from `p` along `sign · u` the machine can go, up to `want` (bisection on the
+/// kinematics' travel check; travel regions are intervals along a line for the machines lase
+/// knows).
+fn room_along(kin: &dyn Kinematics, p: P3, u: P3, sign: f64, want: f64) -> f64 {
+    if !(want > 0.0) {
+        return want.max(0.0);
+    }
+    if axes_at(kin, along(p, u, sign * want)).is_some() {
+        return want;
+    }
+    if axes_at(kin, p).is_none() {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, want);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if axes_at(kin, along(p, u, sign * mid)).is_some() {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    lo
+}
+
+/// Rounded down to the NC programs' 0.1 µm, so the travel check's rounding slack does not
+/// show as "0.000001 mm".
+fn floor_nc(x: f64) -> f64 {
+    (x * 1e4).floor() / 1e4
+}
+
+fn mm(x: f64) -> String {
+    format!("{} mm", format_number(x))
+}
+
+fn speed(v: f64) -> String {
+    format!("{} mm/min", format_number(v * 60.0))
+}
+
+fn no_room_help(side: &str, lead: &str) -> String {
+    format!(
+        "the beam may only be on at the programmed speed, so lase needs room {side} this cut to \
+         ramp; move the part away from the travel limit, or write `planner {{ leadin none }}` \
+         to cut while the speed ramps (lead-{lead})"
+    )
+}
