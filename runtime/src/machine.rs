@@ -446,14 +446,30 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         }
         KinematicsKind::Arm3r => {
             roles(
-                &[AxisKind::Linear, AxisKind::Rotary, AxisKind::Rotary, AxisKind::Rotary],
+                &[
+                    AxisKind::Linear,
+                    AxisKind::Rotary,
+                    AxisKind::Rotary,
+                    AxisKind::Rotary,
+                ],
                 "slide (linear), A, B, C (rotary)",
             )?;
-            geometry.link1 = positive(need(&file.geometry.link1, "link1")?, file.geometry.link1.as_ref().expect("checked"), "link1")?;
-            geometry.link2 = positive(need(&file.geometry.link2, "link2")?, file.geometry.link2.as_ref().expect("checked"), "link2")?;
+            geometry.link1 = positive(
+                need(&file.geometry.link1, "link1")?,
+                file.geometry.link1.as_ref().expect("checked"),
+                "link1",
+            )?;
+            geometry.link2 = positive(
+                need(&file.geometry.link2, "link2")?,
+                file.geometry.link2.as_ref().expect("checked"),
+                "link2",
+            )?;
             geometry.head = need(&file.geometry.head, "head")?;
             if let Some([bx, by]) = &file.geometry.base {
-                geometry.base = [qty(bx, &[Dim::LENGTH], "base")?, qty(by, &[Dim::LENGTH], "base")?];
+                geometry.base = [
+                    qty(bx, &[Dim::LENGTH], "base")?,
+                    qty(by, &[Dim::LENGTH], "base")?,
+                ];
             }
             geometry.elbow = match file.geometry.elbow.as_ref().map(|e| e.get_ref().as_str()) {
                 None | Some("up") => 1.0,

@@ -116,7 +116,8 @@ impl Kinematics for Arm3r {
     fn inverse(&self, pose: &ToolPose, prev: Option<&Axes>) -> Result<Axes, KinError> {
         if pose.beam.z.abs() > 1e-9 {
             return Err(KinError::Unreachable(
-                "the arm turns the beam in its plane only: the beam must have no z component".into(),
+                "the arm turns the beam in its plane only: the beam must have no z component"
+                    .into(),
             ));
         }
         let w = self.wrist(pose) - self.base;

@@ -87,3 +87,52 @@ impl Kinematics for CamXwb {
         check_travel(&self.travel, q)
     }
 }
+
+/// One step of the paper's discrete method (PROCESS.md §1), for comparison with the exact
+/// inverse: the scan point M (midpoint of a contour chord), the surface normal stood in for by
+/// the chord's perpendicular bisector, and the axis positions that follow from them.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Seed1Step {
+    /// Midpoint of the chord P_k P_{k+1}.
+    pub m: Vector2<f64>,
+    /// Unit normal of the chord (its perpendicular bisector's direction), pointing outward.
+    pub normal: Vector2<f64>,
+    /// Axis positions X, ω, B for that scan point and normal.
+    pub axes: [f64; 3],
+}
+
+impl CamXwb {
+    /// The paper's method on a closed, counter-clockwise contour polyline: scan points at the
+    /// chords' midpoints, normals from their perpendicular bisectors, axes through the same
+    /// exact machine transform (so the comparison isolates the normal and point error).
+    pub fn seed1_steps(&self, contour: &[Vector2<f64>], standoff: f64) -> Vec<Seed1Step> {
+        let n = contour.len();
+        let mut out: Vec<Seed1Step> = Vec::with_capacity(n);
+        let mut prev: Option<Axes> = None;
+        for k in 0..n {
+            let (p1, p2) = (contour[k], contour[(k + 1) % n]);
+            let chord = p2 - p1;
+            let len = chord.norm();
+            if len < 1e-12 {
+                continue;
+            }
+            // Counter-clockwise contour: outward is to the right of travel.
+            let normal = Vector2::new(chord.y, -chord.x) / len;
+            let m = (p1 + p2) / 2.0;
+            let pose = ToolPose {
+                spot: Vector3::new(m.x, m.y, 0.0),
+                beam: Vector3::new(-normal.x, -normal.y, 0.0),
+                standoff,
+            };
+            if let Ok(q) = self.inverse(&pose, prev.as_ref()) {
+                out.push(Seed1Step {
+                    m,
+                    normal,
+                    axes: [q[0], q[1], q[2]],
+                });
+                prev = Some(q);
+            }
+        }
+        out
+    }
+}

@@ -81,7 +81,8 @@ pub trait Kinematics: std::fmt::Debug {
             let mut b = *q;
             a[i] -= h;
             b[i] += h;
-            let d = (self.forward_at(&b, standoff).spot - self.forward_at(&a, standoff).spot) / (2.0 * h);
+            let d = (self.forward_at(&b, standoff).spot - self.forward_at(&a, standoff).spot)
+                / (2.0 * h);
             j.set_column(i, &d);
         }
         j
