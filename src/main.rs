@@ -4,6 +4,7 @@
 //! graphical renderer.
 
 mod driver;
+mod live;
 mod output;
 mod repl;
 
@@ -11,7 +12,6 @@ use clap::{Parser, Subcommand};
 use driver::{Failure, IoError};
 use lase_lang::SourceMap;
 use lase_runtime::emit::{Dialect, EmitOptions, NcLine};
-use lase_runtime::link::{self, Reply};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -59,15 +59,78 @@ enum Command {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
-    /// Check, plan and send the job to a controller (the built-in simulator by default).
+    /// Check, plan and stream the job to a controller (the built-in simulator by default).
+    ///
+    /// Links: `sim` (in-process simulated GRBL controller, the default; options as a query:
+    /// `sim://?time-scale=real&baud=115200`), `tcp://HOST:PORT`, `serial:///dev/ttyUSB0?baud=115200`.
+    /// Over tcp and serial a journal records every line sent and acknowledged (default: beside
+    /// the recipe, `FILE.journal`); after a dropped link, `--resume JOURNAL` continues the job.
     Run {
-        file: PathBuf,
-        /// Controller link URL (`sim` is the built-in simulated controller).
+        /// The recipe (optional with --resume: the journal names it).
+        file: Option<PathBuf>,
+        /// Controller link URL.
         #[arg(long)]
         link: Option<String>,
-        /// NC dialect sent over the link.
-        #[arg(long, default_value = "linuxcnc")]
-        dialect: String,
+        /// NC dialect sent over the link (the GRBL links take grbl, the default).
+        #[arg(long)]
+        dialect: Option<String>,
+        /// Job journal file (default: beside the recipe for tcp and serial links).
+        #[arg(long)]
+        journal: Option<PathBuf>,
+        /// Continue the job recorded in this journal after a dropped link.
+        #[arg(long, value_name = "JOURNAL")]
+        resume: Option<PathBuf>,
+        /// With --resume: the number of lines that ran, when the controller's state cannot tell.
+        #[arg(long, value_name = "N", requires = "resume")]
+        resume_at: Option<usize>,
+        /// GRBL check mode (`$C`): the controller parses every line, nothing moves.
+        #[arg(long)]
+        check: bool,
+        /// Send-response flow control (one line in flight) instead of character counting.
+        #[arg(long)]
+        send_response: bool,
+        /// The controller's serial RX buffer, bytes.
+        #[arg(long, default_value_t = 128)]
+        rx_buffer: usize,
+    },
+    /// Run the simulated GRBL 1.1 controller as a TCP server.
+    Sim {
+        /// Address to listen on (loopback unless --allow-remote); port 0 picks a free one.
+        #[arg(long, default_value = "127.0.0.1:0")]
+        listen: String,
+        /// Stock machine name or machine file path.
+        #[arg(long, default_value = "xy_table")]
+        machine: String,
+        /// Simulated time: real, max or a speed-up factor (e.g. 100).
+        #[arg(long, default_value = "real")]
+        time_scale: String,
+        /// Drop the connection once N lines have been received (repeatable).
+        #[arg(long, value_name = "N")]
+        drop_after_lines: Vec<u64>,
+        /// Drop the n-th connection T seconds after it opens (repeatable).
+        #[arg(long, value_name = "T")]
+        drop_after_secs: Vec<f64>,
+        /// Answer error:CODE (default 20) to line K instead of running it (repeatable).
+        #[arg(long, value_name = "K[:CODE]")]
+        error_at_line: Vec<String>,
+        /// Send garbage once N lines have been answered (repeatable).
+        #[arg(long, value_name = "N", hide = true)]
+        garbage_after_lines: Vec<u64>,
+        /// Throttle the link to this baud rate (8N1: baud/10 bytes per second each way).
+        #[arg(long)]
+        baud: Option<u32>,
+        /// Serial RX buffer, bytes.
+        #[arg(long, default_value_t = 128)]
+        rx_buffer: usize,
+        /// Planner buffer, blocks.
+        #[arg(long, default_value_t = 15)]
+        planner_blocks: usize,
+        /// A GRBL setting different from the machine file's, N=VALUE (e.g. 32=0; repeatable).
+        #[arg(long = "setting", value_name = "N=VALUE")]
+        settings: Vec<String>,
+        /// Allow listening on a non-loopback address.
+        #[arg(long)]
+        allow_remote: bool,
     },
     /// Interactive session: statements evaluated as you type.
     Repl {
@@ -97,7 +160,50 @@ fn main() -> ExitCode {
             file,
             link,
             dialect,
-        } => cmd_run(&file, link.as_deref(), &dialect),
+            journal,
+            resume,
+            resume_at,
+            check,
+            send_response,
+            rx_buffer,
+        } => live::cmd_run(live::RunArgs {
+            file,
+            link,
+            dialect,
+            journal,
+            resume,
+            resume_at,
+            check,
+            send_response,
+            rx_buffer,
+        }),
+        Command::Sim {
+            listen,
+            machine,
+            time_scale,
+            drop_after_lines,
+            drop_after_secs,
+            error_at_line,
+            garbage_after_lines,
+            baud,
+            rx_buffer,
+            planner_blocks,
+            settings,
+            allow_remote,
+        } => live::cmd_sim(live::SimArgs {
+            listen,
+            machine,
+            time_scale,
+            drop_after_lines,
+            drop_after_secs,
+            error_at_line,
+            garbage_after_lines,
+            baud,
+            rx_buffer,
+            planner_blocks,
+            settings,
+            allow_remote,
+        }),
         Command::Repl { file } => return repl::run(file.as_deref(), color),
     };
     match result {
@@ -171,7 +277,7 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
 }
 
 /// The options of every NC text lase produces, so `emit` and `run` send identical lines.
-fn emit_options(locate: &dyn Fn(lase_lang::Span) -> String) -> EmitOptions<'_> {
+pub(crate) fn emit_options(locate: &dyn Fn(lase_lang::Span) -> String) -> EmitOptions<'_> {
     EmitOptions {
         locate: Some(locate),
         comments: true,
@@ -254,58 +360,5 @@ fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
             .map_err(|e| io_fail(e.to_string()))
     })?;
     println!("{}: wrote {}", recipe.name(), path.display());
-    Ok(())
-}
-
-fn cmd_run(file: &Path, link_url: Option<&str>, dialect: &str) -> CmdResult {
-    let dialect = parse_dialect(dialect)?;
-    let (recipe, job) = driver::compile(file)?;
-    let mut link = link::open(link_url, &job.program.machine)
-        .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
-    // Emit the whole program first: nothing is sent unless all of it is valid.
-    let mut lines: Vec<NcLine> = Vec::new();
-    let locate = |s: lase_lang::Span| recipe.locate(s);
-    lase_runtime::emit::emit(&job, dialect, &emit_options(&locate), &mut |l: &NcLine| {
-        lines.push(l.clone());
-        Ok(())
-    })
-    .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
-    let summary = lase_runtime::report::summarize(&job);
-    eprintln!(
-        "{}: {} lines to {} — planned cycle time {:.3} s",
-        recipe.name(),
-        lines.len(),
-        link_url.unwrap_or("the built-in simulator"),
-        summary.cycle_time_s
-    );
-    for (i, l) in lines.iter().enumerate() {
-        match link
-            .send(&l.text)
-            .map_err(|e| (recipe.map.clone(), Failure::one(e)))?
-        {
-            Reply::Ok => {}
-            Reply::Error { code, message } => {
-                let span =
-                    l.op.and_then(|o| job.program.ops.get(o as usize))
-                        .map(|o| o.span)
-                        .unwrap_or_default();
-                return Err((
-                    recipe.map.clone(),
-                    Failure::one(output::ControllerRejected {
-                        line_no: i + 1,
-                        line: l.text.clone(),
-                        code,
-                        message,
-                        span,
-                    }),
-                ));
-            }
-        }
-    }
-    println!("{}: done — {}", recipe.name(), link.status());
-    println!(
-        "  cycle time {:.3} s, laser on {:.3} mm / {:.3} s, {} pulses",
-        summary.cycle_time_s, summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
-    );
     Ok(())
 }

@@ -32,7 +32,9 @@ pub fn write_atomic(
 #[error("the controller rejected line {line_no} `{line}`: error {code}, {message}")]
 #[diagnostic(
     code(lase::link::rejected),
-    help("the job was stopped before this line; fix the recipe statement it came from")
+    help(
+        "the job was stopped at this line ({stop}); fix the recipe statement it came from and run the job again"
+    )
 )]
 pub struct ControllerRejected {
     pub line_no: usize,
@@ -41,4 +43,53 @@ pub struct ControllerRejected {
     pub message: String,
     #[label("this statement produced the rejected line")]
     pub span: Span,
+    /// What the stop sequence did.
+    pub stop: String,
+}
+
+/// The controller raised an alarm; points at the line it was parsing, when known.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+#[error("the controller raised ALARM:{code}{line}: {message}")]
+#[diagnostic(
+    code(lase::link::alarm),
+    help(
+        "the job was stopped ({stop}); clear the alarm on the controller (`$X`, or home it when the position may be lost) before running again"
+    )
+)]
+pub struct ControllerAlarm {
+    pub line: String,
+    pub code: u32,
+    pub message: String,
+    #[label("this statement produced the line the controller was reading")]
+    pub span: Option<Span>,
+    pub stop: String,
+}
+
+/// The link dropped in the middle of a job.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+#[error("the link to the controller was lost after {acked} of {total} lines: {reason}")]
+#[diagnostic(
+    code(lase::link::lost),
+    help(
+        "the controller goes on with what it had received; reconnect it and continue with `{resume}`"
+    )
+)]
+pub struct LinkLost {
+    pub reason: String,
+    pub acked: usize,
+    pub total: usize,
+    pub resume: String,
+}
+
+/// The operator aborted a streaming job.
+#[derive(Debug, thiserror::Error, miette::Diagnostic)]
+#[error("aborted after {acked} of {total} lines: {stop}")]
+#[diagnostic(
+    code(lase::link::aborted),
+    help("the controller was stopped at rest and reset; the job cannot be resumed, run it again")
+)]
+pub struct JobAborted {
+    pub acked: usize,
+    pub total: usize,
+    pub stop: String,
 }

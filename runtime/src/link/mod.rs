@@ -1,13 +1,46 @@
-//! Controller links: where NC lines go when lase drives a machine live.
+//! Controller links: where a job goes when lase drives a machine live.
 //!
-//! Architecture invariant: this is the only code that knows a controller protocol. A
-//! [`Link`] takes one NC line at a time and answers whether the controller accepted it. The
-//! in-process [`sim::SimController`] is a real implementation that executes what it receives
-//! (modal state, positions, laser), so a job can be run end to end with no machine.
+//! Architecture invariant: this is the only code that knows a controller protocol or a
+//! socket. Layers, bottom up:
+//!
+//! - [`transport`]: bytes in and out, with a timed read (TCP, serial, an in-memory pipe to the
+//!   in-process simulator).
+//! - [`Link`]: one controller protocol over a transport: program lines under the protocol's
+//!   flow control, their answers in order, real-time commands, status, settings, check mode
+//!   and the lines that restore a modal state. [`grbl::GrblLink`] speaks GRBL 1.1; a LinuxCNC
+//!   or Marlin link is another implementation of the same trait.
+//! - [`stream`]: a job over any `Link`, nothing lost and nothing repeated: a write-ahead
+//!   [`journal`] on disk, the stop sequence on an error, and the resume logic that finds the
+//!   last executed line from the controller's state ([`modal`] predicts it line by line).
+//! - [`sim`]: a simulated GRBL 1.1 controller, a real implementation of the protocol that the
+//!   tests talk to over real sockets, with fault injection and a record of what it executed.
+//! - [`dry`]: the protocol-less line checker behind the REPL's `:run`.
+//!
+//! The path of one line: `emit` writes it (with its op index) → [`stream::Streamer`] journals
+//! it as about to be sent → [`Link::send_line`] writes it when the controller's input buffer
+//! has room → the controller's `ok` comes back through [`Link::poll`] as [`Event::Ack`] → the
+//! journal records the acknowledgement. An `error:N` comes back as [`Event::Rejected`] for the
+//! same line, and the caller maps the line to its op and the op to its recipe span.
 
+pub mod dry;
+pub mod eta;
+pub mod grbl;
+pub mod journal;
+pub mod modal;
+pub mod requirements;
+pub mod resume;
 pub mod sim;
+pub mod stream;
+pub mod transport;
+mod url;
 
-/// What a controller said about a line.
+pub use requirements::{AxisNeed, Requirements, SettingMismatch};
+pub use url::{LinkUrl, SimUrlOptions};
+
+use lase_lang::Span;
+use std::time::Duration;
+
+/// What a controller said about a line sent with [`Link::send`] (send-response).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {
     Ok,
@@ -18,7 +51,310 @@ pub enum Reply {
     },
 }
 
-/// Transport-level failure.
+/// The controller's run state, as GRBL 1.1 names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum MachineState {
+    #[default]
+    Idle,
+    Run,
+    /// Feed hold; `complete` once motion has stopped (GRBL `Hold:0`), else decelerating
+    /// (`Hold:1`).
+    Hold {
+        complete: bool,
+    },
+    Jog,
+    Alarm,
+    /// Safety door with GRBL's sub-state (0 closed and ready … 3 resuming).
+    Door(u8),
+    Check,
+    Home,
+    Sleep,
+}
+
+impl MachineState {
+    pub fn name(self) -> String {
+        match self {
+            MachineState::Idle => "Idle".into(),
+            MachineState::Run => "Run".into(),
+            MachineState::Hold { complete } => format!("Hold:{}", if complete { 0 } else { 1 }),
+            MachineState::Jog => "Jog".into(),
+            MachineState::Alarm => "Alarm".into(),
+            MachineState::Door(n) => format!("Door:{n}"),
+            MachineState::Check => "Check".into(),
+            MachineState::Home => "Home".into(),
+            MachineState::Sleep => "Sleep".into(),
+        }
+    }
+}
+
+/// Planner and input-buffer room a controller reports (GRBL `Bf:`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BufferState {
+    pub planner_free: u32,
+    pub rx_free: u32,
+}
+
+/// A real-time status report, every field GRBL 1.1 defines. Positions are in mm (lase requires
+/// `$13=0`); `None` where the report left a field out.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Status {
+    pub state: MachineState,
+    pub mpos: Option<Vec<f64>>,
+    pub wpos: Option<Vec<f64>>,
+    /// Work coordinate offset: `WPos = MPos − WCO`.
+    pub wco: Option<Vec<f64>>,
+    pub buffer: Option<BufferState>,
+    /// Line number being executed (`Ln:`, only with N words and a build that reports them).
+    pub line: Option<u32>,
+    /// Current feed, mm/min.
+    pub feed: Option<f64>,
+    /// Current spindle speed (laser S value).
+    pub spindle: Option<f64>,
+    /// Triggered input pins (`Pn:`), letters as reported.
+    pub pins: Option<String>,
+    /// Feed, rapid and spindle overrides, percent.
+    pub overrides: Option<[u32; 3]>,
+    /// Accessory state (`A:`): S, C, F, M.
+    pub accessories: Option<String>,
+}
+
+impl Status {
+    /// Work position, from `WPos` or from `MPos − WCO` with the last known offset.
+    pub fn work_position(&self, last_wco: Option<&[f64]>) -> Option<Vec<f64>> {
+        if let Some(w) = &self.wpos {
+            return Some(w.clone());
+        }
+        let m = self.mpos.as_ref()?;
+        let wco = self.wco.as_deref().or(last_wco);
+        Some(
+            m.iter()
+                .enumerate()
+                .map(|(i, v)| v - wco.and_then(|o| o.get(i)).copied().unwrap_or(0.0))
+                .collect(),
+        )
+    }
+
+    /// One line for people: `Idle | X10 Y0 Z0`.
+    pub fn summary(&self) -> String {
+        let pos = self.work_position(None).unwrap_or_default();
+        let words: Vec<String> = pos
+            .iter()
+            .zip(['X', 'Y', 'Z', 'A', 'B', 'C'])
+            .map(|(v, l)| format!("{l}{}", lase_lang::units::format_number(*v)))
+            .collect();
+        format!("{} | {}", self.state.name(), words.join(" "))
+    }
+}
+
+/// Something the controller said, in the order it said it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    /// The oldest line in flight was accepted (GRBL `ok`).
+    Ack,
+    /// The oldest line in flight was refused and not executed (GRBL `error:N`).
+    Rejected {
+        code: u32,
+        message: String,
+    },
+    /// The controller stopped everything (GRBL `ALARM:N`).
+    Alarm {
+        code: u32,
+        message: String,
+    },
+    Status(Status),
+    /// Feedback: `[MSG:…]` and other bracketed messages, settings lines, startup lines.
+    Message(String),
+    /// The controller (re)started: lines in flight are gone.
+    Reset {
+        banner: String,
+    },
+}
+
+/// Real-time commands: single bytes that bypass the line buffer and act at once.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Realtime {
+    StatusQuery,
+    FeedHold,
+    CycleStart,
+    SoftReset,
+    SafetyDoor,
+    JogCancel,
+    /// Feed override: reset to 100 %, ±10 %, ±1 %.
+    Feed(OverrideStep),
+    /// Rapid override: 100, 50 or 25 %.
+    Rapid(u8),
+    Spindle(OverrideStep),
+    /// Toggles the spindle (laser) off and on again during a hold.
+    SpindleStop,
+    FloodToggle,
+    MistToggle,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OverrideStep {
+    Reset,
+    Plus10,
+    Minus10,
+    Plus1,
+    Minus1,
+}
+
+/// The modal state of a controller's G-code interpreter, as far as a job depends on it. Feed
+/// is in mm/min (or the inverse-time value in G93), positions in mm, work coordinates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModalState {
+    pub motion: MotionMode,
+    pub plane: Plane,
+    pub inches: bool,
+    pub incremental: bool,
+    pub inverse_time: bool,
+    pub spindle: Spindle,
+    pub flood: bool,
+    pub mist: bool,
+    pub feed: f64,
+    pub s: f64,
+}
+
+impl Default for ModalState {
+    /// GRBL's state after power-up or reset: G0 G54 G17 G21 G90 G94 M5 M9 F0 S0.
+    fn default() -> Self {
+        ModalState {
+            motion: MotionMode::Rapid,
+            plane: Plane::Xy,
+            inches: false,
+            incremental: false,
+            inverse_time: false,
+            spindle: Spindle::Off,
+            flood: false,
+            mist: false,
+            feed: 0.0,
+            s: 0.0,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MotionMode {
+    Rapid,
+    Linear,
+    ArcCw,
+    ArcCcw,
+    /// G80: no motion mode.
+    None,
+}
+
+impl MotionMode {
+    pub fn word(self) -> &'static str {
+        match self {
+            MotionMode::Rapid => "G0",
+            MotionMode::Linear => "G1",
+            MotionMode::ArcCw => "G2",
+            MotionMode::ArcCcw => "G3",
+            MotionMode::None => "G80",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Plane {
+    Xy,
+    Zx,
+    Yz,
+}
+
+impl Plane {
+    pub fn word(self) -> &'static str {
+        match self {
+            Plane::Xy => "G17",
+            Plane::Zx => "G18",
+            Plane::Yz => "G19",
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Spindle {
+    Off,
+    Cw,
+    Ccw,
+}
+
+/// A controller connection speaking one protocol.
+///
+/// Lines are answered in the order they were sent. A streaming caller checks
+/// [`Link::can_send`], calls [`Link::send_line`] and collects answers with [`Link::poll`];
+/// setup commands use [`Link::send`], which waits for the answer (send-response) and keeps
+/// whatever else arrives meanwhile for the next `poll`.
+pub trait Link: Send {
+    /// `tcp://127.0.0.1:5000 (Grbl 1.1h)`.
+    fn describe(&self) -> String;
+    /// Whether a program line can go over this link as written (e.g. no GRBL real-time
+    /// characters inside a comment). Checked for the whole job before anything is sent.
+    fn validate_line(&self, line: &str) -> Result<(), String>;
+    /// Whether `line` can be sent now without overrunning the controller's input buffer.
+    fn can_send(&self, line: &str) -> bool;
+    /// Sends one program line (without its newline).
+    fn send_line(&mut self, line: &str) -> Result<(), LinkError>;
+    /// Lines sent and not yet answered.
+    fn in_flight(&self) -> usize;
+    /// Bytes written to the controller so far (for link utilization).
+    fn bytes_sent(&self) -> u64;
+    /// The next thing the controller said, waiting at most `timeout`.
+    fn poll(&mut self, timeout: Duration) -> Result<Option<Event>, LinkError>;
+    /// Sends a real-time command.
+    fn realtime(&mut self, cmd: Realtime) -> Result<(), LinkError>;
+    /// Sends one line and waits for its answer. Only when no streamed line is in flight.
+    fn send(&mut self, line: &str) -> Result<Reply, LinkError>;
+    /// The last known state, one line for people.
+    fn status(&self) -> String;
+    /// The last status report received.
+    fn last_status(&self) -> Option<&Status>;
+    /// Asks for a status report and waits for it.
+    fn query_status(&mut self, timeout: Duration) -> Result<Status, LinkError>;
+    /// The interpreter's modal state (GRBL `$G`).
+    fn modal_state(&mut self) -> Result<ModalState, LinkError>;
+    /// Reads the controller's settings and compares them with what the job needs; one
+    /// diagnostic per setting that would make the job run differently from its plan.
+    fn check_settings(&mut self, needs: &Requirements) -> Result<Vec<SettingMismatch>, LinkError>;
+    /// Check mode: the controller parses every line and moves nothing (GRBL `$C`).
+    fn set_check_mode(&mut self, on: bool) -> Result<(), LinkError>;
+    /// Lines that bring the controller, at rest, from any state to `state` at `position`
+    /// (work coordinates, one value per machine axis letter): the safe re-approach of a
+    /// resumed job.
+    fn reapproach(&self, state: &ModalState, letters: &[char], position: &[f64]) -> Reapproach;
+    /// How to send `line` after a re-approach that restored `state`: a GRBL controller cannot
+    /// be put in G2/G3 without an arc, so the first modal arc line needs its motion word.
+    fn continue_line(&self, state: &ModalState, line: &str) -> Continue;
+}
+
+/// A re-approach in two parts.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Reapproach {
+    /// Laser off, then positioning and modal state: sent one at a time, each answered.
+    pub setup: Vec<String>,
+    /// The lines that re-arm the laser (power, motion mode): sent in one burst with the job's
+    /// next lines, so that the beam is on at rest no longer than in the program itself.
+    pub lead: Vec<String>,
+}
+
+impl Reapproach {
+    pub fn all(&self) -> Vec<String> {
+        self.setup.iter().chain(&self.lead).cloned().collect()
+    }
+}
+
+/// How a line after a re-approach relates to the restored state (see [`Link::continue_line`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Continue {
+    /// The line does not depend on the motion mode; later lines may.
+    Pending,
+    /// Send the line as written; no later line depends on the restored state.
+    Settled,
+    /// Send this text instead (the same block with an explicit motion word).
+    Replace(String),
+}
+
+/// Link-level failures: transport, protocol, settings, journal and resume.
 #[derive(Debug, Clone, thiserror::Error, miette::Diagnostic, PartialEq)]
 pub enum LinkError {
     #[error("unsupported controller link `{url}`")]
@@ -28,29 +364,169 @@ pub enum LinkError {
         #[help]
         help: Option<String>,
     },
+
+    #[error("bad controller link `{url}`: {reason}")]
+    #[diagnostic(
+        code(lase::link::url),
+        help(
+            "links are `sim`, `sim://?time-scale=real`, `tcp://HOST:PORT` or `serial:///dev/ttyUSB0?baud=115200`"
+        )
+    )]
+    BadUrl { url: String, reason: String },
+
+    #[error("cannot connect to {url}: {reason}")]
+    #[diagnostic(code(lase::link::connect))]
+    Connect {
+        url: String,
+        reason: String,
+        #[help]
+        help: Option<String>,
+    },
+
+    #[error("the link to the controller was lost: {reason}")]
+    #[diagnostic(
+        code(lase::link::lost),
+        help(
+            "the job journal knows what was sent and acknowledged: reconnect and continue with `lase run --resume JOURNAL`"
+        )
+    )]
+    Lost { reason: String },
+
+    #[error("the controller did not answer within {seconds} s while {waiting_for}")]
+    #[diagnostic(
+        code(lase::link::timeout),
+        help("check the cable or network, the baud rate, and that the controller is powered")
+    )]
+    Timeout { waiting_for: String, seconds: f64 },
+
+    #[error("the controller sent something lase does not understand: `{text}` ({reason})")]
+    #[diagnostic(
+        code(lase::link::protocol),
+        help(
+            "lase speaks GRBL 1.1; check the baud rate (garbage usually means a wrong one) and that the device is a GRBL 1.1 compatible controller"
+        )
+    )]
+    Protocol { text: String, reason: String },
+
+    #[error("line {line_no} cannot be sent over this link: {reason}")]
+    #[diagnostic(code(lase::link::unsendable))]
+    Unsendable {
+        line_no: usize,
+        line: String,
+        reason: String,
+        #[label("this statement produced the line")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("the controller is not ready: {reason}")]
+    #[diagnostic(code(lase::link::not_ready))]
+    NotReady {
+        reason: String,
+        #[help]
+        help: String,
+    },
+
+    #[error("job journal {path}: {reason}")]
+    #[diagnostic(code(lase::link::journal))]
+    Journal {
+        path: String,
+        reason: String,
+        #[help]
+        help: Option<String>,
+    },
+
+    #[error("cannot resume: {reason}")]
+    #[diagnostic(code(lase::link::resume))]
+    Resume {
+        reason: String,
+        #[help]
+        help: String,
+    },
 }
 
-pub trait Link {
+/// A rejected setup command, as an error.
+pub fn reply_error(line: &str, reply: Reply) -> Result<(), LinkError> {
+    match reply {
+        Reply::Ok => Ok(()),
+        Reply::Error { code, message } => Err(LinkError::NotReady {
+            reason: format!("`{line}` was refused: error {code}, {message}"),
+            help: "check the controller's state (an alarm must be cleared with `$X` or homing)"
+                .into(),
+        }),
+    }
+}
+
+/// Options of a connection, whatever the transport.
+#[derive(Debug, Clone)]
+pub struct ConnectOptions {
+    /// The controller's serial input buffer, bytes (GRBL: 128).
+    pub rx_buffer: usize,
+    /// Send-response instead of character counting: one line in flight at a time.
+    pub send_response: bool,
+    /// How long to wait for the controller to answer at all when connecting.
+    pub connect_timeout: Duration,
+    /// How long to wait, when connecting, for a controller to finish the lines an earlier
+    /// connection sent it.
+    pub busy_wait: Duration,
+}
+
+impl Default for ConnectOptions {
+    fn default() -> Self {
+        ConnectOptions {
+            rx_buffer: 128,
+            send_response: false,
+            connect_timeout: Duration::from_secs(5),
+            busy_wait: Duration::from_secs(600),
+        }
+    }
+}
+
+/// Opens a link: connects the transport the URL names and greets the controller. `sim`
+/// starts the simulated controller in this process for `machine`.
+pub fn connect(
+    url: &LinkUrl,
+    machine: &crate::machine::Machine,
+    options: &ConnectOptions,
+) -> Result<Box<dyn Link>, LinkError> {
+    let transport: Box<dyn transport::Transport> = match url {
+        LinkUrl::Sim(o) => {
+            let (_handle, t) =
+                sim::spawn_in_process(machine, o.to_options()).map_err(|reason| {
+                    LinkError::Connect {
+                        url: url.to_string(),
+                        reason,
+                        help: None,
+                    }
+                })?;
+            t
+        }
+        LinkUrl::Tcp { host, port } => Box::new(transport::TcpTransport::connect(host, *port)?),
+        LinkUrl::Serial { path, baud } => Box::new(transport::SerialTransport::open(path, *baud)?),
+    };
+    let link = grbl::GrblLink::connect(transport, url.to_string(), options)?;
+    Ok(Box::new(link))
+}
+
+/// The dry-run line checker the REPL uses: answers at once, speaks no protocol.
+pub trait DryLink {
     /// Sends one line (without newline) and waits for the controller's reply.
     fn send(&mut self, line: &str) -> Result<Reply, LinkError>;
     /// A one-line description of the controller's state.
     fn status(&self) -> String;
 }
 
-/// Opens a link from a URL. Only the built-in simulator (`sim`) is available in this version.
+/// Opens the dry-run checker (`None` or `sim`); live links go through [`connect`].
 pub fn open(
     url: Option<&str>,
     machine: &crate::machine::Machine,
-) -> Result<Box<dyn Link>, LinkError> {
+) -> Result<Box<dyn DryLink>, LinkError> {
     match url {
-        None | Some("sim") | Some("sim://") => Ok(Box::new(sim::SimController::new(machine))),
+        None | Some("sim") | Some("sim://") => Ok(Box::new(dry::SimController::new(machine))),
         Some(other) => Err(LinkError::Unsupported {
             url: other.to_string(),
-            help: Some(
-                "this version streams to the built-in simulator only (`--link sim`); write the \
-                 program with `lase emit` and load it on the controller"
-                    .into(),
-            ),
+            help: Some("the dry run checks lines in this process; stream to a controller with `lase run FILE --link URL`".into()),
         }),
     }
 }

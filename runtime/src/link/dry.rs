@@ -1,9 +1,11 @@
-//! The built-in simulated controller: parses each NC line the way a controller does (words,
+//! A dry-run line checker for the REPL's `:run`: parses each NC line of any dialect (words,
 //! comments, modal groups), tracks absolute position, feed, motion mode and the laser output,
 //! and refuses what a controller would refuse (unknown letters, malformed numbers, a feed
-//! move without a feed, travel beyond the machine's soft limits).
+//! move without a feed, travel beyond the machine's soft limits). It answers at once and
+//! speaks no protocol: live jobs go through [`super::Link`] and the GRBL simulator
+//! ([`super::sim`]).
 
-use super::{Link, LinkError, Reply};
+use super::{DryLink, LinkError, Reply};
 use crate::machine::Machine;
 
 #[derive(Debug, Clone)]
@@ -87,7 +89,7 @@ pub fn words(line: &str) -> Result<Vec<(char, f64)>, String> {
     Ok(out)
 }
 
-impl Link for SimController {
+impl DryLink for SimController {
     fn send(&mut self, line: &str) -> Result<Reply, LinkError> {
         self.lines += 1;
         let ws = match words(line) {

@@ -1,0 +1,118 @@
+//! Progress on the plan's timeline while a job streams: how much of the planned cycle time
+//! is done, from the lines the controller acknowledged and the position it reports.
+//!
+//! An acknowledged line is parsed, not executed: the controller's planner holds the next few
+//! blocks. So the acknowledged lines give an upper bound on progress, and the reported
+//! position, matched against the planned segments of the last lines, says where in them the
+//! machine is.
+
+use crate::emit::NcLine;
+use crate::motion::Job;
+
+/// How far back from the last acknowledged line the position is searched, in planned
+/// segments (a GRBL planner holds 15 blocks; arcs become many segments).
+const WINDOW: usize = 256;
+
+#[derive(Debug, Clone)]
+pub struct Eta {
+    /// Planned job time when each line's op has finished, s.
+    line_end: Vec<f64>,
+    /// Planned segments: job time at start and end of motion, start and end point in
+    /// X/Y/Z (machine axes mapped by letter), mm.
+    segs: Vec<(f64, f64, [f64; 3], [f64; 3])>,
+    total: f64,
+}
+
+impl Eta {
+    pub fn new(job: &Job, lines: &[NcLine]) -> Eta {
+        let plan = &job.plan;
+        let t0 = job.initial_dwell_s;
+        let xyz: Vec<Option<usize>> = job
+            .program
+            .machine
+            .axes
+            .iter()
+            .map(|a| "XYZ".find(a.name.to_ascii_uppercase().as_str()))
+            .collect();
+        let map = |q: &[f64]| {
+            let mut p = [0.0; 3];
+            for (k, slot) in xyz.iter().enumerate() {
+                if let (Some(i), Some(v)) = (slot, q.get(k)) {
+                    p[*i] = *v;
+                }
+            }
+            p
+        };
+        let mut op_end = vec![f64::NAN; job.program.ops.len()];
+        let mut segs = Vec::with_capacity(plan.segments().len());
+        for (i, s) in plan.segments().iter().enumerate() {
+            if let Some(e) = op_end.get_mut(s.tag as usize) {
+                *e = t0 + s.t_end();
+            }
+            segs.push((
+                t0 + s.t_start,
+                t0 + s.t_start + s.motion_duration(),
+                map(&s.q0),
+                map(&plan.segment_target(i)),
+            ));
+        }
+        let mut line_end = Vec::with_capacity(lines.len());
+        let mut t = 0.0f64;
+        for l in lines {
+            if let Some(e) =
+                l.op.and_then(|o| op_end.get(o as usize))
+                    .filter(|e| !e.is_nan())
+            {
+                t = t.max(*e);
+            }
+            line_end.push(t);
+        }
+        Eta {
+            line_end,
+            segs,
+            total: job.cycle_time(),
+        }
+    }
+
+    /// The planned cycle time, s.
+    pub fn total(&self) -> f64 {
+        self.total
+    }
+
+    /// Planned job time done: at most what the acknowledged lines account for, placed by the
+    /// controller's position (work coordinates X/Y/Z) when it is known.
+    pub fn done(&self, acked: usize, pos: Option<&[f64]>) -> f64 {
+        let upper = match acked.checked_sub(1).and_then(|i| self.line_end.get(i)) {
+            Some(t) => *t,
+            None if acked == 0 => return 0.0,
+            None => self.total,
+        };
+        let Some(pos) = pos else {
+            return upper;
+        };
+        let last = self.segs.partition_point(|s| s.0 < upper);
+        let first = last.saturating_sub(WINDOW);
+        let mut best = (f64::INFINITY, upper);
+        for &(ta, tb, a, b) in &self.segs[first..last] {
+            let d: [f64; 3] = std::array::from_fn(|i| b[i] - a[i]);
+            let len2: f64 = d.iter().map(|x| x * x).sum();
+            let f = if len2 > 0.0 {
+                ((0..3)
+                    .map(|i| (pos.get(i).copied().unwrap_or(0.0) - a[i]) * d[i])
+                    .sum::<f64>()
+                    / len2)
+                    .clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            let dist2: f64 = (0..3)
+                .map(|i| (a[i] + f * d[i] - pos.get(i).copied().unwrap_or(0.0)).powi(2))
+                .sum();
+            // Later segments win ties: a path that passes a point twice is further along.
+            if dist2 <= best.0 + 1e-12 {
+                best = (dist2, ta + f * (tb - ta));
+            }
+        }
+        best.1.min(upper)
+    }
+}

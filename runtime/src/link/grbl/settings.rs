@@ -1,0 +1,135 @@
+//! GRBL `$$` settings compared with what a job needs: laser mode (`$32`), the S value of full
+//! power (`$30`), mm reports (`$13`), and per axis the maximum rate (`$110`–`$112`, mm/min)
+//! and acceleration (`$120`–`$122`, mm/s²), which must not be below the plan's peaks.
+
+use crate::link::{Requirements, SettingMismatch};
+use std::collections::BTreeMap;
+
+/// Settings as read from `$$`.
+pub type Settings = BTreeMap<u32, f64>;
+
+/// A rate a controller rounds to 3 decimals still satisfies a need up to that rounding.
+fn at_least(found: f64, needed: f64) -> bool {
+    found + 1e-3 + 1e-9 * needed.abs() >= needed
+}
+
+fn show(v: f64) -> String {
+    lase_lang::units::format_number(v)
+}
+
+/// One diagnostic per setting that would make the job run differently from its plan.
+pub fn compare(settings: &Settings, needs: &Requirements) -> Vec<SettingMismatch> {
+    let mut out = Vec::new();
+    let get = |id: u32| settings.get(&id).copied();
+    let found = |id: u32| get(id).map(show).unwrap_or_else(|| "missing".into());
+    if let Some(span) = needs.laser
+        && get(32) != Some(1.0)
+    {
+        out.push(SettingMismatch {
+            setting: "$32 (laser mode)".into(),
+            found: found(32),
+            needed: "1".into(),
+            span,
+            label: "the laser first fires here".into(),
+            help: "send `$32=1`: without laser mode GRBL stops at every power change and keeps the beam on during rapids".into(),
+        });
+    }
+    if let Some((s_max, span)) = needs.s_max
+        && get(30).is_none_or(|v| (v - s_max).abs() > 1e-6 * s_max.max(1.0))
+    {
+        out.push(SettingMismatch {
+            setting: "$30 (S for full power)".into(),
+            found: found(30),
+            needed: show(s_max),
+            span,
+            label: "power is written as S words scaled to this value".into(),
+            help: format!(
+                "send `$30={}` (or set `s_max` in the machine's [post.grbl] to the controller's $30), or every power would be off by the ratio",
+                show(s_max)
+            ),
+        });
+    }
+    if get(13).is_some_and(|v| v != 0.0) {
+        out.push(SettingMismatch {
+            setting: "$13 (report inches)".into(),
+            found: found(13),
+            needed: "0".into(),
+            span: needs.laser.unwrap_or_default(),
+            label: "positions are compared in mm".into(),
+            help: "send `$13=0` so status reports are in mm".into(),
+        });
+    }
+    for axis in &needs.axes {
+        let Some(k) = "XYZ".find(axis.letter) else {
+            continue;
+        };
+        let k = k as u32;
+        let rate = 110 + k;
+        if !get(rate).is_some_and(|v| at_least(v, axis.v_mm_min)) {
+            out.push(SettingMismatch {
+                setting: format!("${rate} ({} max rate, mm/min)", axis.letter),
+                found: found(rate),
+                needed: format!("at least {}", show(axis.v_mm_min)),
+                span: axis.v_span,
+                label: format!(
+                    "{} reaches {} mm/min here",
+                    axis.letter,
+                    show(axis.v_mm_min)
+                ),
+                help: format!(
+                    "raise `${rate}` to the machine file's v_max, or lower the speed in the recipe's `limits`; the controller would run slower than the plan"
+                ),
+            });
+        }
+        let acc = 120 + k;
+        if !get(acc).is_some_and(|v| at_least(v, axis.a_mm_s2)) {
+            out.push(SettingMismatch {
+                setting: format!("${acc} ({} acceleration, mm/s²)", axis.letter),
+                found: found(acc),
+                needed: format!("at least {}", show(axis.a_mm_s2)),
+                span: axis.a_span,
+                label: format!(
+                    "{} accelerates at {} mm/s² here",
+                    axis.letter,
+                    show(axis.a_mm_s2)
+                ),
+                help: format!(
+                    "raise `${acc}` to the machine file's a_max, or lower the acceleration in the recipe's `limits`"
+                ),
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::link::AxisNeed;
+    use lase_lang::Span;
+
+    #[test]
+    fn low_rates_and_laser_mode_are_reported() {
+        let needs = Requirements {
+            laser: Some(Span::new(1, 2)),
+            axes: vec![AxisNeed {
+                letter: 'Y',
+                v_mm_min: 12000.0,
+                a_mm_s2: 2000.0,
+                v_span: Span::new(3, 4),
+                a_span: Span::new(5, 6),
+            }],
+            s_max: Some((1000.0, Span::new(1, 2))),
+        };
+        let mut s: Settings = [(32, 1.0), (30, 1000.0), (111, 12000.0), (121, 2000.0)]
+            .into_iter()
+            .collect();
+        assert!(compare(&s, &needs).is_empty());
+        s.insert(32, 0.0);
+        s.insert(111, 6000.0);
+        let errs = compare(&s, &needs);
+        assert_eq!(errs.len(), 2, "{errs:?}");
+        assert!(errs[0].to_string().contains("$32"));
+        assert!(errs[1].to_string().contains("$111"));
+    }
+}

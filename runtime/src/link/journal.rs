@@ -1,0 +1,355 @@
+//! The job journal: an append-only text file that records, for one job, each line sent and
+//! each line acknowledged, so a job whose link dropped can be continued without losing or
+//! repeating a line.
+//!
+//! Write-ahead: before a line goes to the controller, the journal holds a `w N` record
+//! ("lines below N may have been sent"), fsync'd. Reservations are made 32 lines ahead, so a
+//! sync is needed every 32 lines rather than every line; `s`/`a` records of each line sent
+//! and acknowledged follow as they happen and reach the disk with the next sync. After a
+//! crash the journal therefore bounds what the controller may have received from above
+//! (`w`, `s`) and what it surely received from below (`a`, `r`); the resume logic settles
+//! the lines in between by asking the controller.
+//!
+//! ```text
+//! lase-journal 1
+//! recipe examples/frame_marking.lase
+//! link tcp://127.0.0.1:5000
+//! dialect grbl
+//! lines 42
+//! hash 0f3a…
+//! start 0 0 0
+//! w 32
+//! s 0
+//! a 0
+//! …
+//! r 17 6          resumed: 17 lines had run, 6 re-approach lines follow
+//! p M5
+//! …
+//! e done          or `e error 12 20`, `e alarm 2`, `e abort`
+//! ```
+
+use super::LinkError;
+use std::fs::{File, OpenOptions};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Lines reserved per write-ahead record.
+pub const RESERVE: usize = 32;
+
+/// What a journal is about.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Header {
+    /// The recipe, as given on the command line.
+    pub recipe: String,
+    pub link: String,
+    pub dialect: String,
+    pub lines: usize,
+    /// FNV-1a of the program text, to refuse resuming a changed recipe.
+    pub hash: u64,
+    /// Work position when the job started, X Y Z.
+    pub start: [f64; 3],
+}
+
+/// FNV-1a 64 of the lines, each followed by a newline.
+pub fn program_hash<'a>(lines: impl IntoIterator<Item = &'a str>) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for l in lines {
+        for b in l.bytes().chain(std::iter::once(b'\n')) {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// A journal read back.
+#[derive(Debug, Clone, PartialEq)]
+pub struct State {
+    pub header: Header,
+    /// Lines surely received: one past the highest acknowledged line or resume point.
+    pub acked: usize,
+    /// Lines possibly sent: one past the highest reservation or sent line.
+    pub sent_bound: usize,
+    /// How the job ended, if it did (`done`, `error …`, `alarm …`, `abort`).
+    pub end: Option<String>,
+    /// Resume points so far.
+    pub resumes: Vec<usize>,
+}
+
+/// An open journal, appending.
+#[derive(Debug)]
+pub struct Journal {
+    file: File,
+    path: PathBuf,
+    reserved: usize,
+    buf: String,
+}
+
+fn jerr(path: &Path, reason: impl std::fmt::Display) -> LinkError {
+    LinkError::Journal {
+        path: path.display().to_string(),
+        reason: reason.to_string(),
+        help: None,
+    }
+}
+
+impl Journal {
+    /// Starts a journal for a new job. An existing journal of a job that did not end is kept:
+    /// it is the only record of what that job's controller received.
+    pub fn create(path: &Path, header: &Header) -> Result<Journal, LinkError> {
+        if path.exists() {
+            match read(path) {
+                Ok(st) if st.end.is_none() => {
+                    return Err(LinkError::Journal {
+                        path: path.display().to_string(),
+                        reason: format!(
+                            "an unfinished job is recorded there ({} of {} lines acknowledged)",
+                            st.acked, st.header.lines
+                        ),
+                        help: Some(format!(
+                            "continue it with `lase run --resume {}`, or delete the file to start over",
+                            path.display()
+                        )),
+                    });
+                }
+                _ => {}
+            }
+        }
+        let mut file = File::create(path).map_err(|e| jerr(path, e))?;
+        let h = header;
+        let text = format!(
+            "lase-journal 1\nrecipe {}\nlink {}\ndialect {}\nlines {}\nhash {:016x}\nstart {} {} {}\n",
+            h.recipe, h.link, h.dialect, h.lines, h.hash, h.start[0], h.start[1], h.start[2]
+        );
+        file.write_all(text.as_bytes()).map_err(|e| jerr(path, e))?;
+        file.sync_all().map_err(|e| jerr(path, e))?;
+        // The directory entry too, or a crash could lose the new file.
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+            && let Ok(d) = File::open(dir)
+        {
+            let _ = d.sync_all();
+        }
+        Ok(Journal {
+            file,
+            path: path.to_path_buf(),
+            reserved: 0,
+            buf: String::new(),
+        })
+    }
+
+    /// Opens a journal to continue it.
+    pub fn append(path: &Path) -> Result<(Journal, State), LinkError> {
+        let st = read(path)?;
+        // Cut a torn last record: appending after it would glue two records together.
+        let bytes = std::fs::read(path).map_err(|e| jerr(path, e))?;
+        let complete = bytes.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1);
+        let file = OpenOptions::new()
+            .append(true)
+            .open(path)
+            .map_err(|e| jerr(path, e))?;
+        if complete < bytes.len() {
+            file.set_len(complete as u64).map_err(|e| jerr(path, e))?;
+        }
+        Ok((
+            Journal {
+                file,
+                path: path.to_path_buf(),
+                reserved: st.sent_bound,
+                buf: String::new(),
+            },
+            st,
+        ))
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    fn flush(&mut self, sync: bool) -> Result<(), LinkError> {
+        if !self.buf.is_empty() {
+            self.file
+                .write_all(self.buf.as_bytes())
+                .map_err(|e| jerr(&self.path, e))?;
+            self.buf.clear();
+        }
+        if sync {
+            self.file.sync_data().map_err(|e| jerr(&self.path, e))?;
+        }
+        Ok(())
+    }
+
+    /// Call before sending line `index`: makes sure a synced reservation covers it. The
+    /// reservation stops before `limit` (a line the resume logic needs kept out of any
+    /// window until earlier lines are acknowledged, see [`super::resume::send_guards`]).
+    pub fn will_send(&mut self, index: usize, limit: usize) -> Result<(), LinkError> {
+        if index < self.reserved {
+            return Ok(());
+        }
+        self.reserved = (index + RESERVE).min(limit).max(index + 1);
+        self.buf.push_str(&format!("w {}\n", self.reserved));
+        self.flush(true)
+    }
+
+    pub fn sent(&mut self, index: usize) {
+        self.buf.push_str(&format!("s {index}\n"));
+    }
+
+    pub fn acked(&mut self, index: usize) {
+        self.buf.push_str(&format!("a {index}\n"));
+        if self.buf.len() > 4096 {
+            let _ = self.flush(false);
+        }
+    }
+
+    /// Records a resume: `executed` lines had run; the re-approach lines follow.
+    pub fn resumed(&mut self, executed: usize, preamble: &[String]) -> Result<(), LinkError> {
+        self.buf
+            .push_str(&format!("r {executed} {}\n", preamble.len()));
+        for p in preamble {
+            self.buf.push_str(&format!("p {p}\n"));
+        }
+        self.flush(true)
+    }
+
+    /// Records how the job ended and syncs.
+    pub fn finish(&mut self, how: &str) -> Result<(), LinkError> {
+        self.buf.push_str(&format!("e {how}\n"));
+        self.flush(true)
+    }
+
+    /// Writes and syncs what is buffered.
+    pub fn sync(&mut self) -> Result<(), LinkError> {
+        self.flush(true)
+    }
+}
+
+impl Drop for Journal {
+    fn drop(&mut self) {
+        let _ = self.flush(true);
+    }
+}
+
+/// Reads a journal. A torn last record (a crash mid-write) is ignored.
+pub fn read(path: &Path) -> Result<State, LinkError> {
+    let text = std::fs::read(path).map_err(|e| jerr(path, e))?;
+    let text = String::from_utf8_lossy(&text);
+    let complete = match text.rfind('\n') {
+        Some(i) => &text[..=i],
+        None => "",
+    };
+    let mut lines = complete.lines();
+    let bad = |what: &str| LinkError::Journal {
+        path: path.display().to_string(),
+        reason: format!("not a lase journal ({what})"),
+        help: Some("give the journal file `lase run` wrote for the job".into()),
+    };
+    if lines.next() != Some("lase-journal 1") {
+        return Err(bad("first line"));
+    }
+    let mut field = |name: &str| -> Result<String, LinkError> {
+        lines
+            .next()
+            .and_then(|l| l.strip_prefix(name))
+            .and_then(|l| l.strip_prefix(' '))
+            .map(str::to_string)
+            .ok_or_else(|| bad(name))
+    };
+    let recipe = field("recipe")?;
+    let link = field("link")?;
+    let dialect = field("dialect")?;
+    let n: usize = field("lines")?.parse().map_err(|_| bad("lines"))?;
+    let hash = u64::from_str_radix(&field("hash")?, 16).map_err(|_| bad("hash"))?;
+    let start: Vec<f64> = field("start")?
+        .split_whitespace()
+        .filter_map(|v| v.parse().ok())
+        .collect();
+    if start.len() != 3 {
+        return Err(bad("start"));
+    }
+    let mut st = State {
+        header: Header {
+            recipe,
+            link,
+            dialect,
+            lines: n,
+            hash,
+            start: [start[0], start[1], start[2]],
+        },
+        acked: 0,
+        sent_bound: 0,
+        end: None,
+        resumes: Vec::new(),
+    };
+    for l in lines {
+        let (tag, rest) = l.split_once(' ').unwrap_or((l, ""));
+        let num = || {
+            rest.split_whitespace()
+                .next()
+                .and_then(|v| v.parse::<usize>().ok())
+        };
+        match tag {
+            "w" => st.sent_bound = st.sent_bound.max(num().ok_or_else(|| bad(l))?),
+            "s" => st.sent_bound = st.sent_bound.max(num().ok_or_else(|| bad(l))? + 1),
+            "a" => st.acked = st.acked.max(num().ok_or_else(|| bad(l))? + 1),
+            "r" => {
+                let k = num().ok_or_else(|| bad(l))?;
+                st.acked = st.acked.max(k);
+                st.resumes.push(k);
+                st.end = None;
+            }
+            "p" => {}
+            "e" => st.end = Some(rest.to_string()),
+            _ => return Err(bad(l)),
+        }
+    }
+    st.sent_bound = st.sent_bound.clamp(st.acked, n);
+    Ok(st)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn journal_round_trips_and_survives_a_torn_record() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("job.journal");
+        let header = Header {
+            recipe: "r.lase".into(),
+            link: "sim".into(),
+            dialect: "grbl".into(),
+            lines: 100,
+            hash: program_hash(["G0 X1", "M2"]),
+            start: [0.0, 1.5, 0.0],
+        };
+        {
+            let mut j = Journal::create(&path, &header).unwrap();
+            for i in 0..10 {
+                j.will_send(i, usize::MAX).unwrap();
+                j.sent(i);
+            }
+            for i in 0..7 {
+                j.acked(i);
+            }
+            j.sync().unwrap();
+        }
+        let st = read(&path).unwrap();
+        assert_eq!(st.header, header);
+        assert_eq!((st.acked, st.sent_bound, st.end.clone()), (7, 32, None));
+        // A new job must not overwrite an unfinished one.
+        assert!(Journal::create(&path, &header).is_err());
+        std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .unwrap()
+            .write_all(b"a 9")
+            .unwrap();
+        assert_eq!(read(&path).unwrap().acked, 7);
+        let (mut j, _) = Journal::append(&path).unwrap();
+        j.resumed(8, &["M5".into()]).unwrap();
+        j.finish("done").unwrap();
+        drop(j);
+        let st = read(&path).unwrap();
+        assert_eq!((st.acked, st.end.as_deref()), (8, Some("done")));
+    }
+}

@@ -1,0 +1,210 @@
+//! Link URLs: `sim[://?options]`, `tcp://host:port`, `serial:///dev/ttyUSB0?baud=115200`.
+
+use super::LinkError;
+use super::sim::{Faults, SimOptions, TimeScale};
+use std::fmt;
+
+/// Where a job goes.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LinkUrl {
+    /// The simulated controller in this process.
+    Sim(SimUrlOptions),
+    Tcp {
+        host: String,
+        port: u16,
+    },
+    Serial {
+        path: String,
+        baud: u32,
+    },
+}
+
+/// Options of the in-process simulator, from the URL's query (`sim://?time-scale=real`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimUrlOptions {
+    pub time_scale: TimeScale,
+    pub rx_buffer: usize,
+    pub baud: Option<u32>,
+    pub error_at_line: Vec<(u64, u32)>,
+}
+
+impl Default for SimUrlOptions {
+    fn default() -> Self {
+        SimUrlOptions {
+            time_scale: TimeScale::Max,
+            rx_buffer: 128,
+            baud: None,
+            error_at_line: Vec::new(),
+        }
+    }
+}
+
+impl SimUrlOptions {
+    pub fn to_options(&self) -> SimOptions {
+        SimOptions {
+            time_scale: self.time_scale,
+            rx_buffer: self.rx_buffer,
+            baud: self.baud,
+            faults: Faults {
+                error_at_line: self.error_at_line.clone(),
+                ..Faults::default()
+            },
+            ..SimOptions::default()
+        }
+    }
+}
+
+impl LinkUrl {
+    pub fn parse(url: &str) -> Result<LinkUrl, LinkError> {
+        let bad = |reason: &str| LinkError::BadUrl {
+            url: url.to_string(),
+            reason: reason.to_string(),
+        };
+        let (scheme, rest) = match url.split_once("://") {
+            Some((s, r)) => (s, r),
+            None if url == "sim" => ("sim", ""),
+            None => return Err(bad("expected SCHEME://…")),
+        };
+        let (body, query) = match rest.split_once('?') {
+            Some((b, q)) => (b, q),
+            None => (rest, ""),
+        };
+        let params: Vec<(&str, &str)> = query
+            .split('&')
+            .filter(|p| !p.is_empty())
+            .map(|p| p.split_once('=').unwrap_or((p, "")))
+            .collect();
+        match scheme {
+            "sim" => {
+                if !body.is_empty() {
+                    return Err(bad("`sim` takes options only: sim://?time-scale=real"));
+                }
+                let mut o = SimUrlOptions::default();
+                for (k, v) in params {
+                    match k {
+                        "time-scale" => o.time_scale = v.parse().map_err(|e: String| bad(&e))?,
+                        "rx-buffer" => {
+                            o.rx_buffer = v
+                                .parse()
+                                .ok()
+                                .filter(|n| *n >= 16)
+                                .ok_or_else(|| bad("rx-buffer is a byte count, at least 16"))?
+                        }
+                        "baud" => {
+                            o.baud = Some(
+                                v.parse()
+                                    .ok()
+                                    .filter(|b| *b > 0)
+                                    .ok_or_else(|| bad("baud is a positive number"))?,
+                            )
+                        }
+                        "error-at-line" => o
+                            .error_at_line
+                            .push(super::sim::parse_error_at(v).map_err(|e| bad(&e))?),
+                        other => return Err(bad(&format!("unknown sim option `{other}`"))),
+                    }
+                }
+                Ok(LinkUrl::Sim(o))
+            }
+            "tcp" => {
+                let (host, port) = body
+                    .rsplit_once(':')
+                    .ok_or_else(|| bad("expected tcp://HOST:PORT"))?;
+                let port: u16 = port
+                    .trim_end_matches('/')
+                    .parse()
+                    .map_err(|_| bad("the port is a number 1-65535"))?;
+                if host.is_empty() || port == 0 {
+                    return Err(bad("expected tcp://HOST:PORT"));
+                }
+                let host = host.trim_start_matches('[').trim_end_matches(']');
+                Ok(LinkUrl::Tcp {
+                    host: host.to_string(),
+                    port,
+                })
+            }
+            "serial" => {
+                if body.is_empty() {
+                    return Err(bad("expected serial:///dev/ttyUSB0?baud=115200"));
+                }
+                let mut baud = 115_200;
+                for (k, v) in params {
+                    match k {
+                        "baud" => {
+                            baud = v
+                                .parse()
+                                .ok()
+                                .filter(|b| *b > 0)
+                                .ok_or_else(|| bad("baud is a positive number"))?
+                        }
+                        other => return Err(bad(&format!("unknown serial option `{other}`"))),
+                    }
+                }
+                Ok(LinkUrl::Serial {
+                    path: body.to_string(),
+                    baud,
+                })
+            }
+            other => Err(LinkError::Unsupported {
+                url: url.to_string(),
+                help: Some(format!(
+                    "`{other}` is not a link lase knows: use sim, tcp://HOST:PORT or serial://DEVICE?baud=N"
+                )),
+            }),
+        }
+    }
+}
+
+impl fmt::Display for LinkUrl {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkUrl::Sim(o) => {
+                write!(f, "sim")?;
+                if *o != SimUrlOptions::default() {
+                    write!(f, "://?time-scale={}", o.time_scale)?;
+                    if o.rx_buffer != 128 {
+                        write!(f, "&rx-buffer={}", o.rx_buffer)?;
+                    }
+                    if let Some(b) = o.baud {
+                        write!(f, "&baud={b}")?;
+                    }
+                    for (line, code) in &o.error_at_line {
+                        write!(f, "&error-at-line={line}:{code}")?;
+                    }
+                }
+                Ok(())
+            }
+            LinkUrl::Tcp { host, port } if host.contains(':') => write!(f, "tcp://[{host}]:{port}"),
+            LinkUrl::Tcp { host, port } => write!(f, "tcp://{host}:{port}"),
+            LinkUrl::Serial { path, baud } => write!(f, "serial://{path}?baud={baud}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn urls_parse_and_print_back() {
+        for u in [
+            "sim",
+            "tcp://127.0.0.1:5000",
+            "serial:///dev/ttyUSB0?baud=115200",
+            "sim://?time-scale=real&baud=115200",
+        ] {
+            let parsed = LinkUrl::parse(u).unwrap();
+            assert_eq!(LinkUrl::parse(&parsed.to_string()).unwrap(), parsed, "{u}");
+        }
+        assert_eq!(
+            LinkUrl::parse("serial:///dev/ttyACM0").unwrap(),
+            LinkUrl::Serial {
+                path: "/dev/ttyACM0".into(),
+                baud: 115_200
+            }
+        );
+        assert!(LinkUrl::parse("tcp://host").is_err());
+        assert!(LinkUrl::parse("ftp://x").is_err());
+        assert!(LinkUrl::parse("sim://?time-scale=fast").is_err());
+    }
+}

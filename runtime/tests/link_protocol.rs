@@ -1,0 +1,358 @@
+//! The GRBL 1.1 client against the simulated controller over real TCP sockets on 127.0.0.1:
+//! answers and error codes, soft-limit alarms, both flow controls, the RX buffer under a full
+//! planner, an overrunning client caught by the simulator, and a client that never panics
+//! whatever bytes come back.
+
+use lase_runtime::link::grbl::GrblLink;
+use lase_runtime::link::sim::{self, SimHandle, SimOptions, TimeScale};
+use lase_runtime::link::stream::{self, Outcome, Progress, StreamOptions};
+use lase_runtime::link::transport::{TcpTransport, Transport};
+use lase_runtime::link::{
+    ConnectOptions, Event, Link, LinkError, MachineState, MotionMode, Reply, Requirements,
+};
+use lase_runtime::machine::{Machine, parse_machine};
+use proptest::prelude::*;
+use std::io::Write;
+use std::time::Duration;
+
+fn xy_table() -> Machine {
+    parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap()
+}
+
+fn start(opts: SimOptions) -> SimHandle {
+    sim::serve(&xy_table(), "127.0.0.1:0".parse().unwrap(), opts).unwrap()
+}
+
+fn max() -> SimOptions {
+    SimOptions {
+        time_scale: TimeScale::Max,
+        ..SimOptions::default()
+    }
+}
+
+fn connect(h: &SimHandle, options: &ConnectOptions) -> GrblLink {
+    let a = h.addr().unwrap();
+    let t = TcpTransport::connect(&a.ip().to_string(), a.port()).unwrap();
+    GrblLink::connect(Box::new(t), format!("tcp://{a}"), options).unwrap()
+}
+
+fn lines(v: &[&str]) -> Vec<String> {
+    v.iter().map(|s| s.to_string()).collect()
+}
+
+fn run(link: &mut dyn Link, l: &[String]) -> stream::Report {
+    stream::stream(
+        link,
+        &stream::StreamJob::new(l),
+        None,
+        &StreamOptions::default(),
+        &mut |_: &Progress, _: Option<&Event>| None,
+    )
+}
+
+#[test]
+fn answers_error_codes_status_and_parser_state() {
+    let h = start(max());
+    let mut link = connect(&h, &ConnectOptions::default());
+    assert!(link.describe().contains("Grbl 1.1h"), "{}", link.describe());
+    match link.send("G1 X1").unwrap() {
+        Reply::Error { code, message } => {
+            assert_eq!(code, 22);
+            assert!(message.contains("feed rate"), "{message}");
+        }
+        r => panic!("{r:?}"),
+    }
+    assert_eq!(
+        link.send("G5 X1").unwrap(),
+        Reply::Error {
+            code: 20,
+            message: lase_runtime::link::grbl::codes::error_message(20).into()
+        }
+    );
+    assert_eq!(link.send("G0 X1 Y-2 (a comment)").unwrap(), Reply::Ok);
+    assert_eq!(link.send("").unwrap(), Reply::Ok);
+    let s = link.query_status(Duration::from_secs(2)).unwrap();
+    assert_eq!(s.state, MachineState::Idle);
+    assert_eq!(s.mpos, Some(vec![1.0, -2.0, 0.0]));
+    assert!(s.buffer.is_some() && s.feed.is_some());
+    let m = link.modal_state().unwrap();
+    assert_eq!(m.motion, MotionMode::Rapid);
+    assert!(!m.inches && !m.incremental);
+    assert!(
+        link.check_settings(&Requirements::default())
+            .unwrap()
+            .is_empty()
+    );
+    assert_eq!(
+        link.send("$Q").unwrap(),
+        Reply::Error {
+            code: 3,
+            message: lase_runtime::link::grbl::codes::error_message(3).into()
+        }
+    );
+    drop(link);
+    let rec = h.stop();
+    assert_eq!(rec.rx_overflows, 0);
+}
+
+#[test]
+fn a_soft_limit_raises_alarm_2_at_its_line_and_the_job_stops() {
+    let h = start(max());
+    let mut link = connect(&h, &ConnectOptions::default());
+    let job = lines(&["G21 G90 G94", "G0 X10 Y10", "G1 X1000 F600", "G0 X0 Y0"]);
+    let r = run(&mut link, &job);
+    match r.outcome {
+        Outcome::Alarm { index, code, .. } => {
+            assert_eq!(code, 2);
+            assert_eq!(index, Some(2), "the line that would leave the travel");
+        }
+        o => panic!("{o:?}"),
+    }
+    assert!(r.stop_note.unwrap().contains("soft reset"));
+    // Alarm survives the reset; `$X` unlocks. As in GRBL the alarm stopped the motion
+    // already planned (somewhere on the way to X10 Y10) and the position was kept.
+    let s = link.query_status(Duration::from_secs(2)).unwrap();
+    assert_eq!(s.state, MachineState::Alarm);
+    let p = s.mpos.unwrap();
+    assert!(p[0] == p[1] && (0.0..=10.0).contains(&p[0]), "{p:?}");
+    assert!(matches!(
+        link.send("G0 X0").unwrap(),
+        Reply::Error { code: 9, .. }
+    ));
+    assert_eq!(link.send("$X").unwrap(), Reply::Ok);
+    assert_eq!(link.send("G0 X0").unwrap(), Reply::Ok);
+    drop(link);
+    let rec = h.stop();
+    assert_eq!(rec.alarms, vec![2]);
+}
+
+#[test]
+fn a_soft_reset_while_moving_raises_alarm_3() {
+    let h = start(SimOptions {
+        time_scale: TimeScale::Real,
+        ..SimOptions::default()
+    });
+    let mut link = connect(&h, &ConnectOptions::default());
+    assert_eq!(link.send("G1 X100 F600").unwrap(), Reply::Ok);
+    std::thread::sleep(Duration::from_millis(50));
+    link.realtime(lase_runtime::link::Realtime::SoftReset)
+        .unwrap();
+    let mut alarm = None;
+    for _ in 0..100 {
+        match link.poll(Duration::from_millis(20)).unwrap() {
+            Some(Event::Alarm { code, .. }) => alarm = Some(code),
+            Some(Event::Reset { .. }) => break,
+            _ => {}
+        }
+    }
+    assert_eq!(alarm, Some(3));
+    drop(link);
+    h.stop();
+}
+
+/// A generated raster: short lit lines, as a texturing job streams them.
+fn raster(n: usize) -> Vec<String> {
+    let mut v = lines(&["G21 G90 G17 G94", "G0 X0 Y0", "M3 S300"]);
+    for i in 0..n {
+        let y = i as f64 * 0.05;
+        let x = if i % 2 == 0 { 20.0 } else { 0.0 };
+        v.push(format!("G1 X{x} Y{} F3000", lase_runtime::emit::number(y)));
+    }
+    v.push("M5".into());
+    v.push("M2".into());
+    v
+}
+
+#[test]
+fn send_response_and_character_counting_deliver_the_same_lines() {
+    let job = raster(300);
+    let mut fills = Vec::new();
+    for send_response in [false, true] {
+        let h = start(max());
+        let mut link = connect(
+            &h,
+            &ConnectOptions {
+                send_response,
+                ..ConnectOptions::default()
+            },
+        );
+        let r = run(&mut link, &job);
+        assert_eq!(r.outcome, Outcome::Done);
+        assert_eq!(r.acked, job.len());
+        drop(link);
+        assert!(h.wait_quiet(Duration::from_secs(5)));
+        let rec = h.stop();
+        let got: Vec<String> = rec
+            .lines
+            .iter()
+            .filter(|l| l.result != sim::LineResult::System)
+            .map(|l| l.text.clone())
+            .collect();
+        assert_eq!(got, job);
+        assert_eq!(rec.blocks.last().unwrap().to, [0.0, 14.95, 0.0]);
+        fills.push(rec.max_rx_fill);
+    }
+    let longest = job.iter().map(|l| l.len() + 1).max().unwrap();
+    assert!(
+        fills[1] <= longest,
+        "send-response: one line at a time ({fills:?})"
+    );
+}
+
+#[test]
+fn lines_wait_in_the_rx_buffer_while_the_planner_is_full_and_it_never_overflows() {
+    let h = start(SimOptions {
+        time_scale: TimeScale::Factor(50.0),
+        rx_buffer: 64,
+        planner_blocks: 4,
+        ..SimOptions::default()
+    });
+    let mut link = connect(
+        &h,
+        &ConnectOptions {
+            rx_buffer: 64,
+            ..ConnectOptions::default()
+        },
+    );
+    let job = raster(60);
+    let r = run(&mut link, &job);
+    assert_eq!(r.outcome, Outcome::Done);
+    drop(link);
+    let rec = h.stop();
+    assert_eq!(rec.rx_overflows, 0, "{:?}", rec.overflow_log);
+    assert_eq!(rec.max_planner_fill, 4);
+    assert!(
+        rec.max_rx_fill > 30 && rec.max_rx_fill <= 63,
+        "several lines waited in the buffer: {}",
+        rec.max_rx_fill
+    );
+}
+
+#[test]
+fn a_client_that_overruns_the_rx_buffer_is_caught() {
+    let h = start(SimOptions {
+        time_scale: TimeScale::Factor(1.0),
+        planner_blocks: 2,
+        ..SimOptions::default()
+    });
+    let a = h.addr().unwrap();
+    let mut s = std::net::TcpStream::connect(a).unwrap();
+    // No flow control at all: 40 lines at once while the planner holds two slow moves.
+    let mut burst = String::new();
+    for i in 0..40 {
+        burst.push_str(&format!("G1 X{} F60\n", i % 2));
+    }
+    s.write_all(burst.as_bytes()).unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    drop(s);
+    let rec = h.stop();
+    assert!(rec.rx_overflows > 0);
+    assert!(
+        rec.overflow_log[0].contains("RX buffer overflow"),
+        "{:?}",
+        rec.overflow_log
+    );
+}
+
+/// A transport that replays scripted bytes, then reports the connection closed.
+struct Script {
+    chunks: Vec<Vec<u8>>,
+}
+
+impl Transport for Script {
+    fn write_all(&mut self, _bytes: &[u8]) -> std::io::Result<()> {
+        Ok(())
+    }
+
+    fn read(&mut self, buf: &mut [u8], _timeout: Duration) -> std::io::Result<usize> {
+        if self.chunks.is_empty() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::UnexpectedEof,
+                "end",
+            ));
+        }
+        let mut c = self.chunks.remove(0);
+        let n = c.len().min(buf.len());
+        buf[..n].copy_from_slice(&c[..n]);
+        if n < c.len() {
+            self.chunks.insert(0, c.split_off(n));
+        }
+        Ok(n)
+    }
+
+    fn describe(&self) -> String {
+        "script".into()
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+
+    /// Whatever the controller sends after a valid greeting, the client answers with events
+    /// or an error, and never panics.
+    #[test]
+    fn any_controller_output_gives_events_or_a_clear_error(
+        noise in proptest::collection::vec(
+            prop_oneof![
+                proptest::collection::vec(any::<u8>(), 0..40),
+                Just(b"ok\r\n".to_vec()),
+                Just(b"error:22\r\n".to_vec()),
+                Just(b"ALARM:2\r\n".to_vec()),
+                Just(b"<Run|MPos:1.000,2.000,0.000|Bf:3,100|FS:1200,300>\r\n".to_vec()),
+                Just(b"<Idle|MPos:1.0".to_vec()),
+                Just(b"[MSG:Pgm End]\r\n".to_vec()),
+                Just(b"[FOO:bar]\r\n".to_vec()),
+                Just(b"Grbl 1.1h ['$' for help]\r\n".to_vec()),
+                Just(b"\r\n".to_vec()),
+            ],
+            0..20,
+        )
+    ) {
+        let mut chunks = vec![
+            b"<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n".to_vec(),
+            b"[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]\r\nok\r\n".to_vec(),
+        ];
+        chunks.extend(noise);
+        let mut link = GrblLink::connect(
+            Box::new(Script { chunks }),
+            "script".into(),
+            &ConnectOptions::default(),
+        ).unwrap();
+        for _ in 0..3 {
+            if link.can_send("G1 X1 F100") {
+                let _ = link.send_line("G1 X1 F100");
+            }
+        }
+        for _ in 0..100 {
+            match link.poll(Duration::from_millis(1)) {
+                Ok(Some(_)) | Ok(None) => {}
+                Err(e) => {
+                    prop_assert!(matches!(
+                        e,
+                        LinkError::Protocol { .. } | LinkError::Lost { .. }
+                    ), "{e:?}");
+                    prop_assert!(!e.to_string().is_empty());
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_connection_dropped_after_some_seconds_is_a_lost_link() {
+    let h = start(SimOptions {
+        time_scale: TimeScale::Factor(1.0),
+        faults: sim::Faults {
+            drop_after_secs: vec![0.3],
+            ..sim::Faults::default()
+        },
+        ..SimOptions::default()
+    });
+    let mut link = connect(&h, &ConnectOptions::default());
+    let r = run(&mut link, &raster(400));
+    assert!(matches!(r.outcome, Outcome::Lost(_)), "{:?}", r.outcome);
+    assert!(r.acked < 400);
+    drop(link);
+    h.stop();
+}

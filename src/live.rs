@@ -1,0 +1,697 @@
+//! `lase run` and `lase sim`: a job streamed live to a controller link, and the simulated
+//! controller as a server. The terminal side lives here: the progress bar (indicatif, only
+//! when stderr is a terminal), the hold/resume/abort keys (crossterm, only when stdin is a
+//! terminal) and the mapping of a controller's answer back to the recipe line.
+
+use crate::driver::{self, Failure, IoError};
+use crate::output;
+use lase_lang::{SourceMap, Span};
+use lase_runtime::emit::{Dialect, NcLine};
+use lase_runtime::link::journal::{self, Header, Journal};
+use lase_runtime::link::sim::{self, Faults, SimOptions, TimeScale};
+use lase_runtime::link::stream::{self, Control, Outcome, Progress, StreamJob, StreamOptions};
+use lase_runtime::link::{
+    self, ConnectOptions, Event, Link, LinkError, LinkUrl, Requirements, resume,
+};
+use std::io::IsTerminal;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{Receiver, channel};
+use std::time::{Duration, Instant};
+
+type CmdResult = Result<(), (SourceMap, Failure)>;
+
+fn io_fail(message: String) -> (SourceMap, Failure) {
+    (SourceMap::new(), Failure::one(IoError { message }))
+}
+
+/// `lase run` options.
+#[derive(Debug, Clone)]
+pub struct RunArgs {
+    pub file: Option<PathBuf>,
+    pub link: Option<String>,
+    pub dialect: Option<String>,
+    pub journal: Option<PathBuf>,
+    pub resume: Option<PathBuf>,
+    pub resume_at: Option<usize>,
+    pub check: bool,
+    pub send_response: bool,
+    pub rx_buffer: usize,
+}
+
+/// The journal of a new job: `--journal`, else beside the recipe (`frame.lase.journal`),
+/// else in the temporary directory when the recipe's folder is not writable. The in-process
+/// simulator keeps none unless asked: its machine ends with the process, so there is
+/// nothing to resume.
+fn journal_path(args: &RunArgs, recipe: &Path, url: &LinkUrl) -> Option<PathBuf> {
+    if let Some(j) = &args.journal {
+        return Some(j.clone());
+    }
+    if matches!(url, LinkUrl::Sim(_)) {
+        return None;
+    }
+    let name = format!(
+        "{}.journal",
+        recipe
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "job".into())
+    );
+    let beside = recipe.with_file_name(&name);
+    let dir = beside
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let writable = tempfile::NamedTempFile::new_in(dir).is_ok();
+    Some(if writable {
+        beside
+    } else {
+        std::env::temp_dir().join(name)
+    })
+}
+
+pub fn cmd_run(args: RunArgs) -> CmdResult {
+    // A resumed job names its recipe, link and dialect in the journal.
+    let resumed = match &args.resume {
+        Some(p) => Some(journal::read(p).map_err(|e| (SourceMap::new(), Failure::one(e)))?),
+        None => None,
+    };
+    if let Some(st) = &resumed
+        && let Some(how) = &st.end
+    {
+        return Err(io_fail(format!(
+            "the job in {} ended ({how}): there is nothing to resume",
+            args.resume.as_deref().unwrap_or(Path::new("")).display()
+        )));
+    }
+    let file: PathBuf = match (&args.file, &resumed) {
+        (Some(f), _) => f.clone(),
+        (None, Some(st)) => PathBuf::from(&st.header.recipe),
+        (None, None) => return Err(io_fail("give a recipe file, or --resume JOURNAL".into())),
+    };
+    let url_text = args
+        .link
+        .clone()
+        .or_else(|| resumed.as_ref().map(|s| s.header.link.clone()))
+        .unwrap_or_else(|| "sim".into());
+    let url = LinkUrl::parse(&url_text).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
+    // Every link lase has speaks GRBL 1.1: it takes the grbl dialect.
+    let dialect_name = args
+        .dialect
+        .clone()
+        .or_else(|| resumed.as_ref().map(|s| s.header.dialect.clone()))
+        .unwrap_or_else(|| "grbl".into());
+    let dialect = dialect_name.parse::<Dialect>().map_err(|_| {
+        io_fail(format!(
+            "unknown dialect `{dialect_name}`: choose linuxcnc, grbl or iso"
+        ))
+    })?;
+    if dialect != Dialect::Grbl {
+        return Err(io_fail(format!(
+            "the link to {url} speaks GRBL 1.1 and takes the grbl dialect, not {dialect}; write a {dialect} program with `lase emit --dialect {dialect}`"
+        )));
+    }
+
+    let (recipe, job) = driver::compile(&file)?;
+    let map = recipe.map.clone();
+    let fail = |e: LinkError| (map.clone(), Failure::one(e));
+    let nc = nc_lines(&recipe, &job, dialect)?;
+    let lines: Vec<String> = nc.iter().map(|l| l.text.clone()).collect();
+    let span_of = |index: usize| -> Span {
+        nc.get(index)
+            .and_then(|l| l.op)
+            .and_then(|o| job.program.ops.get(o as usize))
+            .map(|o| o.span)
+            .unwrap_or_default()
+    };
+    let hash = journal::program_hash(lines.iter().map(String::as_str));
+    if let Some(st) = &resumed
+        && (st.header.hash != hash || st.header.lines != lines.len())
+    {
+        return Err(fail(LinkError::Resume {
+            reason: format!(
+                "{} no longer produces the program the journal recorded ({} lines then, {} now)",
+                file.display(),
+                st.header.lines,
+                lines.len()
+            ),
+            help: "resume with the recipe (and machine file) exactly as they were when the job started".into(),
+        }));
+    }
+
+    let options = ConnectOptions {
+        rx_buffer: args.rx_buffer,
+        send_response: args.send_response,
+        ..ConnectOptions::default()
+    };
+    let mut link = link::connect(&url, &job.program.machine, &options).map_err(fail)?;
+    // Nothing moves unless every line can go over this link.
+    for (i, l) in nc.iter().enumerate() {
+        if let Err(reason) = link.validate_line(&l.text) {
+            return Err(fail(LinkError::Unsendable {
+                line_no: i + 1,
+                line: l.text.clone(),
+                reason,
+                span: span_of(i),
+                help: "change the recipe text that ends up in this line (names in comments, for instance)".into(),
+            }));
+        }
+    }
+    let needs = Requirements::of_job(&job, dialect);
+    // A resumed job first waits for the controller to finish what it had received (`$$` is
+    // refused while it moves) and finds where the job stands.
+    let letters: Vec<char> = job
+        .program
+        .machine
+        .axes
+        .iter()
+        .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
+        .collect();
+    let resume_plan = match &resumed {
+        Some(st) => Some(
+            resume::plan(
+                &mut *link,
+                &lines,
+                st,
+                &letters,
+                args.resume_at,
+                Duration::from_secs(600),
+            )
+            .map_err(fail)?,
+        ),
+        None => None,
+    };
+    let mismatches = link.check_settings(&needs).map_err(fail)?;
+    if !mismatches.is_empty() {
+        return Err((
+            map.clone(),
+            Failure {
+                diagnostics: mismatches
+                    .into_iter()
+                    .map(|e| Box::new(e) as Box<dyn miette::Diagnostic + Send + Sync>)
+                    .collect(),
+            },
+        ));
+    }
+    let summary = lase_runtime::report::summarize(&job);
+
+    if args.check {
+        return run_check(&recipe.name(), &mut *link, &lines, &span_of, &map);
+    }
+
+    // The journal, and where streaming starts.
+    let mut lead = Vec::new();
+    let (mut jour, from, restored, start_pos) = match (&args.resume, resume_plan) {
+        (Some(path), Some(plan)) => {
+            let (mut j, _) = Journal::append(path).map_err(fail)?;
+            let all = plan.reapproach.all();
+            eprintln!(
+                "{}: {} of {} lines had run (the controller's state fits {}); re-approach: {}",
+                recipe.name(),
+                plan.executed,
+                lines.len(),
+                plan.candidates
+                    .iter()
+                    .map(|c| c.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                all.join(" | ")
+            );
+            j.resumed(plan.executed, &all).map_err(fail)?;
+            for p in &plan.reapproach.setup {
+                let reply = link.send(p).map_err(fail)?;
+                link::reply_error(p, reply).map_err(fail)?;
+            }
+            lead = plan.reapproach.lead;
+            (
+                Some(j),
+                plan.executed,
+                Some(plan.restored),
+                st_start(&resumed),
+            )
+        }
+        _ => {
+            let path = journal_path(&args, &file, &url);
+            let st = link.query_status(Duration::from_secs(2)).map_err(fail)?;
+            let pos = st.work_position(st.wco.as_deref()).unwrap_or_default();
+            let start = [0, 1, 2].map(|i| pos.get(i).copied().unwrap_or(0.0));
+            let j = match path {
+                Some(path) => {
+                    let recipe_path = std::fs::canonicalize(&file).unwrap_or(file.clone());
+                    let header = Header {
+                        recipe: recipe_path.display().to_string(),
+                        link: url.to_string(),
+                        dialect: dialect.to_string(),
+                        lines: lines.len(),
+                        hash,
+                        start,
+                    };
+                    Some(Journal::create(&path, &header).map_err(fail)?)
+                }
+                None => None,
+            };
+            (j, 0, None, start)
+        }
+    };
+    // Closed lit contours wait for acknowledgements, so that a drop can always be resumed.
+    let guards = if jour.is_some() {
+        resume::send_guards(&lase_runtime::link::modal::Tracker::new(start_pos), &lines)
+    } else {
+        Vec::new()
+    };
+    let journal_name = jour.as_ref().map(|j| j.path().display().to_string());
+    eprintln!(
+        "{}: {} lines to {} — planned cycle time {:.3} s{}",
+        recipe.name(),
+        lines.len() - from,
+        link.describe(),
+        summary.cycle_time_s,
+        journal_name
+            .as_ref()
+            .map(|p| format!(", journal {p}"))
+            .unwrap_or_default()
+    );
+
+    let eta = lase_runtime::link::eta::Eta::new(&job, &nc);
+    let mut display = Display::new(lines.len(), from, eta);
+    let keys = Keys::start();
+    let report = stream::stream(
+        &mut *link,
+        &StreamJob {
+            lines: &lines,
+            from,
+            lead: &lead,
+            restored,
+            guards: &guards,
+        },
+        jour.as_mut(),
+        &StreamOptions::default(),
+        &mut |p: &Progress, e: Option<&Event>| {
+            display.update(p, e);
+            keys.as_ref().and_then(|k| k.rx.try_recv().ok())
+        },
+    );
+    drop(keys);
+    display.finish();
+    let elapsed = report.elapsed.as_secs_f64();
+    let rate = report.program_bytes as f64 / elapsed.max(1e-9);
+    let resume_hint = journal_name
+        .clone()
+        .map(|j| format!("lase run --resume {j}"))
+        .unwrap_or_else(|| "stream to a controller with a journal (tcp:// or serial://, or --journal FILE) to be able to resume".into());
+    match report.outcome {
+        Outcome::Done => {
+            println!(
+                "{}: done — {} lines acknowledged in {elapsed:.3} s ({:.0} bytes/s), controller {}",
+                recipe.name(),
+                report.acked,
+                rate,
+                link.status()
+            );
+            println!(
+                "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
+                summary.cycle_time_s,
+                summary.laser_on_length_mm,
+                summary.laser_on_time_s,
+                summary.pulses
+            );
+            Ok(())
+        }
+        Outcome::Rejected {
+            index,
+            code,
+            message,
+        } => Err((
+            map.clone(),
+            Failure::one(output::ControllerRejected {
+                line_no: index + 1,
+                line: lines[index].clone(),
+                code,
+                message,
+                span: span_of(index),
+                stop: report.stop_note.unwrap_or_default(),
+            }),
+        )),
+        Outcome::Alarm {
+            index,
+            code,
+            message,
+        } => Err((
+            map.clone(),
+            Failure::one(output::ControllerAlarm {
+                line: index
+                    .map(|i| format!(" at line {} `{}`", i + 1, lines[i]))
+                    .unwrap_or_default(),
+                code,
+                message,
+                span: index.map(span_of),
+                stop: report.stop_note.unwrap_or_default(),
+            }),
+        )),
+        Outcome::Aborted => Err((
+            map.clone(),
+            Failure::one(output::JobAborted {
+                acked: report.acked,
+                total: lines.len(),
+                stop: report.stop_note.unwrap_or_default(),
+            }),
+        )),
+        Outcome::Lost(e) => Err((
+            map.clone(),
+            Failure::one(output::LinkLost {
+                reason: e.to_string(),
+                acked: report.acked,
+                total: lines.len(),
+                resume: resume_hint,
+            }),
+        )),
+        Outcome::Failed(e) => {
+            let note = report.stop_note.unwrap_or_default();
+            if !note.is_empty() {
+                eprintln!("stopped: {note}");
+            }
+            Err(fail(e))
+        }
+    }
+}
+
+fn st_start(st: &Option<journal::State>) -> [f64; 3] {
+    st.as_ref().map_or([0.0; 3], |s| s.header.start)
+}
+
+/// `--check`: GRBL check mode parses every line and moves nothing.
+fn run_check(
+    name: &str,
+    link: &mut dyn Link,
+    lines: &[String],
+    span_of: &dyn Fn(usize) -> Span,
+    map: &SourceMap,
+) -> CmdResult {
+    let fail = |e: LinkError| (map.clone(), Failure::one(e));
+    link.set_check_mode(true).map_err(fail)?;
+    let report = stream::stream(
+        link,
+        &StreamJob::new(lines),
+        None,
+        &StreamOptions::default(),
+        &mut |_: &Progress, _: Option<&Event>| None,
+    );
+    let _ = link.set_check_mode(false);
+    match report.outcome {
+        Outcome::Done => {
+            println!(
+                "{name}: check mode — the controller accepted all {} lines",
+                lines.len()
+            );
+            Ok(())
+        }
+        Outcome::Rejected {
+            index,
+            code,
+            message,
+        } => Err((
+            map.clone(),
+            Failure::one(output::ControllerRejected {
+                line_no: index + 1,
+                line: lines[index].clone(),
+                code,
+                message,
+                span: span_of(index),
+                stop: "check mode: nothing moved".into(),
+            }),
+        )),
+        Outcome::Alarm {
+            code,
+            message,
+            index,
+        } => Err((
+            map.clone(),
+            Failure::one(output::ControllerAlarm {
+                line: index
+                    .map(|i| format!(" at line {} `{}`", i + 1, lines[i]))
+                    .unwrap_or_default(),
+                code,
+                message,
+                span: index.map(span_of),
+                stop: "check mode: nothing moved".into(),
+            }),
+        )),
+        Outcome::Aborted => Err(io_fail("check aborted".into())),
+        Outcome::Lost(e) | Outcome::Failed(e) => Err(fail(e)),
+    }
+}
+
+/// The progress bar: lines acknowledged, percent, elapsed and the ETA from the plan.
+struct Display {
+    bar: Option<indicatif::ProgressBar>,
+    eta: lase_runtime::link::eta::Eta,
+    last_msg: Instant,
+}
+
+impl Display {
+    fn new(total: usize, from: usize, eta: lase_runtime::link::eta::Eta) -> Display {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let b = indicatif::ProgressBar::new(total as u64);
+            let style = indicatif::ProgressStyle::with_template(
+                "{spinner} {elapsed_precise} [{wide_bar}] {pos}/{len} lines {percent}% {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> ");
+            b.set_style(style);
+            b.set_position(from as u64);
+            if std::io::stdin().is_terminal() {
+                b.println("keys: h or space = hold, r or enter = resume, a or q = abort");
+            }
+            b
+        });
+        Display {
+            bar,
+            eta,
+            last_msg: Instant::now() - Duration::from_secs(1),
+        }
+    }
+
+    fn update(&mut self, p: &Progress, e: Option<&Event>) {
+        let Some(bar) = &self.bar else {
+            return;
+        };
+        bar.set_position(p.acked as u64);
+        if let Some(Event::Message(m)) = e {
+            bar.println(format!("controller: {m}"));
+        }
+        if self.last_msg.elapsed() < Duration::from_millis(100) {
+            return;
+        }
+        self.last_msg = Instant::now();
+        let pos = p
+            .status
+            .as_ref()
+            .and_then(|s| s.work_position(s.wco.as_deref()));
+        let done = self.eta.done(p.acked, pos.as_deref());
+        let left = (self.eta.total() - done).max(0.0);
+        let state = p.status.as_ref().map(|s| s.summary()).unwrap_or_default();
+        bar.set_message(format!(
+            "ETA {left:.1} s of {:.1} s{} | {state}",
+            self.eta.total(),
+            if p.held { " (held)" } else { "" }
+        ));
+    }
+
+    fn finish(&self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
+}
+
+/// Hold/resume/abort keys, read in raw mode in short windows so that output in between
+/// stays normal.
+struct Keys {
+    rx: Receiver<Control>,
+    stop: Arc<AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Keys {
+    fn start() -> Option<Keys> {
+        if !std::io::stdin().is_terminal() || !std::io::stderr().is_terminal() {
+            return None;
+        }
+        use crossterm::event::{self, Event as CtEvent, KeyCode, KeyEventKind, KeyModifiers};
+        let (tx, rx) = channel();
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let thread = std::thread::spawn(move || {
+            while !flag.load(Ordering::SeqCst) {
+                if crossterm::terminal::enable_raw_mode().is_err() {
+                    return;
+                }
+                let ev = match event::poll(Duration::from_millis(100)) {
+                    Ok(true) => event::read().ok(),
+                    _ => None,
+                };
+                let _ = crossterm::terminal::disable_raw_mode();
+                let Some(CtEvent::Key(k)) = ev else {
+                    std::thread::sleep(Duration::from_millis(5));
+                    continue;
+                };
+                if k.kind != KeyEventKind::Press {
+                    continue;
+                }
+                let control = match k.code {
+                    KeyCode::Char('c') if k.modifiers.contains(KeyModifiers::CONTROL) => {
+                        Some(Control::Abort)
+                    }
+                    KeyCode::Char('h') | KeyCode::Char(' ') | KeyCode::Char('!') => {
+                        Some(Control::Hold)
+                    }
+                    KeyCode::Char('r') | KeyCode::Char('~') | KeyCode::Enter => {
+                        Some(Control::Resume)
+                    }
+                    KeyCode::Char('a') | KeyCode::Char('q') | KeyCode::Esc => Some(Control::Abort),
+                    _ => None,
+                };
+                if let Some(c) = control
+                    && tx.send(c).is_err()
+                {
+                    return;
+                }
+            }
+        });
+        Some(Keys {
+            rx,
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for Keys {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        let _ = crossterm::terminal::disable_raw_mode();
+    }
+}
+
+/// `lase sim` options.
+#[derive(Debug, Clone)]
+pub struct SimArgs {
+    pub listen: String,
+    pub machine: String,
+    pub time_scale: String,
+    pub drop_after_lines: Vec<u64>,
+    pub drop_after_secs: Vec<f64>,
+    pub error_at_line: Vec<String>,
+    pub garbage_after_lines: Vec<u64>,
+    pub baud: Option<u32>,
+    pub rx_buffer: usize,
+    pub planner_blocks: usize,
+    pub settings: Vec<String>,
+    pub allow_remote: bool,
+}
+
+/// Loads a stock machine by name or a machine file by path.
+fn load_machine(name: &str) -> Result<lase_runtime::machine::Machine, (SourceMap, Failure)> {
+    let (file, text) = match lase_stdlib::machine(name) {
+        Some(t) => (format!("<stdlib>/{name}.toml"), t.to_string()),
+        None => match std::fs::read_to_string(name) {
+            Ok(t) => (name.to_string(), t),
+            Err(e) => {
+                let stock: Vec<&str> = lase_stdlib::machine_names().collect();
+                return Err(io_fail(format!(
+                    "machine `{name}` is neither a stock machine ({}) nor a readable file: {e}",
+                    stock.join(", ")
+                )));
+            }
+        },
+    };
+    let mut map = SourceMap::new();
+    let id = map.add(file, text);
+    lase_runtime::machine::parse_machine(map.text(id), map.base(id))
+        .map_err(|e| (map.clone(), Failure::one(e)))
+}
+
+pub fn cmd_sim(args: SimArgs) -> CmdResult {
+    let machine = load_machine(&args.machine)?;
+    let addr: SocketAddr = args.listen.parse().map_err(|_| {
+        io_fail(format!(
+            "--listen `{}`: give an address and port, e.g. 127.0.0.1:5000",
+            args.listen
+        ))
+    })?;
+    if !addr.ip().is_loopback() && !args.allow_remote {
+        return Err(io_fail(format!(
+            "--listen {addr} is not a loopback address: the simulator listens on 127.0.0.1 or ::1 unless --allow-remote is given"
+        )));
+    }
+    let time_scale: TimeScale = args.time_scale.parse().map_err(io_fail)?;
+    let mut error_at_line = Vec::new();
+    for e in &args.error_at_line {
+        error_at_line.push(sim::parse_error_at(e).map_err(io_fail)?);
+    }
+    let mut settings = Vec::new();
+    for s in &args.settings {
+        let parsed = s
+            .trim_start_matches('$')
+            .split_once('=')
+            .and_then(|(k, v)| Some((k.parse::<u32>().ok()?, v.parse::<f64>().ok()?)));
+        settings.push(
+            parsed.ok_or_else(|| io_fail(format!("--setting `{s}`: give N=VALUE, e.g. 32=0")))?,
+        );
+    }
+    let opts = SimOptions {
+        time_scale,
+        baud: args.baud,
+        rx_buffer: args.rx_buffer,
+        planner_blocks: args.planner_blocks,
+        faults: Faults {
+            drop_after_lines: args.drop_after_lines.clone(),
+            drop_after_secs: args.drop_after_secs.clone(),
+            error_at_line,
+            garbage_after_lines: args.garbage_after_lines.clone(),
+        },
+        settings,
+        log: true,
+    };
+    let handle = sim::serve(&machine, addr, opts)
+        .map_err(|e| io_fail(format!("cannot listen on {addr}: {e}")))?;
+    let bound = handle.addr().unwrap_or(addr);
+    println!(
+        "lase sim: GRBL 1.1 simulator for `{}` listening on {bound} (time scale {time_scale}{}, RX buffer {} bytes, {} planner blocks)",
+        machine.name,
+        args.baud.map(|b| format!(", {b} baud")).unwrap_or_default(),
+        args.rx_buffer,
+        args.planner_blocks
+    );
+    println!("lase sim: stream to it with `lase run FILE --link tcp://{bound}`");
+    use std::io::Write;
+    let _ = std::io::stdout().flush();
+    handle.join();
+    Ok(())
+}
+
+/// The NC lines of a job, exactly as `lase emit` writes them.
+pub fn nc_lines(
+    recipe: &driver::Recipe,
+    job: &lase_runtime::motion::Job,
+    dialect: Dialect,
+) -> Result<Vec<NcLine>, (SourceMap, Failure)> {
+    let mut lines: Vec<NcLine> = Vec::new();
+    let locate = |s: Span| recipe.locate(s);
+    lase_runtime::emit::emit(
+        job,
+        dialect,
+        &crate::emit_options(&locate),
+        &mut |l: &NcLine| {
+            lines.push(l.clone());
+            Ok(())
+        },
+    )
+    .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
+    Ok(lines)
+}

@@ -1,0 +1,212 @@
+//! Nothing lost, nothing repeated: the simulated controller drops the TCP connection at
+//! random (seeded) points; `lase run --resume JOURNAL` continues each job, and in the end the
+//! controller has executed every line that does something exactly once, in order, and the
+//! executed trajectory is the plan.
+
+mod link_support;
+
+use lase_runtime::link::sim::{Faults, SimOptions, TimeScale};
+use link_support::*;
+use std::time::Duration;
+
+/// A small deterministic generator (xorshift64*), so failures reproduce.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
+    }
+
+    fn range(&mut self, lo: u64, hi: u64) -> u64 {
+        lo + self.next() % (hi - lo).max(1)
+    }
+}
+
+/// Cycles of drop → resume, for the record.
+const TRIALS: u64 = 20;
+
+#[test]
+fn twenty_random_disconnects_each_resume_to_the_full_job_exactly_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let jobs = examples();
+    let compiled: Vec<Compiled> = jobs.iter().map(|p| compile(p)).collect();
+    let baselines: Vec<_> = compiled.iter().map(baseline).collect();
+    // LINK_SEED and LINK_TRIALS run other or more trials locally (a soak, not for CI).
+    let seed = std::env::var("LINK_SEED")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0x0001_a5ed_15c0_u64);
+    let trials = std::env::var("LINK_TRIALS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(TRIALS);
+    let mut rng = Rng(seed | 1);
+    let mut cycles = 0;
+    let mut repeated_dwells = 0;
+    for trial in 0..trials {
+        let which = (trial as usize) % jobs.len();
+        let (path, c) = (&jobs[which], &compiled[which]);
+        let n = c.lines.len() as u64;
+        // Line 1 the controller receives is `$$`; drop somewhere in the job.
+        let first = rng.range(3, n);
+        // Every third trial drops a second time, during the resumed stream (after `$$`,
+        // `$G` and about seven re-approach lines).
+        let mut drops = vec![first];
+        if trial % 3 == 2 {
+            drops.push(first + 9 + rng.range(2, 12));
+        }
+        let time_scale = if trial % 2 == 0 {
+            TimeScale::Max
+        } else {
+            TimeScale::Factor(200.0)
+        };
+        let sim = sim_for(
+            &c.job,
+            SimOptions {
+                time_scale,
+                faults: Faults {
+                    drop_after_lines: drops.clone(),
+                    ..Faults::default()
+                },
+                ..SimOptions::default()
+            },
+        );
+        let journal = dir.path().join(format!("trial{trial}.journal"));
+        let (code, _out, err) = lase(&[
+            "run",
+            path.to_str().unwrap(),
+            "--link",
+            &url(&sim),
+            "--journal",
+            journal.to_str().unwrap(),
+        ]);
+        assert_eq!(
+            code, 1,
+            "trial {trial} (drops {drops:?}): the link drops: {err}{_out}"
+        );
+        assert!(err.contains("lase::link::lost"), "trial {trial}: {err}");
+        assert!(err.contains("--resume"), "trial {trial}: {err}");
+        let mut resumes_run = 0;
+        loop {
+            let (code, out, err) = lase(&["run", "--resume", journal.to_str().unwrap()]);
+            if std::env::var_os("LINK_DEBUG").is_some() {
+                eprintln!("trial {trial} resume: {err}");
+                eprintln!(
+                    "{}",
+                    std::fs::read_to_string(&journal)
+                        .unwrap()
+                        .lines()
+                        .filter(|l| !l.starts_with("s ") && !l.starts_with("a "))
+                        .collect::<Vec<_>>()
+                        .join("; ")
+                );
+            }
+            cycles += 1;
+            resumes_run += 1;
+            if code == 0 {
+                assert!(out.contains("done"), "{out}");
+                break;
+            }
+            assert!(
+                err.contains("lase::link::lost") && resumes_run < 4,
+                "trial {trial} (drops {drops:?}): resume failed: {err}"
+            );
+        }
+        assert!(sim.wait_quiet(Duration::from_secs(10)));
+        let rec = sim.stop();
+        assert_eq!(rec.rx_overflows, 0, "{:?}", rec.overflow_log);
+        let resumes = journal_resumes(&journal);
+        assert_eq!(resumes.len(), resumes_run, "trial {trial}");
+        // A dwell in flight alone when the link drops leaves no trace in the controller's
+        // state: the resume runs it again (the one thing that may repeat; it is harmless).
+        let mut got = effective(&rec, &resumes);
+        let before = got.len();
+        got.dedup_by(|b, a| {
+            b.1 == a.1 && b.1.dwell_s.is_some() && b.1.motion.is_none() && b.1.changes.is_empty()
+        });
+        repeated_dwells += before - got.len();
+        if std::env::var_os("LINK_DEBUG").is_some() {
+            for l in &rec.lines {
+                eprintln!("{} c{} {:?} {}", l.seq, l.connection, l.result, l.text);
+            }
+        }
+        let want = &baselines[which];
+        let first_diff = got
+            .iter()
+            .zip(want.iter())
+            .position(|(g, w)| g.1 != w.1)
+            .unwrap_or(got.len().min(want.len()));
+        assert!(
+            got.len() == want.len() && first_diff == got.len(),
+            "trial {trial} (drops {drops:?}, resumes {resumes:?}): {} effective lines, {} planned; first difference at {first_diff}:\n got  {:?}\n want {:?}",
+            got.len(),
+            want.len(),
+            got.get(first_diff),
+            want.get(first_diff)
+        );
+        assert_trajectory_matches(c, &rec, &job_line_seqs(c, &rec, &resumes));
+        let j = lase_runtime::link::journal::read(&journal).unwrap();
+        assert_eq!(j.end.as_deref(), Some("done"));
+    }
+    assert!(
+        cycles >= TRIALS as usize,
+        "{cycles} disconnect/resume cycles"
+    );
+    eprintln!("{cycles} disconnect/resume cycles, {repeated_dwells} dwells run twice");
+}
+
+#[test]
+fn resume_refuses_a_changed_recipe_and_a_finished_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipe = dir.path().join("job.lase");
+    std::fs::copy(root().join("examples/frame_marking.lase"), &recipe).unwrap();
+    let c = compile(&recipe);
+    let sim = sim_for(
+        &c.job,
+        SimOptions {
+            time_scale: TimeScale::Max,
+            faults: Faults {
+                drop_after_lines: vec![12],
+                ..Faults::default()
+            },
+            ..SimOptions::default()
+        },
+    );
+    let journal = dir.path().join("j");
+    let (code, _, err) = lase(&[
+        "run",
+        recipe.to_str().unwrap(),
+        "--link",
+        &url(&sim),
+        "--journal",
+        journal.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    // A new run must not overwrite the unfinished journal.
+    let (code, _, err) = lase(&[
+        "run",
+        recipe.to_str().unwrap(),
+        "--link",
+        &url(&sim),
+        "--journal",
+        journal.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("unfinished job"), "{err}");
+    // The recipe changed since: refused.
+    let text = std::fs::read_to_string(&recipe).unwrap();
+    std::fs::write(&recipe, text.replace("at 20 mm/s", "at 25 mm/s")).unwrap();
+    let (code, _, err) = lase(&["run", "--resume", journal.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("lase::link::resume"), "{err}");
+    std::fs::write(&recipe, text).unwrap();
+    let (code, _, err) = lase(&["run", "--resume", journal.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = lase(&["run", "--resume", journal.to_str().unwrap()]);
+    assert_eq!(code, 1);
+    assert!(err.contains("nothing to resume"), "{err}");
+    sim.stop();
+}

@@ -1,0 +1,401 @@
+//! Helpers for the controller-link tests: compile a recipe to its planned job and NC lines
+//! through the library (as the `lase` binary does), run the binary, and compare what the
+//! simulated controller executed with the plan.
+
+#![allow(dead_code)]
+
+use lase_lang::{Loader, SourceMap, Span};
+use lase_runtime::emit::{Dialect, EmitOptions, NcLine};
+use lase_runtime::eval::{Evaluator, Host};
+use lase_runtime::link::sim::{self, Recording, SimHandle, SimOptions};
+use lase_runtime::motion::Job;
+use lase_runtime::program::OpKind;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+struct Fs;
+
+fn read(importer: &str, path: &str) -> Result<(String, String), String> {
+    let p = Path::new(path);
+    let full = if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        Path::new(importer)
+            .parent()
+            .map(|d| d.join(p))
+            .unwrap_or_else(|| p.to_path_buf())
+    };
+    let text = std::fs::read_to_string(&full).map_err(|e| e.to_string())?;
+    Ok((full.to_string_lossy().into_owned(), text))
+}
+
+impl Loader for Fs {
+    fn load(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        read(importer, path)
+    }
+}
+
+impl Host for Fs {
+    fn machine_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        read(importer, path)
+    }
+}
+
+/// A compiled example: its planned job and its GRBL lines, as `lase emit --dialect grbl`
+/// writes them.
+pub struct Compiled {
+    pub job: Job,
+    pub lines: Vec<NcLine>,
+    pub map: SourceMap,
+}
+
+pub fn compile(path: &Path) -> Compiled {
+    let mut map = SourceMap::new();
+    let text = std::fs::read_to_string(path).unwrap();
+    let main = map.add(path.to_string_lossy(), text);
+    let (program, errors) = lase_lang::load(&mut map, main, &mut Fs);
+    assert!(errors.is_empty(), "{errors:?}");
+    assert!(lase_lang::check_program(&program).is_empty());
+    let mut ev = Evaluator::new();
+    let stmts = program.modules[0].stmts.clone();
+    let end = map.base(main) + map.text(main).len();
+    let name = path.file_name().unwrap().to_string_lossy().into_owned();
+    ev.run(&stmts, &program, &mut map, &mut Fs).unwrap();
+    let pp = ev.program(&name, Span::new(end, end)).unwrap();
+    let job = lase_runtime::motion::plan_program(pp).unwrap();
+    let locate = |s: Span| match map.locate(s) {
+        Some((f, lc)) => format!(
+            "{}:{}",
+            Path::new(map.name(f))
+                .file_name()
+                .unwrap()
+                .to_string_lossy(),
+            lc.line
+        ),
+        None => String::new(),
+    };
+    let mut lines = Vec::new();
+    lase_runtime::emit::emit(
+        &job,
+        Dialect::Grbl,
+        &EmitOptions {
+            locate: Some(&locate),
+            comments: true,
+        },
+        &mut |l: &NcLine| {
+            lines.push(l.clone());
+            Ok(())
+        },
+    )
+    .unwrap();
+    Compiled { job, lines, map }
+}
+
+/// The examples, sorted.
+pub fn examples() -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(root().join("examples"))
+        .unwrap()
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "lase"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Runs `lase ARGS` from the repository root: (exit code, stdout, stderr).
+pub fn lase(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lase"))
+        .args(args)
+        .current_dir(root())
+        .env("NO_COLOR", "1")
+        .output()
+        .expect("the lase binary runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A simulator for `machine` on a free loopback port.
+pub fn sim_for(job: &Job, opts: SimOptions) -> SimHandle {
+    sim::serve(&job.program.machine, "127.0.0.1:0".parse().unwrap(), opts).unwrap()
+}
+
+pub fn url(h: &SimHandle) -> String {
+    format!("tcp://{}", h.addr().unwrap())
+}
+
+/// The G-code lines the controller received (system `$` commands left out), in order.
+pub fn gcode_lines(rec: &Recording) -> Vec<String> {
+    rec.lines
+        .iter()
+        .filter(|l| l.result != sim::LineResult::System)
+        .map(|l| l.text.clone())
+        .collect()
+}
+
+/// Planned end position of every motion op (machine axes mapped to X/Y/Z), by op index.
+pub fn planned_op_ends(job: &Job) -> Vec<(usize, [f64; 3])> {
+    let xyz: Vec<usize> = job
+        .program
+        .machine
+        .axes
+        .iter()
+        .map(|a| "XYZ".find(a.name.as_str()).unwrap())
+        .collect();
+    let mut out: Vec<(usize, [f64; 3])> = Vec::new();
+    for m in &job.moves {
+        let mut p = [0.0; 3];
+        for (k, &i) in xyz.iter().enumerate() {
+            p[i] = m.target[k];
+        }
+        match out.last_mut() {
+            Some((op, q)) if *op == m.tag as usize => *q = p,
+            _ => out.push((m.tag as usize, p)),
+        }
+    }
+    out
+}
+
+/// Lit runs of the plan: (start, end, length) of each maximal run of consecutive lit moves.
+pub fn planned_lit_runs(job: &Job) -> Vec<([f64; 3], [f64; 3], f64)> {
+    let xyz: Vec<usize> = job
+        .program
+        .machine
+        .axes
+        .iter()
+        .map(|a| "XYZ".find(a.name.as_str()).unwrap())
+        .collect();
+    let map = |q: &[f64]| {
+        let mut p = [0.0; 3];
+        for (k, &i) in xyz.iter().enumerate() {
+            p[i] = q[k];
+        }
+        p
+    };
+    let mut runs: Vec<([f64; 3], [f64; 3], f64)> = Vec::new();
+    let mut prev = map(&job.start);
+    let mut in_run = false;
+    for m in &job.moves {
+        let to = map(&m.target);
+        let op = &job.program.ops[m.tag as usize];
+        let lit = op.laser().is_some() && !matches!(op.kind, OpKind::Rapid { .. });
+        if lit {
+            if in_run {
+                let r = runs.last_mut().unwrap();
+                r.1 = to;
+                r.2 += m.length;
+            } else {
+                runs.push((prev, to, m.length));
+            }
+        }
+        in_run = lit;
+        prev = to;
+    }
+    runs
+}
+
+/// Lit runs the controller executed.
+pub fn executed_lit_runs(rec: &Recording) -> Vec<([f64; 3], [f64; 3], f64)> {
+    let mut runs: Vec<([f64; 3], [f64; 3], f64)> = Vec::new();
+    let mut in_run = false;
+    for b in &rec.blocks {
+        let lit = b.laser_s > 0.0;
+        let len = (0..3)
+            .map(|i| (b.to[i] - b.from[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        if lit {
+            if in_run {
+                let r = runs.last_mut().unwrap();
+                r.1 = b.to;
+                r.2 += len;
+            } else {
+                runs.push((b.from, b.to, len));
+            }
+        }
+        in_run = lit;
+    }
+    runs
+}
+
+fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
+    (0..3).all(|i| (a[i] - b[i]).abs() <= tol)
+}
+
+/// The executed trajectory equals the plan: every op's end position within 1 µm (the end of
+/// the last executed block of the op's last line), the same lit runs (ends within 1 µm,
+/// lengths within the chord tolerance of arcs), the same final position.
+pub fn assert_trajectory_matches(c: &Compiled, rec: &Recording, job_line_seqs: &[Option<u64>]) {
+    // Position after each job line: the end of its last executed block, else the previous.
+    let mut pos_after = Vec::with_capacity(c.lines.len());
+    let start = {
+        let mut p = [0.0; 3];
+        for (k, a) in c.job.program.machine.axes.iter().enumerate() {
+            p["XYZ".find(a.name.as_str()).unwrap()] = c.job.start[k];
+        }
+        p
+    };
+    let mut cur = start;
+    let mut by_seq = std::collections::HashMap::new();
+    for b in &rec.blocks {
+        by_seq.insert(b.seq, b.to);
+    }
+    for s in job_line_seqs {
+        if let Some(p) = s.and_then(|s| by_seq.get(&s)) {
+            cur = *p;
+        }
+        pos_after.push(cur);
+    }
+    for (op, planned) in planned_op_ends(&c.job) {
+        let last_line = c
+            .lines
+            .iter()
+            .rposition(|l| l.op == Some(op as u32))
+            .unwrap_or_else(|| panic!("op {op} has no NC line"));
+        let got = pos_after[last_line];
+        assert!(
+            close(got, planned, 1e-3),
+            "op {op} (line {} `{}`): executed {got:?}, planned {planned:?}",
+            last_line + 1,
+            c.lines[last_line].text
+        );
+    }
+    let end = rec.blocks.last().map(|b| b.to).unwrap_or(start);
+    let planned_end = planned_op_ends(&c.job).last().map(|e| e.1).unwrap_or(start);
+    assert!(close(end, planned_end, 1e-3), "{end:?} vs {planned_end:?}");
+    let planned = planned_lit_runs(&c.job);
+    let executed = executed_lit_runs(rec);
+    assert_eq!(
+        planned.len(),
+        executed.len(),
+        "lit runs: planned {planned:?}\nexecuted {executed:?}"
+    );
+    for (p, e) in planned.iter().zip(&executed) {
+        assert!(
+            close(p.0, e.0, 1e-3) && close(p.1, e.1, 1e-3),
+            "{p:?} vs {e:?}"
+        );
+        assert!(
+            (p.2 - e.2).abs() <= 1e-3 * p.2.max(1.0),
+            "length {p:?} vs {e:?}"
+        );
+    }
+}
+
+/// For each job line, the sequence number under which the controller executed it (the last
+/// connection that sent it), matching received G-code lines to job lines in order. A
+/// resumed connection (the k-th resume: connection k + 2) starts with `resumes[k].1`
+/// re-approach lines, then job line `resumes[k].0`.
+pub fn job_line_seqs(
+    c: &Compiled,
+    rec: &Recording,
+    resumes: &[(usize, usize)],
+) -> Vec<Option<u64>> {
+    let mut out = vec![None; c.lines.len()];
+    let mut next = 0usize;
+    let mut conn = 0u32;
+    let mut skip = 0usize;
+    for l in &rec.lines {
+        if l.result == sim::LineResult::System {
+            continue;
+        }
+        if l.connection != conn {
+            conn = l.connection;
+            if conn >= 2
+                && let Some(&(from, pre)) = resumes.get(conn as usize - 2)
+            {
+                next = from;
+                skip = pre;
+            }
+        }
+        if skip > 0 {
+            skip -= 1;
+            continue;
+        }
+        // A resumed modal arc may carry its motion word.
+        let same = |t: &str| l.text == t || l.text.ends_with(&format!(" {t}"));
+        assert!(
+            next < c.lines.len() && same(&c.lines[next].text),
+            "received `{}` where job line {} `{}` belongs",
+            l.text,
+            next + 1,
+            c.lines
+                .get(next)
+                .map(|l| l.text.as_str())
+                .unwrap_or("<end>")
+        );
+        out[next] = Some(l.seq);
+        next += 1;
+    }
+    out
+}
+
+/// What each line did, for the lines that did something, as the controller saw them:
+/// re-approach lines and system commands left out.
+pub fn effective(rec: &Recording, resumes: &[(usize, usize)]) -> Vec<(String, sim::Effect)> {
+    let mut out = Vec::new();
+    let mut conn = 0u32;
+    let mut skip = 0usize;
+    for l in &rec.lines {
+        if l.result == sim::LineResult::System {
+            continue;
+        }
+        if l.connection != conn {
+            conn = l.connection;
+            skip = if conn >= 2 {
+                resumes.get(conn as usize - 2).map_or(0, |r| r.1)
+            } else {
+                0
+            };
+        }
+        if skip > 0 {
+            skip -= 1;
+            continue;
+        }
+        assert_eq!(l.result, sim::LineResult::Ok, "`{}`", l.text);
+        if let Some(e) = &l.effect
+            && !e.is_noop()
+        {
+            out.push((l.text.clone(), e.clone()));
+        }
+    }
+    out
+}
+
+/// The effects of running `lines` once on a fresh simulated controller.
+pub fn baseline(c: &Compiled) -> Vec<(String, sim::Effect)> {
+    let m = &c.job.program.machine;
+    let mut ctl = sim::Controller::new(sim::ControllerConfig {
+        rx_buffer: 1024,
+        planner_blocks: 15,
+        travel: sim::controller::travel_for(m),
+        settings: sim::controller::settings_for(m),
+        error_at_line: Vec::new(),
+    });
+    for l in &c.lines {
+        for b in l.text.bytes().chain(std::iter::once(b'\n')) {
+            ctl.receive(b);
+        }
+        ctl.run(f64::INFINITY);
+    }
+    effective(ctl.recording(), &[])
+}
+
+/// Reads the resume records (`r EXECUTED PREAMBLE`) of a journal.
+pub fn journal_resumes(path: &Path) -> Vec<(usize, usize)> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .filter_map(|l| l.strip_prefix("r "))
+        .map(|r| {
+            let mut it = r.split_whitespace().map(|v| v.parse::<usize>().unwrap());
+            (it.next().unwrap(), it.next().unwrap())
+        })
+        .collect()
+}
