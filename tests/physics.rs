@@ -213,11 +213,115 @@ fn position_synchronized_pulses_are_counted_exactly() {
 fn run_executes_every_line_on_the_simulator() {
     let (code, out, err) = lase(&["run", "examples/frame_marking.lase"]);
     assert_eq!(code, 0, "{err}");
-    let (_, ngc, _) = lase(&["emit", "examples/frame_marking.lase"]);
+    // `run` streams the grbl dialect (the link speaks GRBL 1.1).
+    let (_, ngc, _) = lase(&["emit", "examples/frame_marking.lase", "--dialect", "grbl"]);
     let lines = ngc.lines().count();
     assert!(out.contains(&format!("{lines} lines")), "{out}");
     assert!(
         out.contains("X0 Y0"),
         "the job ends back at the origin: {out}"
     );
+}
+
+/// The paper's program (PROCESS.md §4): the M27 point sits exactly one ramp distance above
+/// Z-15.53, and the head passes Z-15.53 — and every point down to Z-33.63 — at 950 mm/min.
+/// Measured from the emitted ISO program and the trace of the real binary.
+#[test]
+fn notch_transition_point_is_moved_back_by_the_ramp_distance() {
+    let (code, iso, err) = lase(&["emit", "examples/conrod_notch.lase", "--dialect", "iso"]);
+    assert_eq!(code, 0, "{err}");
+    // Z of the last motion block before M27 (the beam goes on at rest there).
+    let mut z = f64::NAN;
+    let mut z_m27 = None;
+    let mut after_m27 = Vec::new();
+    for line in iso.lines() {
+        let w = nc_words(line);
+        if w.iter().any(|&(c, v)| c == 'M' && v == 27.0) {
+            z_m27 = Some(z);
+            continue;
+        }
+        if let Some(&(_, v)) = w.iter().find(|(c, _)| *c == 'Z') {
+            z = v;
+            if z_m27.is_some() && after_m27.len() < 2 {
+                let f = w.iter().find(|(c, _)| *c == 'F').map(|(_, f)| *f);
+                after_m27.push((v, f));
+            }
+        }
+    }
+    let z_m27 = z_m27.expect("an M27 block");
+    // Notcher Z: a = 1 m/s², J = 20 m/s³; the S-curve ramp from rest to F = 950 mm/min.
+    let f = 950.0 / 60.0;
+    let d = lase_runtime::planner::speed_change_distance(0.0, f, 1000.0, 20_000.0);
+    assert!((d - 0.4455).abs() < 1e-4, "{d}");
+    // 4 decimals in the NC text.
+    assert!(
+        (z_m27 - (-15.53 + d)).abs() <= 5e-5 + 1e-12,
+        "M27 at Z{z_m27}, expected Z{}",
+        -15.53 + d
+    );
+    // After M27: the lit ramp to Z-15.53 at F950, then the cut to Z-33.63.
+    assert_eq!(after_m27, vec![(-15.53, Some(950.0)), (-33.63, None)]);
+
+    let (t, _) = trace("examples/conrod_notch.lase", "1ms");
+    let pz: Vec<f64> = t.col("pz").collect();
+    let v: Vec<f64> = t.col("v").collect();
+    let lit: Vec<f64> = t.col("laser").collect();
+    // The speed at Z-15.53, interpolated between the two rows around it.
+    let k = pz
+        .windows(2)
+        .position(|w| w[0] > -15.53 && w[1] <= -15.53)
+        .expect("the head passes Z-15.53");
+    let frac = (pz[k] + 15.53) / (pz[k] - pz[k + 1]);
+    let v_at = v[k] + frac * (v[k + 1] - v[k]);
+    assert!((v_at - f).abs() <= 1e-3 * f, "{v_at} mm/s at Z-15.53");
+    // Every row inside the cut runs at the feed, with the beam on.
+    let inside: Vec<usize> = (0..pz.len())
+        .filter(|&i| pz[i] <= -15.53 && pz[i] >= -33.63 && lit[i] == 1.0)
+        .collect();
+    assert!(inside.len() > 1000, "{} rows", inside.len());
+    for &i in &inside {
+        assert!((v[i] - f).abs() <= 1e-3 * f, "{} mm/s at Z{}", v[i], pz[i]);
+    }
+}
+
+/// On the motion-synchronized xy_table, the beam goes on only at the programmed feed: the
+/// first lit trace row of every lit run has the feed written with the laser-on in the NC
+/// program (lead-ins end at full speed on a straight junction).
+#[test]
+fn laser_on_points_run_at_the_programmed_feed() {
+    for ex in ["examples/frame_marking.lase", "examples/dial_marks.lase"] {
+        let (code, ngc, err) = lase(&["emit", ex]);
+        assert_eq!(code, 0, "{err}");
+        // Feed in force at each M62 (beam on), in order.
+        let mut feed = f64::NAN;
+        let mut pending = false;
+        let mut on_feeds = Vec::new();
+        for line in ngc.lines() {
+            let w = nc_words(line);
+            if w.iter().any(|&(c, v)| c == 'M' && v == 62.0) {
+                pending = true;
+            }
+            if let Some(&(_, f)) = w.iter().find(|(c, _)| *c == 'F') {
+                feed = f / 60.0;
+            }
+            if pending && w.iter().any(|&(c, _)| c == 'X' || c == 'Y') {
+                on_feeds.push(feed);
+                pending = false;
+            }
+        }
+        let (t, _) = trace(ex, "1ms");
+        let lit: Vec<f64> = t.col("laser").collect();
+        let v: Vec<f64> = t.col("v").collect();
+        let firsts: Vec<f64> = (1..lit.len())
+            .filter(|&i| lit[i] == 1.0 && lit[i - 1] == 0.0)
+            .map(|i| v[i])
+            .collect();
+        assert_eq!(firsts.len(), on_feeds.len(), "{ex}");
+        for (v, f) in firsts.iter().zip(&on_feeds) {
+            assert!(
+                (v - f).abs() <= 1e-3 * f,
+                "{ex}: beam on at {v} mm/s, feed {f}"
+            );
+        }
+    }
 }

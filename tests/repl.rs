@@ -17,7 +17,12 @@ fn session(input: &str) -> (i32, String, String) {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
     let out = child.wait_with_output().unwrap();
     (
         out.status.code().unwrap_or(-1),
@@ -34,7 +39,10 @@ fn scripted_session_matches_its_golden() {
     // The error in the middle is reported and the session goes on.
     assert!(err.contains("lase::check::unit_mismatch"), "{err}");
     assert!(out.contains("10 mm"), "{out}");
-    assert!(out.contains("profile (2 segments, closed, 31.415927 mm)"), "{out}");
+    assert!(
+        out.contains("profile (2 segments, closed, 31.415927 mm)"),
+        "{out}"
+    );
     // Two rings were planned: 2π·5 + 2π·10 mm lit (arcs run as chords within the 2 µm chord
     // tolerance, so a little shorter).
     let lit = std::f64::consts::TAU * 15.0;
@@ -47,5 +55,8 @@ fn scripted_session_matches_its_golden() {
     assert!((reported - lit).abs() < 1e-3 * lit, "{reported} vs {lit}");
     // After :run the session's motion was sent and cleared.
     assert!(out.contains("0 ops"), "{out}");
-    golden(&root().join("tests/repl/session.out"), &format!("--- stdout\n{out}--- stderr\n{err}"));
+    golden(
+        &root().join("tests/repl/session.out"),
+        &format!("--- stdout\n{out}--- stderr\n{err}"),
+    );
 }
