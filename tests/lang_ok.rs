@@ -63,11 +63,12 @@ fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
             None => String::new(),
         };
         let text = match &op.kind {
-            OpKind::Rapid { to } => format!("rapid {}", p3(*to)),
+            OpKind::Rapid { to, .. } => format!("rapid {}", p3(*to)),
             OpKind::Line {
                 to,
                 feed_mm_s,
                 laser: l,
+                ..
             } => {
                 format!(
                     "line  {} feed {}{}",
@@ -140,7 +141,7 @@ fn units_convert_to_internal_units() {
 fn functions_and_loops_produce_the_expected_geometry() {
     let (_, p) = evaluate(&root().join("tests/ok/control.lase"));
     // fib(6) = 8: the squares start at x = 8 mm.
-    let OpKind::Rapid { to } = &p.ops[0].kind else {
+    let OpKind::Rapid { to, .. } = &p.ops[0].kind else {
         panic!("{:?}", p.ops[0])
     };
     assert_eq!(*to, [8.0, 0.0, 0.0]);

@@ -187,7 +187,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
             stop_here(&mut moves, &mut initial_dwell_s, 0.0);
         }
         match &op.kind {
-            OpKind::Rapid { to } => {
+            OpKind::Rapid { to, .. } => {
                 let q = inverse(&*kin, *to, op.span, &program)?;
                 push_line(&mut moves, q_prev, q, dist(pos, *to), f64::INFINITY, tag);
                 pos = *to;

@@ -64,15 +64,33 @@ pub enum PulseMode {
     Time { period_s: f64 },
 }
 
+/// How the head stands to the part at the end of a move, on machines that orient the beam
+/// (cam X-ω-B, arm): the beam direction (a unit vector in part coordinates, pointing from the
+/// head to the spot) and the standoff, the distance from the head's reference point to the
+/// spot along the beam. `None` on a move means the machine's default: beam along −z, no
+/// standoff (a flat-bed machine), or the previous move's orientation.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Orient {
+    pub beam: [f64; 3],
+    pub standoff_mm: f64,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum OpKind {
     /// Positioning at the machine's top speed, laser off.
-    Rapid { to: P3 },
-    /// A straight move at a programmed feed.
+    Rapid {
+        to: P3,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        orient: Option<Orient>,
+    },
+    /// A straight move at a programmed feed (a straight line of the spot in part coordinates;
+    /// on an oriented machine the beam direction turns uniformly along it).
     Line {
         to: P3,
         feed_mm_s: f64,
         laser: Option<Laser>,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        orient: Option<Orient>,
     },
     /// A circular arc in the XY plane (z may change linearly: a helix).
     Arc {
@@ -104,10 +122,18 @@ impl Op {
         }
     }
 
+    /// The orientation a motion op ends in, if it sets one.
+    pub fn orient(&self) -> Option<Orient> {
+        match &self.kind {
+            OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } => *orient,
+            _ => None,
+        }
+    }
+
     /// The end point of a motion op.
     pub fn target(&self) -> Option<P3> {
         match &self.kind {
-            OpKind::Rapid { to } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => Some(*to),
+            OpKind::Rapid { to, .. } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => Some(*to),
             _ => None,
         }
     }

@@ -60,7 +60,7 @@ fn lit(power_w: f64) -> Option<Laser> {
 }
 
 fn rapid(line: usize, to: P3) -> Op {
-    op(line, OpKind::Rapid { to })
+    op(line, OpKind::Rapid { to, orient: None })
 }
 
 fn line(line: usize, to: P3, feed_mm_s: f64, laser: Option<Laser>) -> Op {
@@ -70,6 +70,7 @@ fn line(line: usize, to: P3, feed_mm_s: f64, laser: Option<Laser>) -> Op {
             to,
             feed_mm_s,
             laser,
+            orient: None,
         },
     )
 }

@@ -66,6 +66,7 @@ fn line(to: P3, feed_mm_s: f64, laser: Option<Laser>) -> Op {
         to,
         feed_mm_s,
         laser,
+        orient: None,
     })
 }
 
@@ -166,6 +167,7 @@ fn axis_peaks_follow_the_direction_of_the_move() {
         vec![
             op(OpKind::Rapid {
                 to: [30.0, 40.0, 0.0],
+                orient: None,
             }),
             line([0.0, 0.0, 0.0], 20.0, None),
         ],
@@ -350,6 +352,7 @@ fn plot_is_an_svg_with_paths_and_speeds() {
         vec![
             op(OpKind::Rapid {
                 to: [10.0, 10.0, 0.0],
+                orient: None,
             }),
             line([30.0, 10.0, 0.0], 20.0, laser(50.0, None)),
             op(OpKind::Arc {

@@ -342,7 +342,7 @@ fn sub_op(op: &Op, from: P3, f: f64) -> Op {
         ]
     };
     match &mut sub.kind {
-        OpKind::Rapid { to } | OpKind::Line { to, .. } => *to = lerp(*to),
+        OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => *to = lerp(*to),
         OpKind::Arc {
             to, center, ccw, ..
         } => {
@@ -363,7 +363,7 @@ fn sub_op(op: &Op, from: P3, f: f64) -> Op {
 fn moves(op: &Op, from: P3) -> bool {
     match &op.kind {
         OpKind::Arc { .. } => true,
-        OpKind::Rapid { to } | OpKind::Line { to, .. } => {
+        OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
             (0..3).any(|k| (to[k] - from[k]).abs() > 1e-12)
         }
         _ => false,
@@ -386,7 +386,7 @@ fn motion_line(
     arc_axes: Option<(usize, usize, Option<usize>)>,
 ) -> String {
     let (g, to, feed) = match &op.kind {
-        OpKind::Rapid { to } => ("G0", *to, None),
+        OpKind::Rapid { to, .. } => ("G0", *to, None),
         OpKind::Line { to, feed_mm_s, .. } => ("G1", *to, Some(*feed_mm_s)),
         OpKind::Arc {
             to, ccw, feed_mm_s, ..

@@ -397,7 +397,7 @@ impl Evaluator {
 
     fn push(&mut self, kind: OpKind, span: Span) {
         if let Some(t) = match &kind {
-            OpKind::Rapid { to } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => Some(*to),
+            OpKind::Rapid { to, .. } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => Some(*to),
             _ => None,
         } {
             self.pos = t;
@@ -819,7 +819,7 @@ impl Evaluator {
             };
         }
         match speed {
-            MoveSpeed::Rapid => self.push(OpKind::Rapid { to }, span),
+            MoveSpeed::Rapid => self.push(OpKind::Rapid { to, orient: None }, span),
             MoveSpeed::At(e) => {
                 let v = self.expr(e, cx)?;
                 let feed = self.feed(&v, e.span)?;
@@ -835,6 +835,7 @@ impl Evaluator {
                         to,
                         feed_mm_s: feed,
                         laser,
+                        orient: None,
                     },
                     span,
                 );
@@ -881,6 +882,7 @@ impl Evaluator {
             self.push(
                 OpKind::Rapid {
                     to: [start.x, start.y, z],
+                    orient: None,
                 },
                 span,
             );
@@ -892,6 +894,7 @@ impl Evaluator {
                         to: [b.x, b.y, z],
                         feed_mm_s: feed,
                         laser: Some(laser.clone()),
+                        orient: None,
                     },
                     span,
                 ),

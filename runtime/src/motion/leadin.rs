@@ -191,6 +191,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
                     to: p0,
                     feed_mm_s: feed,
                     laser: lit_lead.clone(),
+                    orient: op.orient(),
                 },
                 span: op.span,
             },
@@ -227,6 +228,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
                     to: p_out,
                     feed_mm_s: feed,
                     laser: lit_lead,
+                    orient: op.orient(),
                 },
                 span: op.span,
             },
@@ -265,7 +267,7 @@ fn apply(ops: &[Op], starts: &[P3], runs: &[(usize, usize)], mut ed: Edits) -> L
         let mut op = op.clone();
         if let Some(p) = ed.redirect[i] {
             match &mut op.kind {
-                OpKind::Rapid { to } | OpKind::Line { to, .. } => *to = p,
+                OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => *to = p,
                 _ => {}
             }
         }
@@ -322,7 +324,7 @@ fn start_points(start: P3, ops: &[Op]) -> Vec<P3> {
 fn moves(op: &Op, from: P3) -> bool {
     match &op.kind {
         OpKind::Arc { .. } => true,
-        OpKind::Rapid { to } | OpKind::Line { to, .. } => {
+        OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
             (0..3).any(|k| (to[k] - from[k]).abs() > 1e-12)
         }
         _ => false,
@@ -382,7 +384,10 @@ fn lead_laser(l: Option<&Laser>) -> Laser {
 
 fn rapid(to: P3, like: &Op) -> Op {
     Op {
-        kind: OpKind::Rapid { to },
+        kind: OpKind::Rapid {
+            to,
+            orient: like.orient(),
+        },
         span: like.span,
     }
 }
