@@ -7,10 +7,11 @@
 //!     [--a 2000] [--j 50000] [--profile trapezoid|scurve]
 //! ```
 //!
-//! The first form generates an N-segment cornered 2-axis path (chords of 0.2–2 mm turning by
+//! The first form (`--profile` picks one profile) generates an N-segment cornered 2-axis path (chords of 0.2–2 mm turning by
 //! 0–150° at every junction, kept inside a 200 × 200 mm field, a stop every 10 000 moves),
 //! plans it offline with the trapezoid and the S-curve profile, and prints segments/s (best of
-//! three runs, one core), the memory planning takes per segment (peak resident memory during
+//! three runs, one core; by the wall clock and by the planning thread's own CPU time, which
+//! other processes on a shared machine do not inflate), the memory planning takes per segment (peak resident memory during
 //! `plan` above the resident memory before it, over N: the output segments plus the look-ahead
 //! scratch) and the cycle time.
 //!
@@ -18,7 +19,7 @@
 //! is the start) and prints `{"segments": n, "duration_s": t, ...}` as JSON.
 
 use lase_runtime::planner::{
-    AxisLimits, MAX_AXES, Move, PlannerConfig, ProfileKind, Segment, plan,
+    AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind, Segment, plan,
 };
 use std::time::Instant;
 
@@ -38,6 +39,15 @@ fn rss() -> Option<usize> {
     let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
     let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
+}
+
+/// CPU time this thread has run, in s (`/proc/thread-self/schedstat`, ns on the CPU): on a
+/// machine shared with other work, the wall clock counts the time other processes hold the
+/// core, the thread's own CPU time does not.
+fn cpu_time() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: u64 = s.split_whitespace().next()?.parse().ok()?;
+    Some(ns as f64 * 1e-9)
 }
 
 /// Resets the VmHWM peak to the current RSS (`echo 5 > /proc/self/clear_refs`, Linux ≥ 4.0).
@@ -158,6 +168,31 @@ fn cornered_path(n: usize) -> Vec<Move> {
     moves
 }
 
+/// FNV-1a over the bits of every number of the plan: equal fingerprints mean bit-identical
+/// plans (a refactoring of the planner must keep it).
+fn fingerprint(p: &Plan) -> u64 {
+    let mut h = 0xcbf2_9ce4_8422_2325u64;
+    let mut eat = |x: u64| {
+        for b in x.to_le_bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+        }
+    };
+    for (i, s) in p.segments().iter().enumerate() {
+        for x in [
+            s.t_start, s.s_start, s.length, s.v_entry, s.v_peak, s.v_exit, s.t_j1, s.t_a1,
+            s.t_cruise, s.t_j2, s.t_a2, s.dwell, s.feed,
+        ] {
+            eat(x.to_bits());
+        }
+        eat(((s.tag as u64) << 32) | s.move_index as u64);
+        for x in p.segment_target(i) {
+            eat(x.to_bits());
+        }
+    }
+    eat(p.duration().to_bits());
+    h
+}
+
 fn throughput(n: usize, o: &Options) {
     let moves = cornered_path(n);
     let lim = limits(o);
@@ -174,29 +209,49 @@ fn throughput(n: usize, o: &Options) {
         ("trapezoid", ProfileKind::Trapezoid),
         ("s-curve", ProfileKind::SCurve),
     ] {
+        if o.profile.is_some_and(|p| p != profile) {
+            continue;
+        }
         let cfg = config(profile, o.jd);
         let mut best = f64::INFINITY;
+        let mut best_cpu = f64::INFINITY;
         let mut bytes = None;
         let mut cycle = 0.0;
+        let mut print = 0;
         for _ in 0..3 {
             let base = if reset_peak() { rss() } else { None };
             let t0 = Instant::now();
+            let c0 = cpu_time();
             let p = plan([0.0; MAX_AXES], &moves, &lim, &cfg)
                 .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
             best = best.min(t0.elapsed().as_secs_f64());
+            if let (Some(c0), Some(c1)) = (c0, cpu_time()) {
+                best_cpu = best_cpu.min(c1 - c0);
+            }
             if let (Some(b), Some(peak)) = (base, peak_rss()) {
                 bytes = Some(peak.saturating_sub(b));
             }
             cycle = p.duration();
+            print = fingerprint(&p);
             std::hint::black_box(&p);
         }
         let per = bytes.map_or("n/a".to_string(), |b| format!("{:.1}", b as f64 / n as f64));
+        // The streaming look-ahead on the first 100 000 moves, for its fingerprint.
+        let window = PlannerConfig {
+            lookahead: Some(64),
+            ..cfg
+        };
+        let streamed = plan([0.0; MAX_AXES], &moves[..n.min(100_000)], &lim, &window)
+            .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
         println!(
-            "{name:>9}: {:6.2} M segments/s, {per} bytes/segment (peak RSS of plan; Segment is {} \
-             bytes), cycle time {:.3} s",
+            "{name:>9}: {:6.2} M segments/s wall, {:6.2} M/s CPU time, {per} bytes/segment (peak \
+             RSS of plan; Segment is {} bytes), cycle time {:.3} s, fingerprint {print:016x} \
+             (window 64: {:016x})",
             n as f64 / best / 1e6,
+            n as f64 / best_cpu / 1e6,
             std::mem::size_of::<Segment>(),
-            cycle
+            cycle,
+            fingerprint(&streamed)
         );
     }
 }

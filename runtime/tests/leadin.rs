@@ -118,7 +118,11 @@ fn notch_transition_point_moves_back_by_the_ramp_distance() {
     let segs = j.plan.segments();
     let cut = power::op_segments(&j, sec.first_op as usize);
     let seg = &segs[cut.start];
-    assert_eq!(seg.q0[1], -15.53, "the cut segment starts at Z-15.53");
+    assert_eq!(
+        j.plan.segment_start(cut.start)[1],
+        -15.53,
+        "the cut segment starts at Z-15.53"
+    );
     assert_eq!((seg.v_entry, seg.v_peak, seg.v_exit), (f, f, f));
     // The lead-out: d more below Z-33.63 (then M28 at rest), within the travel.
     assert_eq!(j.leads[1].kind, LeadKind::Out);

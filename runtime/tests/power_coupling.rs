@@ -192,12 +192,11 @@ fn emitted_sub_block_power_is_the_plans_time_mean() {
                 );
                 // The block ends where the plan's distance says (to the NC's 0.1 µm).
                 let range = power::op_segments(&j, *op as usize);
-                let seg = j.plan.segments()[range.start];
                 let s_total: f64 = j.plan.segments()[range.clone()]
                     .iter()
                     .map(|s| s.length)
                     .sum();
-                let q0 = seg.q0;
+                let q0 = j.plan.segment_start(range.start);
                 let q1 = j.plan.segment_target(range.end - 1);
                 let f = b.s_end / s_total;
                 for k in 0..2 {

@@ -52,7 +52,7 @@ impl Eta {
             segs.push((
                 t0 + s.t_start,
                 t0 + s.t_start + s.motion_duration(),
-                map(&s.q0),
+                map(&plan.segment_start(i)),
                 map(&plan.segment_target(i)),
             ));
         }

@@ -20,75 +20,67 @@
 
 use super::profile::{entry_limit, exit_speed};
 
-/// What the passes need to know about one move.
+/// What the passes need to know about one move: 40 bytes, read in order by every pass.
+///
+/// Stops have no flag: the move after a stop point has `cap = 0`, and a backward pass that
+/// hands a move the next one's entry limit as its exit cap hands it 0 there.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Kin {
     /// Path length.
     pub len: f64,
-    /// Speed limit of the move (feed, path and axis limits).
+    /// Speed limit of the move (feed, path and axis limits, centripetal cap on curves).
     pub v: f64,
     /// Path acceleration limit.
     pub a: f64,
     /// Path jerk limit (infinite for the trapezoid profile).
     pub j: f64,
-    /// Highest entry speed the junction allows (0 at program start and after a stop).
-    pub entry_cap: f64,
-    /// The exit speed must be 0 (stop point, dwell).
-    pub stop: bool,
-    /// Backward-pass result: highest entry speed that still lets the rest of the (known)
-    /// program stop where it must.
-    pub entry_max: f64,
-    /// Chosen entry speed.
-    pub v_in: f64,
-    /// Chosen exit speed.
-    pub v_out: f64,
+    /// Highest entry speed the junction allows (0 at program start and after a stop). The
+    /// offline backward pass overwrites it with the highest entry speed that still lets the
+    /// rest of the program stop where it must (`entry_max`).
+    pub cap: f64,
 }
 
-/// Offline look-ahead over the whole program.
-pub(crate) fn offline(kin: &mut [Kin]) {
+// The memory budget of a plan (`planner` module doc) counts on it.
+const _: () = assert!(std::mem::size_of::<Kin>() == 40);
+
+/// Offline look-ahead over the whole program. `commit(k, move, v_in, v_out)` receives each
+/// move's entry and exit speed, in order.
+pub(crate) fn offline(kin: &mut [Kin], mut commit: impl FnMut(usize, &Kin, f64, f64)) {
     let n = kin.len();
     let mut next_entry = 0.0;
-    for k in (0..n).rev() {
-        let m = &mut kin[k];
-        let exit_cap = if m.stop || k + 1 == n {
-            0.0
-        } else {
-            next_entry
-        };
-        m.entry_max = m.entry_cap.min(entry_limit(exit_cap, m.len, m.a, m.j));
-        next_entry = m.entry_max;
+    for m in kin.iter_mut().rev() {
+        m.cap = m.cap.min(entry_limit(next_entry, m.len, m.a, m.j));
+        next_entry = m.cap;
     }
-    forward(kin, |kin, k| {
-        if kin[k].stop || k + 1 == kin.len() {
-            0.0
-        } else {
-            kin[k + 1].entry_max
-        }
-    });
-}
-
-/// Forward pass: from rest, each move accelerates as far as its length allows, capped by the
-/// exit cap the backward pass left.
-#[inline]
-fn forward(kin: &mut [Kin], exit_cap: impl Fn(&[Kin], usize) -> f64) {
+    // Forward pass: from rest, each move accelerates as far as its length allows, capped by
+    // the exit cap the backward pass left (the next move's entry limit, 0 at the end).
     let mut v = 0.0f64;
-    for k in 0..kin.len() {
-        let cap = exit_cap(kin, k);
-        let m = &mut kin[k];
-        let v_in = v.min(m.entry_cap);
-        m.v_in = v_in;
-        m.v_out = exit_speed(v_in, cap.min(m.v), m.len, m.a, m.j);
-        v = m.v_out;
+    for k in 0..n {
+        let exit_cap = if k + 1 == n { 0.0 } else { kin[k + 1].cap };
+        let m = &kin[k];
+        let v_in = v.min(m.cap);
+        let v_out = exit_speed(v_in, exit_cap.min(m.v), m.len, m.a, m.j);
+        commit(k, m, v_in, v_out);
+        v = v_out;
     }
 }
 
 /// Streaming look-ahead: move k's exit speed is decided knowing only moves k+1..=k+window,
-/// the last of which must be able to stop.
-pub(crate) fn streaming(kin: &mut [Kin], window: usize) {
+/// the last of which must be able to stop. `commit` as for [`offline`].
+///
+/// The entry limits of the moves in the window live in a ring of `window + 1` slots: at move k
+/// only k..=k+window are ever read or written.
+pub(crate) fn streaming(
+    kin: &mut [Kin],
+    window: usize,
+    mut commit: impl FnMut(usize, &Kin, f64, f64),
+) {
     let n = kin.len();
     if n == 0 {
         return;
     }
+    let slots = window.saturating_add(1).min(n);
+    let mut entry_max = vec![0.0f64; slots];
     // `end` is the last move the controller has received; entry_max[j] for j in k+1..=end is
     // valid for the window ending at `end`.
     let mut end: Option<usize> = None;
@@ -104,13 +96,14 @@ pub(crate) fn streaming(kin: &mut [Kin], window: usize) {
             let mut i = m;
             let mut exit_cap = 0.0;
             loop {
-                let mi = &mut kin[i];
-                let new = mi.entry_cap.min(entry_limit(exit_cap, mi.len, mi.a, mi.j));
-                if i < m && new == mi.entry_max {
+                let mi = &kin[i];
+                let new = mi.cap.min(entry_limit(exit_cap, mi.len, mi.a, mi.j));
+                let slot = &mut entry_max[i % slots];
+                if i < m && new == *slot {
                     break;
                 }
-                mi.entry_max = new;
-                if i == lowest || i == 0 || kin[i - 1].stop {
+                *slot = new;
+                if i == lowest || i == 0 {
                     break;
                 }
                 exit_cap = new;
@@ -118,16 +111,16 @@ pub(crate) fn streaming(kin: &mut [Kin], window: usize) {
             }
         }
         let end_k = end.unwrap_or(k);
-        let cap = if kin[k].stop || k == end_k {
+        let exit_cap = if k == end_k {
             0.0
         } else {
-            kin[k + 1].entry_max
+            entry_max[(k + 1) % slots]
         };
-        let m = &mut kin[k];
-        let v_in = v.min(m.entry_cap);
-        m.v_in = v_in;
-        m.v_out = exit_speed(v_in, cap.min(m.v), m.len, m.a, m.j);
-        v = m.v_out;
+        let m = &kin[k];
+        let v_in = v.min(m.cap);
+        let v_out = exit_speed(v_in, exit_cap.min(m.v), m.len, m.a, m.j);
+        commit(k, m, v_in, v_out);
+        v = v_out;
     }
 }
 
@@ -142,23 +135,32 @@ mod tests {
                 v: 100.0,
                 a: 1000.0,
                 j: f64::INFINITY,
-                entry_cap: if k == 0 { 0.0 } else { 100.0 },
-                ..Kin::default()
+                cap: if k == 0 { 0.0 } else { 100.0 },
             })
             .collect()
+    }
+
+    /// (v_in, v_out) of every move.
+    fn speeds(
+        kin: &mut [Kin],
+        pass: impl FnOnce(&mut [Kin], &mut dyn FnMut(usize, &Kin, f64, f64)),
+    ) -> Vec<(f64, f64)> {
+        let mut out = vec![(f64::NAN, f64::NAN); kin.len()];
+        pass(kin, &mut |k, _, v_in, v_out| out[k] = (v_in, v_out));
+        out
     }
 
     #[test]
     fn offline_straight_line_accelerates_then_stops() {
         let mut kin = straight(10, 1.0);
-        offline(&mut kin);
+        let v = speeds(&mut kin, |k, c| offline(k, c));
         // Trapezoid: v² = 2 a s until the limit, symmetric at the end.
-        assert!((kin[0].v_out - (2.0 * 1000.0 * 1.0f64).sqrt()).abs() < 1e-9);
-        assert!((kin[4].v_out - 100.0).abs() < 1e-9);
-        assert!((kin[8].v_out - (2.0 * 1000.0 * 1.0f64).sqrt()).abs() < 1e-9);
-        assert_eq!(kin[9].v_out, 0.0);
-        for w in kin.windows(2) {
-            assert_eq!(w[0].v_out, w[1].v_in);
+        assert!((v[0].1 - (2.0 * 1000.0 * 1.0f64).sqrt()).abs() < 1e-9);
+        assert!((v[4].1 - 100.0).abs() < 1e-9);
+        assert!((v[8].1 - (2.0 * 1000.0 * 1.0f64).sqrt()).abs() < 1e-9);
+        assert_eq!(v[9].1, 0.0);
+        for w in v.windows(2) {
+            assert_eq!(w[0].1, w[1].0);
         }
     }
 
@@ -170,26 +172,26 @@ mod tests {
                 m.j = j;
                 m.len = 0.05 + 0.1 * (k % 7) as f64;
             }
-            a[20].stop = true;
+            // A stop after move 20: the next move may not be entered at speed.
+            a[21].cap = 0.0;
             let mut b = a.clone();
-            offline(&mut a);
-            streaming(&mut b, 100);
-            for (x, y) in a.iter().zip(&b) {
-                assert_eq!((x.v_in, x.v_out), (y.v_in, y.v_out));
-            }
+            let off = speeds(&mut a, |k, c| offline(k, c));
+            let st = speeds(&mut b, |k, c| streaming(k, 100, c));
+            assert_eq!(off, st);
+            assert_eq!(off[20].1, 0.0);
         }
     }
 
     #[test]
     fn streaming_window_of_one_must_stop_after_the_next_move() {
         let mut kin = straight(6, 1.0);
-        streaming(&mut kin, 1);
+        let v = speeds(&mut kin, |k, c| streaming(k, 1, c));
         // Each exit must allow a stop within the one following move: v² ≤ 2 a L.
-        for m in &kin[..5] {
-            assert!(m.v_out <= (2.0 * 1000.0f64).sqrt() + 1e-9);
+        for &(_, v_out) in &v[..5] {
+            assert!(v_out <= (2.0 * 1000.0f64).sqrt() + 1e-9);
         }
         let mut zero = straight(4, 1.0);
-        streaming(&mut zero, 0);
-        assert!(zero.iter().all(|m| m.v_out == 0.0));
+        let v = speeds(&mut zero, |k, c| streaming(k, 0, c));
+        assert!(v.iter().all(|&(_, v_out)| v_out == 0.0));
     }
 }

@@ -8,12 +8,20 @@
 //! The path of one move through [`plan`]:
 //! 1. `prepare` validates it, merges a zero-length move into its predecessor, and derives its
 //!    limits from its direction `u = Δq / length`: `v ≤ min_i v_i / |u_i|` (likewise `a`, `j`),
-//!    the path limits and the feed; it caps its entry speed with the junction-deviation corner
-//!    model (`junction`).
+//!    the path limits and the feed; it caps its entry speed with the corner model
+//!    (`junction`: GRBL's junction deviation and Klipper's centripetal cap), and a move that
+//!    lies wholly on the rounding circles of its two corners (a chord of a curve) gets a speed
+//!    and acceleration budget shared between centripetal and tangential acceleration
+//!    (`curve_limits`).
 //! 2. `lookahead` chooses entry and exit speeds with a backward and a forward pass, over the
 //!    whole program or through a bounded streaming window.
-//! 3. `profile` turns (length, entry, exit, limits) into the fastest ramp-cruise-ramp shape.
-//! 4. The result is stored as a compact [`Segment`]; [`Plan::sample`] evaluates it exactly.
+//! 3. As the forward pass commits each move's end speeds, `profile` turns (length, entry, exit,
+//!    limits) into the fastest ramp-cruise-ramp shape.
+//! 4. The result is stored as a compact [`Segment`] (112 bytes) plus its start point in a flat
+//!    table of the axes in use; [`Plan::sample`] evaluates it exactly.
+//!
+//! Memory: 112 bytes of segment, `8 · n_axes` of points and 40 of look-ahead scratch per move
+//! (168 bytes for two axes, 200 for six), and nothing else per move.
 //!
 //! Known limit: every S-curve move starts and ends at zero path acceleration, so acceleration
 //! is continuous everywhere, but a run of very short moves gains speed in small jerk-limited
@@ -167,6 +175,16 @@ pub fn move_limits(
 ) -> (f64, f64, f64) {
     let mut v = feed.min(cfg.path_v);
     let mut a = cfg.path_a;
+    if cfg.profile == ProfileKind::Trapezoid {
+        for axis in 0..cfg.n_axes.min(MAX_AXES) {
+            let u = dq[axis].abs() / length;
+            if u > 0.0 {
+                v = v.min(limits.v[axis] / u);
+                a = a.min(limits.a[axis] / u);
+            }
+        }
+        return (v, a, f64::INFINITY);
+    }
     let mut j = cfg.path_j;
     for axis in 0..cfg.n_axes.min(MAX_AXES) {
         let u = dq[axis].abs() / length;
@@ -175,9 +193,6 @@ pub fn move_limits(
             a = a.min(limits.a[axis] / u);
             j = j.min(limits.j[axis] / u);
         }
-    }
-    if cfg.profile == ProfileKind::Trapezoid {
-        j = f64::INFINITY;
     }
     (v, a, j)
 }
@@ -208,10 +223,15 @@ pub fn lead_distance(v: f64, w_max: f64, a: f64, j: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Relative slack on "a move lies wholly on its corners' rounding circles": the chords of one
+/// arc have equal lengths up to rounding.
+const CURVED_TOL: f64 = 1e-9;
+
 /// Plans `moves` from `start` (at rest) to the last target (at rest).
 ///
-/// Validates everything first and fails without a partial plan. Allocates the output segments
-/// and one scratch vector; nothing per move.
+/// Validates everything first and fails without a partial plan. Allocates the output (segments
+/// and their start points) and one compact scratch vector (`lookahead::Kin`, 40 bytes a move);
+/// nothing per move.
 pub fn plan(
     start: Axes,
     moves: &[Move],
@@ -222,19 +242,54 @@ pub fn plan(
     if u32::try_from(moves.len()).is_err() {
         return Err(PlanError::TooManyMoves { count: moves.len() });
     }
-    let (mut segments, mut kin, end) = prepare(start, moves, limits, cfg)?;
+    let Prepared {
+        mut segments,
+        points,
+        mut kin,
+        end,
+    } = prepare(start, moves, limits, cfg)?;
+    let mut timeline = Timeline {
+        segments: &mut segments,
+        t: 0.0,
+        s: 0.0,
+    };
     match cfg.lookahead {
         Some(window) if window.saturating_add(1) < kin.len() => {
-            lookahead::streaming(&mut kin, window)
+            lookahead::streaming(&mut kin, window, |k, m, v_in, v_out| {
+                timeline.commit(k, m, v_in, v_out)
+            })
         }
-        _ => lookahead::offline(&mut kin),
+        _ => lookahead::offline(&mut kin, |k, m, v_in, v_out| {
+            timeline.commit(k, m, v_in, v_out)
+        }),
     }
-    let mut t = 0.0;
-    let mut s = 0.0;
-    for (seg, k) in segments.iter_mut().zip(&kin) {
-        let sh = profile::shape(k.len, k.v_in, k.v_out, k.v, k.a, k.j);
-        seg.t_start = t;
-        seg.s_start = s;
+    let duration = timeline.t;
+    Ok(Plan {
+        segments,
+        points,
+        start,
+        end,
+        duration,
+        n_axes: cfg.n_axes,
+    })
+}
+
+/// Fills in the segments' timing in order, as the look-ahead commits each move's end speeds.
+struct Timeline<'a> {
+    segments: &'a mut [Segment],
+    /// Start time of the next segment.
+    t: f64,
+    /// Path distance at the start of the next segment.
+    s: f64,
+}
+
+impl Timeline<'_> {
+    #[inline]
+    fn commit(&mut self, k: usize, m: &Kin, v_in: f64, v_out: f64) {
+        let sh = profile::shape(m.len, v_in, v_out, m.v, m.a, m.j);
+        let seg = &mut self.segments[k];
+        seg.t_start = self.t;
+        seg.s_start = self.s;
         seg.v_entry = sh.v0;
         seg.v_peak = sh.vp;
         seg.v_exit = sh.v1;
@@ -243,16 +298,9 @@ pub fn plan(
         seg.t_cruise = sh.t_c;
         seg.t_j2 = sh.t_j2;
         seg.t_a2 = sh.t_a2;
-        t += seg.duration();
-        s += seg.length;
+        self.t += seg.duration();
+        self.s += seg.length;
     }
-    Ok(Plan {
-        segments,
-        start,
-        end,
-        duration: t,
-        n_axes: cfg.n_axes,
-    })
 }
 
 // `!(x > 0.0)` rather than `x <= 0.0`: NaN must fail every check.
@@ -294,8 +342,11 @@ fn validate(start: Axes, limits: &AxisLimits, cfg: &PlannerConfig) -> Result<(),
 }
 
 /// Validates the moves, merges zero-length ones, and derives each move's limits and junction
-/// cap. Returns the segment skeletons (timing still empty), the look-ahead data and the end
-/// position.
+/// cap. Returns the segment skeletons (timing still empty), their start points (`n_axes` values
+/// each), the look-ahead data and the end position.
+///
+/// A stop needs no flag of its own: the move after it gets entry cap 0, which is all the
+/// look-ahead passes need to stop there (the program's end is a stop by position).
 // `!(x > 0.0)` so NaN fails; axis loops index several parallel arrays.
 #[allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 fn prepare(
@@ -303,13 +354,29 @@ fn prepare(
     moves: &[Move],
     limits: &AxisLimits,
     cfg: &PlannerConfig,
-) -> Result<(Vec<Segment>, Vec<Kin>, Axes), PlanError> {
+) -> Result<Prepared, PlanError> {
     let n_axes = cfg.n_axes;
     let scurve = cfg.profile == ProfileKind::SCurve;
     let mut segments: Vec<Segment> = Vec::with_capacity(moves.len());
+    let mut points: Vec<f64> = Vec::with_capacity(moves.len() * n_axes);
     let mut kin: Vec<Kin> = Vec::with_capacity(moves.len());
     let mut q = start;
+    // The previous move ends at a stop point (or there is none yet).
+    let mut prev_stop = true;
     let mut prev_dir: Axes = [0.0; MAX_AXES];
+    // Centripetal cap (v²) and rounding-circle reach of the previous move's entry corner.
+    let mut prev_corner = junction::Corner::AT_REST;
+    let mut prev_d_in = 0.0;
+    let mut inv_a = [0.0; MAX_AXES];
+    for axis in 0..n_axes {
+        inv_a[axis] = 1.0 / limits.a[axis];
+    }
+    let corners = junction::CornerModel {
+        delta: cfg.junction_deviation,
+        inv_a,
+        path_a: cfg.path_a,
+        n_axes,
+    };
     for (index, mv) in moves.iter().enumerate() {
         let bad = |field, value, why| PlanError::BadMove {
             index,
@@ -361,15 +428,14 @@ fn prepare(
             }
             // No motion: its stop and dwell belong to the previous move's end. Before any
             // motion the program is at rest already, so only a dwell needs a segment.
-            if let (Some(seg), Some(k)) = (segments.last_mut(), kin.last_mut()) {
+            if let Some(seg) = segments.last_mut() {
                 seg.dwell += mv.dwell_after;
-                k.stop |= stop;
+                prev_stop |= stop;
             } else if mv.dwell_after > 0.0 {
-                segments.push(skeleton(q, 0.0, mv, index));
-                kin.push(Kin {
-                    stop: true,
-                    ..Kin::default()
-                });
+                segments.push(skeleton(0.0, mv, index));
+                points.extend_from_slice(&q[..n_axes]);
+                kin.push(Kin::default());
+                prev_stop = true;
             }
             continue;
         }
@@ -402,45 +468,97 @@ fn prepare(
             ));
         }
         let norm = norm2.sqrt();
+        // Only the axes in use move (checked above): the others stay 0.
         let mut dir = [0.0; MAX_AXES];
-        for axis in 0..MAX_AXES {
+        for axis in 0..n_axes {
             dir[axis] = dq[axis] / norm;
         }
-        let entry_cap = match kin.last() {
-            Some(prev) if !prev.stop => {
-                let corner = junction::junction_speed(
-                    &prev_dir,
-                    &dir,
-                    n_axes,
-                    a.min(prev.a),
-                    cfg.junction_deviation,
-                );
-                corner.min(v).min(prev.v)
+        let (entry_cap, corner, d_in) = match kin.last_mut() {
+            Some(prev) if !prev_stop => {
+                let c = corners.corner(&prev_dir, &dir, prev.a, a, prev.len, mv.length);
+                let d = if c.centripetal_v2 < f64::INFINITY {
+                    0.5 * prev.len.min(mv.length)
+                } else {
+                    0.0
+                };
+                if prev_d_in > 0.0 && d > 0.0 && prev_d_in + d >= prev.len * (1.0 - CURVED_TOL) {
+                    curve_limits(prev, &prev_corner, &c);
+                }
+                (c.v2.sqrt().min(v).min(prev.v), c, d)
             }
-            _ => 0.0,
+            _ => (0.0, junction::Corner::AT_REST, 0.0),
         };
-        segments.push(skeleton(q, mv.length, mv, index));
+        prev_corner = corner;
+        prev_d_in = d_in;
+        segments.push(skeleton(mv.length, mv, index));
+        points.extend_from_slice(&q[..n_axes]);
         kin.push(Kin {
             len: mv.length,
             v,
             a,
             j,
-            entry_cap,
-            stop,
-            ..Kin::default()
+            cap: entry_cap,
         });
+        prev_stop = stop;
         prev_dir = dir;
         q = mv.target;
     }
-    Ok((segments, kin, q))
+    Ok(Prepared {
+        segments,
+        points,
+        kin,
+        end: q,
+    })
 }
 
-fn skeleton(q0: Axes, length: f64, mv: &Move, index: usize) -> Segment {
+/// What `prepare` hands to the look-ahead.
+struct Prepared {
+    /// Segment skeletons, timing still empty.
+    segments: Vec<Segment>,
+    /// Their start points, `n_axes` values each.
+    points: Vec<f64>,
+    kin: Vec<Kin>,
+    /// The last target.
+    end: Axes,
+}
+
+/// Share of the acceleration limit a chord of a curve gives to the centripetal acceleration;
+/// the rest, `√(1 − share²)`, is left for speed changes along it.
+const CURVE_SHARE: f64 = 0.95;
+
+/// Limits of a move that lies wholly on the rounding circles of its two corners `c_in` and
+/// `c_out` (a chord of a curve, `junction`): all of it turns, not only its ends. Its speed obeys
+/// both circles' centripetal caps, scaled by [`CURVE_SHARE`] (`v² ≤ share · a_n · r`), and its
+/// tangential acceleration is cut to what is left of the limit at the highest speed the move
+/// can reach, `a_t = a · √(1 − (v_max² / (a_n r))²)`, so that tangential and centripetal
+/// acceleration together (`√(a_t² + (v²/r)²)`) stay within it. Without this a chord could speed
+/// up between two capped corners, or change speed at full rate while turning at full rate.
+///
+/// `v_max` is the move's speed limit, or less when its corners are slow: entered at most at
+/// its entry cap `e_in`, left at most at the exit corner's cap `e_out`, it peaks at most at
+/// `v_max² = (e_in² + e_out²)/2 + a·L` (the trapezoid peak; a jerk limit or a smaller `a` only
+/// lowers it).
+#[inline]
+fn curve_limits(k: &mut Kin, c_in: &junction::Corner, c_out: &junction::Corner) {
+    // Each half of the chord lies on one circle: the tighter one sets the cap.
+    let centripetal_v2 = c_in.centripetal_v2.min(c_out.centripetal_v2);
+    let cap = (CURVE_SHARE * centripetal_v2).sqrt();
+    if cap < k.v {
+        k.v = cap;
+        k.cap = k.cap.min(cap);
+    }
+    let v_max2 = (0.5 * (k.cap * k.cap + c_out.v2) + k.a * k.len).min(k.v * k.v);
+    let share = v_max2 / centripetal_v2;
+    if share > 0.0 && share < 1.0 {
+        k.a *= (1.0 - share * share).sqrt();
+    }
+}
+
+fn skeleton(length: f64, mv: &Move, index: usize) -> Segment {
     Segment {
         t_start: 0.0,
         s_start: 0.0,
         length,
-        q0,
         v_entry: 0.0,
         v_peak: 0.0,
         v_exit: 0.0,

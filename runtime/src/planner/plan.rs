@@ -1,11 +1,13 @@
 //! The planned timeline: compact per-move segments and exact sampling of them.
 //!
 //! A [`Segment`] stores only what cannot be recomputed cheaply: its start time and path
-//! distance, its start axes (the end axes are the next segment's start, or the plan's end),
-//! the three characteristic speeds and the phase durations. Peak acceleration and jerk follow
-//! from those (`a_p = Δv / (t_j + t_a)`, `J = a_p / t_j`), and so do axis quantities through the
-//! move's direction `u = Δq / length` (q(s) = q0 + u·s). [`Plan::sample`] finds the segment by
-//! binary search on `t_start` and evaluates the phase polynomials in closed form.
+//! distance, the three characteristic speeds and the phase durations (112 bytes). Peak
+//! acceleration and jerk follow from those (`a_p = Δv / (t_j + t_a)`, `J = a_p / t_j`), and so
+//! do axis quantities through the move's direction `u = Δq / length` (q(s) = q0 + u·s). The
+//! axis positions live beside the segments in one flat table of the axes in use (a 2-axis plan
+//! stores 16 bytes per segment, not 48): segment i starts at point i and ends at point i + 1
+//! (the plan's end for the last). [`Plan::sample`] finds the segment by binary search on
+//! `t_start` and evaluates the phase polynomials in closed form.
 
 use super::profile::Shape;
 use super::{Axes, MAX_AXES};
@@ -24,8 +26,6 @@ pub struct Segment {
     pub s_start: f64,
     /// Path length of the move.
     pub length: f64,
-    /// Axis positions at the start of the move.
-    pub q0: Axes,
     /// Path speed at the start.
     pub v_entry: f64,
     /// Cruise speed, or the peak speed of a move too short to cruise.
@@ -51,6 +51,9 @@ pub struct Segment {
     /// Index of the move in the input slice (zero-length moves are merged, so indices can skip).
     pub move_index: u32,
 }
+
+// The memory budget of a plan (`planner` module doc) counts on it.
+const _: () = assert!(std::mem::size_of::<Segment>() == 112);
 
 impl Segment {
     #[inline]
@@ -157,6 +160,9 @@ pub struct Sample {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plan {
     pub(crate) segments: Vec<Segment>,
+    /// Start positions of the segments, `n_axes` values each (the axes in use only; the
+    /// others never move and keep their values from `start`).
+    pub(crate) points: Vec<f64>,
     pub(crate) start: Axes,
     pub(crate) end: Axes,
     pub(crate) duration: f64,
@@ -194,12 +200,22 @@ impl Plan {
         self.segments.last().map_or(0.0, |s| s.s_start + s.length)
     }
 
-    /// Axis positions at the end of segment `i` (clamped to the last segment).
-    pub fn segment_target(&self, i: usize) -> Axes {
-        match self.segments.get(i + 1) {
-            Some(next) => next.q0,
+    /// Axis positions at the start of segment `i` (the plan's end past the last segment).
+    pub fn segment_start(&self, i: usize) -> Axes {
+        let n = self.n_axes;
+        match self.points.get(i * n..(i + 1) * n) {
+            Some(p) => {
+                let mut q = self.start;
+                q[..n].copy_from_slice(p);
+                q
+            }
             None => self.end,
         }
+    }
+
+    /// Axis positions at the end of segment `i` (clamped to the last segment).
+    pub fn segment_target(&self, i: usize) -> Axes {
+        self.segment_start((i + 1).min(self.segments.len()))
     }
 
     /// Axis motion per unit path of segment `i`, `u = Δq / length` (zero for a standstill).
@@ -207,11 +223,11 @@ impl Plan {
         let Some(seg) = self.segments.get(i) else {
             return [0.0; MAX_AXES];
         };
-        let q1 = self.segment_target(i);
+        let (q0, q1) = (self.segment_start(i), self.segment_target(i));
         let mut u = [0.0; MAX_AXES];
         if seg.length > 0.0 {
             for k in 0..MAX_AXES {
-                u[k] = (q1[k] - seg.q0[k]) / seg.length;
+                u[k] = (q1[k] - q0[k]) / seg.length;
             }
         }
         u
@@ -256,7 +272,7 @@ impl Plan {
         let motion = seg.motion_duration();
         let dwelling = seg.dwell > 0.0 && t_local >= motion;
         let (s, v, a, j) = seg.path_state(t_local);
-        let q1 = self.segment_target(i);
+        let (q0, q1) = (self.segment_start(i), self.segment_target(i));
         let mut out = Sample {
             t: seg.t_start + t_local,
             segment: i,
@@ -265,7 +281,7 @@ impl Plan {
             v,
             a,
             j,
-            pos: seg.q0,
+            pos: q0,
             vel: [0.0; MAX_AXES],
             acc: [0.0; MAX_AXES],
             jerk: [0.0; MAX_AXES],
@@ -275,12 +291,12 @@ impl Plan {
             // q(s) = q0 + (s / length)·Δq, exact at both ends of the move.
             let frac = s / seg.length;
             for k in 0..MAX_AXES {
-                let dq = q1[k] - seg.q0[k];
+                let dq = q1[k] - q0[k];
                 let u = dq / seg.length;
                 out.pos[k] = if s >= seg.length {
                     q1[k]
                 } else {
-                    seg.q0[k] + frac * dq
+                    q0[k] + frac * dq
                 };
                 out.vel[k] = u * v;
                 out.acc[k] = u * a;

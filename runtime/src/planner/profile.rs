@@ -56,7 +56,11 @@ fn ramp_distance_slope(v_lo: f64, dv: f64, a: f64, j: f64) -> (f64, f64) {
         return (0.0, slope);
     }
     let w = 2.0 * v_lo + dv;
-    if j != f64::INFINITY && dv < a * a / j {
+    if j == f64::INFINITY {
+        // The general branch with a/J = 0, without the division (x + 0 = x exactly).
+        let t = dv / a;
+        (0.5 * w * t, 0.5 * t + 0.5 * w / a)
+    } else if dv < a * a / j {
         // No constant-acceleration phase: D = w · √(dv/J).
         let y = (dv / j).sqrt();
         (w * y, y + w / (2.0 * j * y))
@@ -69,7 +73,8 @@ fn ramp_distance_slope(v_lo: f64, dv: f64, a: f64, j: f64) -> (f64, f64) {
 /// Highest speed reachable from `v0` over `len` with one ramp (the look-ahead relation).
 ///
 /// It is also the highest speed from which one can slow to `v0` over `len`, because ramps are
-/// symmetric. Solved in closed form, not with the trapezoid formula:
+/// symmetric. Trapezoid ramps (`J = ∞`): `v² = v0² + 2 a len`. Jerk-limited ramps are solved in
+/// closed form too, not with the trapezoid formula:
 /// * with `x = dv ≥ a²/J` the distance condition `(2 v0 + x)(x/a + a/J) = 2 len` is a quadratic
 ///   in `x`, solved in the cancellation-free form `x = 2|c| / (b + √(b² + 4|c|))`;
 /// * with `x < a²/J` and `y = √(x/J)` it is the cubic `J y³ + 2 v0 y = len`, solved with
@@ -78,6 +83,13 @@ fn ramp_distance_slope(v_lo: f64, dv: f64, a: f64, j: f64) -> (f64, f64) {
 pub(crate) fn reach(v0: f64, len: f64, a: f64, j: f64) -> f64 {
     if len.is_nan() || len <= 0.0 {
         return v0;
+    }
+    if j == f64::INFINITY {
+        // Trapezoid ramps: v² = v0² + 2 a len, a sum of positive terms (nothing cancels) and
+        // one square root, no division: the look-ahead passes run this once per move each, in
+        // a chain where every move waits for the next one's result.
+        let v = (v0 * v0 + 2.0 * a * len).sqrt();
+        return if v.is_finite() { v.max(v0) } else { v0 };
     }
     let threshold = a * a / j;
     // Distance of the ramp that just reaches `a` (2 t_j at mean speed v0 + a²/2J).
@@ -219,13 +231,24 @@ pub(crate) fn shape(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> Sh
 /// Peak speed of a move too short to cruise at `vmax`: the root of
 /// `F(vp) = D(v0 → vp) + D(v1 → vp) − len`, which increases with `vp`.
 ///
-/// Equal end speeds (every rest-to-rest move) have the closed form `vp = reach(v0, len/2)`,
+/// Trapezoids have the closed form `vp² = (2 a len + v0² + v1²) / 2`. Jerk-limited moves with
+/// equal end speeds (every rest-to-rest move) have the closed form `vp = reach(v0, len/2)`,
 /// which is what makes rest-to-rest moves time-optimal to rounding. Otherwise a safeguarded
 /// Newton iteration (Newton inside a shrinking bracket, bisection when Newton leaves it) finds
 /// the root; the trapezoid peak `√((2 a len + v0² + v1²)/2)` bounds it from above, since
 /// limiting jerk only lengthens ramps.
 fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
     let hi_v = v0.max(v1);
+    if j == f64::INFINITY {
+        // Trapezoid: (vp² − v0²)/2a + (vp² − v1²)/2a = len in closed form. Below hi_v the
+        // move is one ramp between its end speeds.
+        let vp = (0.5 * (2.0 * a * len + v0 * v0 + v1 * v1)).sqrt();
+        return if vp.is_finite() {
+            vp.clamp(hi_v, vmax)
+        } else {
+            hi_v
+        };
+    }
     let f = |vp: f64| {
         ramp_distance_slope(v0, vp - v0, a, j).0 + ramp_distance_slope(v1, vp - v1, a, j).0 - len
     };
@@ -257,6 +280,8 @@ fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
     }
     let tol = PEAK_REL_TOL * len;
     let mut x = up;
+    // F at the current x, when known (the loop usually stops right after evaluating it).
+    let mut fx_at_x = None;
     for _ in 0..100 {
         let (d0, s0) = ramp_distance_slope(v0, x - v0, a, j);
         let (d1, s1) = ramp_distance_slope(v1, x - v1, a, j);
@@ -267,6 +292,7 @@ fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
             up = x;
         }
         if fx.abs() <= tol || up - lo <= 1e-15 * up {
+            fx_at_x = Some(fx);
             break;
         }
         let newton = x - fx / (s0 + s1);
@@ -277,7 +303,11 @@ fn peak_speed(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> f64 {
         };
     }
     // Never return a peak whose ramps overrun the move.
-    if f(x) > tol { lo } else { x.clamp(hi_v, vmax) }
+    if fx_at_x.unwrap_or_else(|| f(x)) > tol {
+        lo
+    } else {
+        x.clamp(hi_v, vmax)
+    }
 }
 
 /// Exact state of a ramp from `v_lo` by `dv` at time `t` after its start: (s, v, a, j).
