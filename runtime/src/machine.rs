@@ -103,6 +103,19 @@ pub struct DialectPost {
     pub s_max: f64,
     /// Whether switching the laser on or off needs the machine at rest (seed 4: M27 does).
     pub laser_switch_stops: bool,
+    /// Pulses by distance, one per trigger edge: lines that raise the trigger at the start of
+    /// the next motion block, and lines that lower it (LinuxCNC `M62 P1` / `M63 P1`). Empty:
+    /// the beam's own on/off lines gate each pulse (GRBL: the S word of each block).
+    #[serde(default)]
+    pub pulse_on: Vec<String>,
+    #[serde(default)]
+    pub pulse_off: Vec<String>,
+    /// Position-synchronized output configured once (Aerotech PSO, grblHAL pulses per
+    /// distance): lines written when a lit section with pulses by distance starts, with
+    /// `{pitch}` (mm) and `{ppi}` (pulses per inch); the controller then fires while the beam
+    /// is on, and no per-pulse lines are written.
+    #[serde(default)]
+    pub pso: Vec<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -207,6 +220,12 @@ struct FilePost {
     s_max: f64,
     #[serde(default)]
     laser_switch_stops: bool,
+    #[serde(default)]
+    pulse_on: Vec<String>,
+    #[serde(default)]
+    pulse_off: Vec<String>,
+    #[serde(default)]
+    pso: Vec<String>,
 }
 
 fn default_s_max() -> f64 {
@@ -538,6 +557,9 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
                     power: p.power,
                     s_max: p.s_max,
                     laser_switch_stops: p.laser_switch_stops,
+                    pulse_on: p.pulse_on,
+                    pulse_off: p.pulse_off,
+                    pso: p.pso,
                 },
             )
         })

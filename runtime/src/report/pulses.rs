@@ -7,7 +7,7 @@ use super::{dwell_lit, segment_laser};
 use crate::kinematics::{self, Kinematics};
 use crate::motion::Job;
 use crate::planner::Segment;
-use crate::program::{P3, Pulse, PulseMode};
+use crate::program::{OpKind, P3, Pulse, PulseMode};
 
 /// One laser pulse.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -85,11 +85,15 @@ pub(super) fn sections(job: &Job) -> Vec<Section> {
 }
 
 /// The pulses of a job, in time order. Lazy: a texturing job's millions of pulses are never
-/// stored.
+/// stored (dot-mode windows, which need an op each, are).
 pub fn pulse_events(job: &Job) -> PulseEvents<'_> {
+    let kin = kinematics::for_machine(&job.program.machine);
     PulseEvents {
         job,
-        kin: kinematics::for_machine(&job.program.machine),
+        fires: fire_events(job, &*kin),
+        fire: 0,
+        pending: None,
+        kin,
         sections: sections(job),
         section: 0,
         k: 0,
@@ -97,10 +101,91 @@ pub fn pulse_events(job: &Job) -> PulseEvents<'_> {
     }
 }
 
+/// Writes every pulse of `job` as CSV, streamed: `t,px,py,pz,v,op` — job time (s), the spot
+/// (part coordinates, mm), the path speed when it fires (mm/s; 0 in a dot-mode window) and
+/// the op that fires it. Numbers with 9 decimals (1 nm, 1 ns), so tests can measure with them.
+pub fn write_pulses(job: &Job, out: &mut dyn std::io::Write) -> std::io::Result<()> {
+    out.write_all(b"t,px,py,pz,v,op\n")?;
+    for p in pulse_events(job) {
+        let v = if matches!(
+            job.program.ops.get(p.op as usize).map(|o| &o.kind),
+            Some(OpKind::Fire { .. })
+        ) {
+            0.0
+        } else {
+            job.plan.sample((p.t - job.initial_dwell_s).max(0.0)).v
+        };
+        writeln!(
+            out,
+            "{:.9},{:.9},{:.9},{:.9},{:.9},{}",
+            p.t, p.pos[0], p.pos[1], p.pos[2], v, p.op
+        )?;
+    }
+    Ok(())
+}
+
+/// Pulses of dot-mode fire windows (`OpKind::Fire`): the window opens when the motion before
+/// it has ended and the standstills between (dwells, events, earlier windows) have passed;
+/// pulse k fires `k · period_s` later, where the spot stands.
+pub(super) fn fire_events(job: &Job, kin: &dyn Kinematics) -> Vec<PulseEvent> {
+    let ops = &job.program.ops;
+    let segs = job.plan.segments();
+    let stand = |i: usize| match &ops[i].kind {
+        OpKind::Dwell { seconds } => *seconds,
+        OpKind::Fire { window_s, .. } => *window_s,
+        OpKind::Event { name } => job
+            .program
+            .machine
+            .events
+            .get(name)
+            .map_or(0.0, |e| e.dwell_s),
+        _ => 0.0,
+    };
+    let mut out = Vec::new();
+    for (i, op) in ops.iter().enumerate() {
+        let OpKind::Fire {
+            count, period_s, ..
+        } = &op.kind
+        else {
+            continue;
+        };
+        let j = segs.partition_point(|s| (s.tag as usize) < i);
+        let (t0, s, q, tag, after) = match j.checked_sub(1) {
+            Some(j) => {
+                let seg = &segs[j];
+                (
+                    job.initial_dwell_s + seg.t_start + seg.motion_duration(),
+                    seg.s_start + seg.length,
+                    job.plan.segment_target(j),
+                    seg.tag,
+                    seg.tag as usize + 1,
+                )
+            }
+            None => (0.0, 0.0, job.start, 0, 0),
+        };
+        let t0 = t0 + (after..i).map(stand).sum::<f64>();
+        let pos = job.spot(kin, &q, tag);
+        for k in 0..*count {
+            out.push(PulseEvent {
+                t: t0 + f64::from(k) * period_s,
+                s,
+                pos,
+                op: i as u32,
+            });
+        }
+    }
+    out
+}
+
 /// Iterator of [`pulse_events`].
 #[derive(Debug)]
 pub struct PulseEvents<'j> {
     job: &'j Job,
+    /// Dot-mode pulses, merged into the stream by time.
+    fires: Vec<PulseEvent>,
+    fire: usize,
+    /// The next pulse of the lit sections, taken but not yet returned.
+    pending: Option<PulseEvent>,
     kin: Box<dyn Kinematics>,
     sections: Vec<Section>,
     section: usize,
@@ -114,6 +199,29 @@ impl Iterator for PulseEvents<'_> {
     type Item = PulseEvent;
 
     fn next(&mut self) -> Option<PulseEvent> {
+        if self.pending.is_none() {
+            self.pending = self.next_in_section();
+        }
+        match (self.pending, self.fires.get(self.fire)) {
+            (Some(p), Some(f)) if f.t < p.t => {
+                self.fire += 1;
+                Some(*f)
+            }
+            (Some(p), _) => {
+                self.pending = None;
+                Some(p)
+            }
+            (None, Some(f)) => {
+                self.fire += 1;
+                Some(*f)
+            }
+            (None, None) => None,
+        }
+    }
+}
+
+impl PulseEvents<'_> {
+    fn next_in_section(&mut self) -> Option<PulseEvent> {
         loop {
             let sec = *self.sections.get(self.section)?;
             if self.k == 0 {
@@ -147,7 +255,7 @@ impl Iterator for PulseEvents<'_> {
                 }
             };
             let sample = self.job.plan.sample_segment(i, t_local);
-            let spot = self.kin.forward(&sample.pos).spot;
+            let spot = self.job.spot(&*self.kin, &sample.pos, sample.tag);
             return Some(PulseEvent {
                 t: self.job.initial_dwell_s + sample.t,
                 s: sample.s,

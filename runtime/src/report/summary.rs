@@ -43,6 +43,18 @@ pub struct AxisPeaks {
     pub j_max: Option<f64>,
 }
 
+/// Pulses of the dot-mode fire windows.
+fn fire_pulses(job: &Job) -> u64 {
+    job.program
+        .ops
+        .iter()
+        .map(|o| match o.kind {
+            crate::program::OpKind::Fire { count, .. } => u64::from(count),
+            _ => 0,
+        })
+        .sum()
+}
+
 /// Summarizes a planned job.
 ///
 /// Axis peaks: along a straight move `q(s) = q0 + u·s`, so every axis quantity is `|u_k|`
@@ -120,7 +132,7 @@ pub fn summarize(job: &Job) -> Summary {
         rapid_length_mm: round_sig(rapid),
         laser_on_length_mm: round_sig(lit_len),
         laser_on_time_s: round_sig(lit_time),
-        pulses: sections(job).iter().map(|s| s.count()).sum(),
+        pulses: sections(job).iter().map(|s| s.count()).sum::<u64>() + fire_pulses(job),
         blocks: job.moves.len(),
         ops: job.program.ops.len(),
         axes,

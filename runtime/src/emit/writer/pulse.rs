@@ -1,0 +1,322 @@
+//! Pulses in NC text: pulses by distance on the fly, a PSO header, and dot-mode fire windows.
+//!
+//! One model for every dialect: a pulse is a rising edge of the trigger (`pulse_on` lines of
+//! the post; the Q-switch card fires once per edge, as the paper's scale-fed card does).
+//!
+//! * On the fly, by distance (no `pso` in the post): a lit move is cut at every pulse position
+//!   (counted from the start of its lit section, as `report::pulse_events` counts them) into a
+//!   trigger-high block of half a pitch (at most the rest of the move) and a trigger-low block
+//!   to the next pulse. LinuxCNC's `M62`/`M63` are motion-synchronized: written on the block
+//!   they belong to, they switch exactly where that block starts, without stopping. GRBL has no
+//!   synchronized output: in laser mode the S word changes without a stop, so the high block is
+//!   written at the section's power and the low block at `S0`, and the high block is kept to
+//!   half the spot diameter (a dot, not a dash). A post without `pulse_on` lines gates each
+//!   pulse with the beam's own on/off lines.
+//! * With `pso` lines in the post the controller fires by distance itself: the lines are
+//!   written (with the pitch) when a section with a new pitch starts, and the lit moves are
+//!   written as plain blocks with the beam on.
+//! * Dot mode (`OpKind::Fire`): at rest, the beam on with the post's lines (LinuxCNC: the
+//!   immediate `M64`/`M68` instead of the synchronized `M62`/`M67`, which would wait for a
+//!   motion that never comes), then per pulse the trigger high for half the period and low for
+//!   the other half (`G4` dwells), then the beam off.
+//!
+//! A pulse that falls exactly on the end of a section's last lit move has no block left to
+//! start on; its edge is written a gate length earlier (scan rows end half a pitch past their
+//! last spot, so they never meet this case).
+
+use super::super::format::{self, LaserWords};
+use super::{Modal, Out, immediate, motion_line, sub_op};
+use crate::emit::Dialect;
+use crate::kinematics::Kinematics;
+use crate::machine::{DialectPost, Machine};
+use crate::program::{Op, OpKind, P3, Pulse, PulseMode};
+use std::io;
+
+/// The pulse train in progress, carried across the lit moves of one section.
+#[derive(Debug, Default)]
+pub(super) struct Train {
+    pulse: Option<Pulse>,
+    /// Index of the last op written with this train.
+    last_op: usize,
+    /// Distance from the current position to the next pulse, mm.
+    next_mm: f64,
+    /// The pitch the PSO lines last configured.
+    pso_pitch: Option<f64>,
+    /// The trigger is high (written high and not lowered yet).
+    trigger: bool,
+}
+
+fn distance_pitch(op: &Op) -> Option<(f64, &Pulse)> {
+    let pulse = op.laser()?.pulse.as_ref()?;
+    match pulse.mode {
+        PulseMode::Distance { pitch_mm } => Some((pitch_mm, pulse)),
+        PulseMode::Time { .. } => None,
+    }
+}
+
+impl Train {
+    /// The pitch when op `i` is to be written with a pulse per trigger edge; starts or
+    /// continues the train.
+    pub(super) fn gated(&mut self, ops: &[Op], i: usize, post: &DialectPost) -> Option<f64> {
+        if !post.pso.is_empty() {
+            return None;
+        }
+        let (pitch, pulse) = distance_pitch(&ops[i])?;
+        let continues = self.pulse.as_ref() == Some(pulse)
+            && self.last_op < i
+            && ops[self.last_op + 1..i]
+                .iter()
+                .all(|o| o.target().is_none());
+        if !continues {
+            self.pulse = Some(pulse.clone());
+            self.next_mm = 0.0;
+            self.trigger = false;
+        }
+        self.last_op = i;
+        Some(pitch)
+    }
+
+    /// Writes the PSO lines before a lit section whose pitch differs from the one configured.
+    pub(super) fn pso(
+        &mut self,
+        op: &Op,
+        beam_on: bool,
+        out: &mut Out<'_>,
+        post: &DialectPost,
+        tag: Option<u32>,
+    ) -> io::Result<()> {
+        if post.pso.is_empty() || beam_on {
+            return Ok(());
+        }
+        let Some((pitch, _)) = distance_pitch(op) else {
+            return Ok(());
+        };
+        if self.pso_pitch == Some(pitch) {
+            return Ok(());
+        }
+        for t in &post.pso {
+            out.put(&format::fill_pitch(t, pitch), tag)?;
+        }
+        self.pso_pitch = Some(pitch);
+        Ok(())
+    }
+}
+
+/// Length of motion op `op` from `from`, mm (part space).
+fn op_length(op: &Op, from: P3) -> f64 {
+    match &op.kind {
+        OpKind::Arc {
+            to, center, ccw, ..
+        } => {
+            let r = (from[0] - center[0]).hypot(from[1] - center[1]);
+            let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
+            let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
+            let sweep = crate::motion::arc_sweep(a0, a1, *ccw, from, *to);
+            let dz = to[2] - from[2];
+            (r * sweep).hypot(dz)
+        }
+        _ => crate::motion::dist(from, op.target().unwrap_or(from)),
+    }
+}
+
+/// What `write_gated` needs to know about the machine and the dialect.
+pub(super) struct Gate<'a> {
+    pub dialect: Dialect,
+    pub post: &'a DialectPost,
+    pub machine: &'a Machine,
+    pub kin: &'a dyn Kinematics,
+    pub arc_axes: Option<(usize, usize, Option<usize>)>,
+    pub words: &'a dyn Fn(f64) -> LaserWords,
+}
+
+/// Whether the lit section goes on after op `i` with the same pulses (the next op that moves
+/// is lit with the same pulse setting).
+fn continues(ops: &[Op], i: usize) -> bool {
+    let pulse = ops[i].laser().and_then(|l| l.pulse.as_ref());
+    ops[i + 1..]
+        .iter()
+        .find(|o| o.target().is_some())
+        .is_some_and(|o| o.laser().is_some() && o.laser().and_then(|l| l.pulse.as_ref()) == pulse)
+}
+
+/// Writes lit op `ops[i]` cut at its pulse positions (see the module header).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn write_gated(
+    ops: &[Op],
+    i: usize,
+    pitch: f64,
+    train: &mut Train,
+    out: &mut Out<'_>,
+    m: &mut Modal,
+    g: &Gate<'_>,
+    tag: Option<u32>,
+) -> io::Result<()> {
+    let op = &ops[i];
+    let from = m.pos;
+    let from_orient = m.orient;
+    let len = op_length(op, from);
+    let laser = op.laser();
+    let power = laser.map_or(0.0, |l| l.power_w);
+    let gate = match g.dialect {
+        Dialect::Grbl => (0.5 * pitch).min(0.5 * laser.map_or(pitch, |l| l.spot_mm)),
+        _ => 0.5 * pitch,
+    };
+    let goes_on = continues(ops, i);
+    let eps = 1e-9;
+    // Pieces as (distance along the op at their end, trigger high); pulse k of this op at
+    // `first + k·pitch`, from the section's count, never accumulated.
+    let first = train.next_mm;
+    let mut cuts: Vec<(f64, bool)> = Vec::new();
+    let mut pos = 0.0;
+    let mut k = 0u64;
+    let at = |k: u64| first + k as f64 * pitch;
+    while at(k) < len - eps {
+        let s = at(k);
+        if s > pos + eps {
+            cuts.push((s, false));
+        }
+        let hi_end = (s + gate).min(len);
+        cuts.push((hi_end, true));
+        pos = hi_end;
+        k += 1;
+    }
+    if at(k) <= len + eps && !goes_on {
+        // A pulse on the very end of the section (see the module header).
+        let start = (len - gate).max(pos);
+        if start > pos + eps {
+            cuts.push((start, false));
+        }
+        if len > start + eps {
+            cuts.push((len, true));
+            pos = len;
+        }
+        k += 1;
+    }
+    if pos < len - eps {
+        cuts.push((len, false));
+    }
+    train.next_mm = (at(k) - len).max(0.0);
+    let mut trigger = train.trigger;
+    for (s, high) in cuts {
+        let f = if len > 0.0 { s / len } else { 1.0 };
+        let sub = sub_op(op, from, from_orient, f);
+        let line = motion_line(&sub, m, g.kin, g.machine, g.arc_axes);
+        if high != trigger {
+            write_edge(out, g, high, power, line, tag)?;
+            trigger = high;
+        } else {
+            out.put(&line, tag)?;
+        }
+        out.stats.motion_blocks += 1;
+    }
+    if trigger && !goes_on {
+        // Lowered with the next motion, the section's end (GRBL: the beam-off line does it).
+        if g.dialect != Dialect::Grbl {
+            let w = (g.words)(0.0);
+            for t in &g.post.pulse_off {
+                out.put(&format::fill(t, w), tag)?;
+            }
+        }
+        trigger = false;
+    }
+    train.trigger = trigger;
+    Ok(())
+}
+
+/// A motion block with the trigger switched at its start.
+fn write_edge(
+    out: &mut Out<'_>,
+    g: &Gate<'_>,
+    high: bool,
+    power_w: f64,
+    line: String,
+    tag: Option<u32>,
+) -> io::Result<()> {
+    if g.dialect == Dialect::Grbl {
+        let w = (g.words)(if high { power_w } else { 0.0 });
+        let s = format::number(w.power_w / w.max_power_w * w.s_max);
+        return out.put(&format!("{line} S{s}"), tag);
+    }
+    let (lines, fallback) = if high {
+        (&g.post.pulse_on, &g.post.laser_on)
+    } else {
+        (&g.post.pulse_off, &g.post.laser_off)
+    };
+    let w = (g.words)(power_w);
+    match (lines.len(), lines.is_empty()) {
+        (1, _) => {
+            let head = format::fill(&lines[0], w);
+            let mut text = String::with_capacity(head.len() + 1 + line.len());
+            text.push_str(&head);
+            text.push(' ');
+            text.push_str(&line);
+            out.put(&text, tag)
+        }
+        (_, false) => {
+            for t in lines {
+                out.put(&format::fill(t, w), tag)?;
+            }
+            out.put(&line, tag)
+        }
+        (_, true) => {
+            for t in fallback {
+                out.put(&format::fill(t, w), tag)?;
+            }
+            out.put(&line, tag)
+        }
+    }
+}
+
+/// Writes a dot-mode fire window at rest.
+pub(super) fn write_fire(
+    op: &Op,
+    out: &mut Out<'_>,
+    g: &Gate<'_>,
+    tag: Option<u32>,
+) -> io::Result<()> {
+    let OpKind::Fire {
+        count,
+        period_s,
+        laser,
+        ..
+    } = &op.kind
+    else {
+        return Ok(());
+    };
+    let w = (g.words)(laser.power_w);
+    let at_rest = |line: String| {
+        if g.dialect == Dialect::LinuxCnc {
+            immediate(&line).replace("M67", "M68").replace("m67", "m68")
+        } else {
+            line
+        }
+    };
+    let half = super::dwell(g.dialect, 0.5 * period_s);
+    let triggered = !g.post.pulse_on.is_empty() && g.dialect != Dialect::Grbl;
+    if triggered {
+        for t in &g.post.laser_on {
+            out.put(&at_rest(format::fill(t, w)), tag)?;
+        }
+    }
+    for _ in 0..*count {
+        let (on, off) = if triggered {
+            (&g.post.pulse_on, &g.post.pulse_off)
+        } else {
+            (&g.post.laser_on, &g.post.laser_off)
+        };
+        for t in on {
+            out.put(&at_rest(format::fill(t, w)), tag)?;
+        }
+        out.put(&half, tag)?;
+        for t in off {
+            out.put(&at_rest(format::fill(t, (g.words)(0.0))), tag)?;
+        }
+        out.put(&half, tag)?;
+    }
+    if triggered {
+        for t in &g.post.laser_off {
+            out.put(&at_rest(format::fill(t, (g.words)(0.0))), tag)?;
+        }
+    }
+    Ok(())
+}
