@@ -443,15 +443,16 @@ fn run_check(
     }
 }
 
-/// The progress bar: lines acknowledged, percent, elapsed and the ETA from the plan.
-struct Display {
+/// The progress bar: lines acknowledged, percent, elapsed and the ETA from the plan. The REPL's
+/// `:run` shows the same one.
+pub(crate) struct Display {
     bar: Option<indicatif::ProgressBar>,
     eta: lase_runtime::link::eta::Eta,
     last_msg: Instant,
 }
 
 impl Display {
-    fn new(total: usize, from: usize, eta: lase_runtime::link::eta::Eta) -> Display {
+    pub(crate) fn new(total: usize, from: usize, eta: lase_runtime::link::eta::Eta) -> Display {
         let bar = std::io::stderr().is_terminal().then(|| {
             let b = indicatif::ProgressBar::new(total as u64);
             let style = indicatif::ProgressStyle::with_template(
@@ -473,7 +474,15 @@ impl Display {
         }
     }
 
-    fn update(&mut self, p: &Progress, e: Option<&Event>) {
+    /// A message above the bar (on stderr), or plain on stderr without one.
+    pub(crate) fn println(&self, msg: &str) {
+        match &self.bar {
+            Some(b) => b.println(msg),
+            None => eprintln!("{msg}"),
+        }
+    }
+
+    pub(crate) fn update(&mut self, p: &Progress, e: Option<&Event>) {
         let Some(bar) = &self.bar else {
             return;
         };
@@ -499,7 +508,7 @@ impl Display {
         ));
     }
 
-    fn finish(&self) {
+    pub(crate) fn finish(&self) {
         if let Some(b) = &self.bar {
             b.finish_and_clear();
         }

@@ -1,5 +1,7 @@
 //! The REPL driven through piped input: a scripted session (with an error in the middle that
-//! the session survives) whose whole output is a golden file.
+//! the session survives, overrides, a process run by name, jogging and status on the built-in
+//! simulator) whose whole output is a golden file. The pseudo-terminal tests are in
+//! `repl_pty.rs`.
 
 mod common;
 
@@ -55,6 +57,18 @@ fn scripted_session_matches_its_golden() {
     assert!((reported - lit).abs() < 1e-3 * lit, "{reported} vs {lit}");
     // After :run the session's motion was sent and cleared.
     assert!(out.contains("0 ops"), "{out}");
+    assert!(out.contains("repl: done"), "{out}");
+    // The power override changes what is emitted and run: 20 W is S200, 30 W is S300 on
+    // the xy_table (S 1000 = 100 W).
+    let after = out.split("power 30 W for the next runs").nth(1).unwrap();
+    assert!(
+        after.contains("M3 S300") && !after.contains("S200"),
+        "{after}"
+    );
+    assert!(out.contains("pass: done"), "{out}");
+    // An override the laser cannot give is refused.
+    assert!(err.contains("above the 100 W"), "{err}");
+    assert!(err.contains("unknown command `:frobnicate`"), "{err}");
     golden(
         &root().join("tests/repl/session.out"),
         &format!("--- stdout\n{out}--- stderr\n{err}"),

@@ -1,0 +1,838 @@
+//! The REPL's `:commands`: one table (name, arguments, what it does) that `:help`, completion
+//! and hints read, and the handlers.
+
+use super::machine::{Ran, Stream, Trouble};
+use super::{Amount, Session};
+use crate::driver::{self, Failure};
+use lase_lang::units::{self, Dim};
+use lase_lang::{SourceMap, Span};
+use lase_runtime::emit::{Dialect, NcLine};
+use lase_runtime::link::LinkUrl;
+use lase_runtime::motion::Job;
+use lase_runtime::program::{OpKind, ProcessProgram};
+use std::io::Write;
+use std::path::Path;
+
+#[derive(Debug)]
+pub struct Command {
+    pub name: &'static str,
+    pub args: &'static str,
+    pub help: &'static str,
+}
+
+const fn cmd(name: &'static str, args: &'static str, help: &'static str) -> Command {
+    Command { name, args, help }
+}
+
+pub const COMMANDS: &[Command] = &[
+    cmd(":load", "FILE", "evaluate a recipe into the session"),
+    cmd(
+        ":check",
+        "[FILE]",
+        "check and plan what would run now (or a recipe file), run nothing",
+    ),
+    cmd(
+        ":plan",
+        "",
+        "plan what would run now: ops, cycle time, path and lit length",
+    ),
+    cmd(
+        ":plot",
+        "[FILE.svg]",
+        "draw what would run now (default lase-repl.svg)",
+    ),
+    cmd(
+        ":emit",
+        "[--dialect D] [FILE]",
+        "the NC program of what would run now (linuxcnc, grbl, iso)",
+    ),
+    cmd(
+        ":connect",
+        "[URL]",
+        "use a controller: sim (default), tcp://HOST:PORT, serial:///dev/ttyUSB0?baud=115200",
+    ),
+    cmd(
+        ":status",
+        "",
+        "the controller's live state: position, laser, overrides",
+    ),
+    cmd(
+        ":jog",
+        "AXIS DIST [at SPEED]",
+        "jog one axis by a distance (`:jog x 10 mm`), laser off; Ctrl-C cancels",
+    ),
+    cmd(":home", "", "run the controller's homing cycle"),
+    cmd(
+        ":run",
+        "[NAME | FILE]",
+        "stream what the session produced since the last run, a process `fn NAME()`, or a recipe file",
+    ),
+    cmd(":hold", "", "feed hold now (the laser goes off while held)"),
+    cmd(":resume", "", "resume after a hold"),
+    cmd(
+        ":abort",
+        "",
+        "stop: feed hold, then soft reset (buffers emptied, laser off)",
+    ),
+    cmd(
+        ":set",
+        "[power P | speed S] [off]",
+        "overrides for the next runs: `:set power 1.1 kW`, `:set power 80%`, `:set speed 50%`; `:set power off` clears",
+    ),
+    cmd(
+        ":clear",
+        "",
+        "drop what the session produced since the last run, keeping its names",
+    ),
+    cmd(":names", "", "the names bound in the session"),
+    cmd(
+        ":help",
+        "[TOPIC]",
+        "this list, or the language reference: functions, profiles, settings, units, offset, laser, ...",
+    ),
+    cmd(
+        ":quit",
+        "",
+        "leave (also Ctrl-D); waits while the controller moves",
+    ),
+];
+
+fn find(name: &str) -> Option<&'static Command> {
+    let aliases = [
+        (":q", ":quit"),
+        (":exit", ":quit"),
+        (":h", ":help"),
+        (":?", ":help"),
+    ];
+    let name = aliases
+        .iter()
+        .find(|(a, _)| *a == name)
+        .map_or(name, |(_, n)| n);
+    COMMANDS.iter().find(|c| c.name == name)
+}
+
+fn commands_help() -> String {
+    let mut out = String::from(
+        "Type statements (`machine`, `let`, `laser`, `follow`, ...) or an expression to see its value.\n\
+         Motion accumulates in the session until `:run` streams it (checked and planned first).\n\
+         Commands:\n",
+    );
+    for c in COMMANDS {
+        let head = format!("{} {}", c.name, c.args);
+        out.push_str(&format!("  {head:<28} {}\n", c.help));
+    }
+    out.push_str(
+        "During a run: Ctrl-C = feed hold (laser off) and a question; h = hold, r = resume, a = abort.\n\
+         `:help TOPIC` shows the language reference (`:help functions`, `:help offset`, `:help units`).",
+    );
+    out
+}
+
+/// A quantity typed after a command: `1.1 kW`, `1.1kW`, `-5 mm`, `80%`. A bare number is
+/// `Err` unless `bare` gives its unit's dimension and the caller accepts it.
+enum Typed {
+    Quantity(f64, Dim),
+    Percent(f64),
+    Bare(f64),
+}
+
+fn parse_typed(text: &str) -> Result<Typed, String> {
+    let t = text.trim();
+    if let Some(p) = t.strip_suffix('%') {
+        return p
+            .trim()
+            .parse::<f64>()
+            .map(|v| Typed::Percent(v / 100.0))
+            .map_err(|_| format!("`{t}` is not a percentage"));
+    }
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+' || c == 'e'))
+        .unwrap_or(t.len());
+    let (n, u) = t.split_at(split);
+    let v: f64 = n
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{t}` is not a number with a unit (e.g. 1.1 kW)"))?;
+    if !v.is_finite() {
+        return Err(format!("`{t}` is not a finite number"));
+    }
+    let u = u.trim();
+    if u.is_empty() {
+        return Ok(Typed::Bare(v));
+    }
+    match units::parse_unit(u) {
+        Ok(unit) => Ok(Typed::Quantity(v * unit.factor, unit.dim)),
+        Err(e) => Err(format!(
+            "unknown unit `{}`{}",
+            e.atom,
+            e.suggestion
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default()
+        )),
+    }
+}
+
+impl Session {
+    /// Runs a `:command`; `false` asks to leave.
+    pub(super) fn command(&mut self, line: &str) -> bool {
+        let (name, rest) = line
+            .split_once(char::is_whitespace)
+            .map_or((line, ""), |(n, r)| (n, r.trim()));
+        let Some(c) = find(name) else {
+            let names = COMMANDS.iter().map(|c| c.name);
+            let hint = units::suggest(name, names)
+                .map(|s| format!(" (did you mean `{s}`?)"))
+                .unwrap_or_default();
+            self.say_error(&format!(
+                "unknown command `{name}`{hint}; `:help` lists them"
+            ));
+            return true;
+        };
+        let arg = (!rest.is_empty()).then_some(rest);
+        match c.name {
+            ":quit" => return false,
+            ":help" => self.help(arg),
+            ":names" => println!("{}", self.names.borrow().join(" ")),
+            ":load" => self.load(arg),
+            ":check" => self.check(arg),
+            ":plan" => self.plan(),
+            ":plot" => self.plot(arg),
+            ":emit" => self.emit(rest),
+            ":connect" => self.connect(arg),
+            ":status" => {
+                let r = self.station.status(self.eval.machine());
+                self.show(r);
+            }
+            ":jog" => self.jog(rest),
+            ":home" => {
+                let r = self.station.home(self.eval.machine());
+                self.show(r);
+            }
+            ":hold" => {
+                let r = self.station.hold(self.eval.machine());
+                self.show(r);
+            }
+            ":resume" => {
+                let r = self.station.resume(self.eval.machine());
+                self.show(r);
+            }
+            ":abort" => {
+                let r = self.station.abort(self.eval.machine());
+                self.show(r);
+            }
+            ":run" => self.run(arg),
+            ":set" => self.set(rest),
+            ":clear" => {
+                let n = self.eval.ops().len();
+                let _ = self.eval.take_program("repl", Span::default());
+                println!("dropped {n} ops");
+            }
+            _ => {}
+        }
+        true
+    }
+
+    fn show(&self, r: Result<String, Trouble>) {
+        match r {
+            Ok(msg) => println!("{msg}"),
+            Err(Trouble::Say(m)) => self.say_error(&m),
+            Err(Trouble::Diag(f)) => self.report(&f),
+        }
+    }
+
+    fn help(&self, topic: Option<&str>) {
+        match topic {
+            None | Some("commands") => println!("{}", commands_help()),
+            Some(t) if t.starts_with(':') => match find(t) {
+                Some(c) => println!("{} {}\n  {}", c.name, c.args, c.help),
+                None => self.say_error(&format!("no command `{t}`")),
+            },
+            // The same text as `lase doc TOPIC`.
+            Some(t) => match crate::doc::lookup(Some(t)) {
+                Some(text) => print!("{text}"),
+                None => self.say_error(&format!(
+                    "no help on `{t}`{}; `:help` lists the topics",
+                    crate::doc::suggest(t)
+                        .map(|s| format!(" (did you mean `{s}`?)"))
+                        .unwrap_or_default()
+                )),
+            },
+        }
+    }
+
+    fn load(&mut self, arg: Option<&str>) {
+        let Some(path) = arg else {
+            self.say_error("usage: :load FILE");
+            return;
+        };
+        match std::fs::read_to_string(path) {
+            Ok(text) => {
+                let before = self.eval.ops().len();
+                if self.input(&text, path) {
+                    self.loaded = Some(path.into());
+                    println!(
+                        "loaded {path}: {} ops to run",
+                        self.eval.ops().len().saturating_sub(before)
+                    );
+                }
+            }
+            Err(e) => self.say_error(&format!("cannot read {path}: {e}")),
+        }
+    }
+
+    /// The pending program with the overrides applied, planned.
+    fn job(&self) -> Option<Job> {
+        let mut program = match self.pending() {
+            Ok(p) => p,
+            Err(f) => {
+                self.report(&f);
+                return None;
+            }
+        };
+        if let Err(m) = self.apply_overrides(&mut program) {
+            self.say_error(&m);
+            return None;
+        }
+        match driver::plan(program) {
+            Ok(j) => Some(j),
+            Err(f) => {
+                self.report(&f);
+                None
+            }
+        }
+    }
+
+    fn apply_overrides(&self, program: &mut ProcessProgram) -> Result<(), String> {
+        let max = program.machine.laser.max_power_w;
+        for op in &mut program.ops {
+            let (feed, laser) = match &mut op.kind {
+                OpKind::Line {
+                    feed_mm_s, laser, ..
+                }
+                | OpKind::Arc {
+                    feed_mm_s, laser, ..
+                } => (feed_mm_s, laser),
+                _ => continue,
+            };
+            match self.overrides.speed {
+                Some(Amount::Value(v)) => *feed = v,
+                Some(Amount::Factor(k)) => *feed *= k,
+                None => {}
+            }
+            if let Some(l) = laser {
+                match self.overrides.power {
+                    Some(Amount::Value(v)) => l.power_w = v,
+                    Some(Amount::Factor(k)) => l.power_w *= k,
+                    None => {}
+                }
+                if l.power_w > max * (1.0 + 1e-9) {
+                    return Err(format!(
+                        "the power override gives {}, above the {} this machine's laser can give; `:set power` lower",
+                        units::format_quantity(l.power_w, Dim::POWER),
+                        units::format_quantity(max, Dim::POWER)
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn overrides_note(&self) -> String {
+        let fmt = |a: Amount, dim: Dim| match a {
+            Amount::Value(v) => units::format_quantity(v, dim),
+            Amount::Factor(k) => format!("{}%", units::format_number(k * 100.0)),
+        };
+        let mut v = Vec::new();
+        if let Some(p) = self.overrides.power {
+            v.push(format!("power {}", fmt(p, Dim::POWER)));
+        }
+        if let Some(s) = self.overrides.speed {
+            v.push(format!("speed {}", fmt(s, Dim::SPEED)));
+        }
+        if v.is_empty() {
+            String::new()
+        } else {
+            format!("overrides: {}", v.join(", "))
+        }
+    }
+
+    fn summary_line(&self, job: &Job) -> String {
+        let s = lase_runtime::report::summarize(job);
+        let mut line = format!(
+            "{} ops, cycle time {:.4} s, path {:.4} mm, laser on {:.4} mm",
+            job.program.ops.len(),
+            s.cycle_time_s,
+            s.path_length_mm,
+            s.laser_on_length_mm
+        );
+        let note = self.overrides_note();
+        if !note.is_empty() {
+            line.push_str(&format!(" ({note})"));
+        }
+        line
+    }
+
+    fn plan(&self) {
+        if self.eval.machine().is_none() && self.eval.ops().is_empty() {
+            println!("nothing to plan yet: say which machine (`machine xy_table`) and what to do");
+            return;
+        }
+        if let Some(job) = self.job() {
+            println!("{}", self.summary_line(&job));
+        }
+    }
+
+    fn check(&self, arg: Option<&str>) {
+        if let Some(file) = arg {
+            match driver::compile(Path::new(file)) {
+                Ok((recipe, job)) => {
+                    let s = lase_runtime::report::summarize(&job);
+                    println!(
+                        "{}: ok — {} ops on `{}`, cycle time {:.3} s",
+                        recipe.name(),
+                        job.program.ops.len(),
+                        job.program.machine.name,
+                        s.cycle_time_s
+                    );
+                }
+                Err((map, f)) => self.report_in(&map, &f),
+            }
+            return;
+        }
+        if self.eval.ops().is_empty() {
+            println!("ok — nothing to run yet");
+            return;
+        }
+        if let Some(job) = self.job()
+            && let Some(nc) = self.nc_lines(&job, Dialect::Grbl)
+        {
+            println!("ok — {}, {} grbl lines", self.summary_line(&job), nc.len());
+        }
+    }
+
+    fn plot(&self, arg: Option<&str>) {
+        let Some(job) = self.job() else { return };
+        let path = arg.unwrap_or("lase-repl.svg");
+        let svg = match lase_runtime::report::plot_svg(&job) {
+            Ok(s) => s,
+            Err(e) => {
+                self.say_error(&format!("cannot draw the plot: {e}"));
+                return;
+            }
+        };
+        match crate::output::write_atomic(Path::new(path), |w| {
+            w.write_all(svg.as_bytes()).map_err(|e| {
+                (
+                    SourceMap::new(),
+                    Failure::one(driver::IoError {
+                        message: e.to_string(),
+                    }),
+                )
+            })
+        }) {
+            Ok(()) => println!("wrote {path}"),
+            Err((map, f)) => self.report_in(&map, &f),
+        }
+    }
+
+    /// `file:line` of a span for NC comments: the file's name, or `repl:N` for input N.
+    fn locate(map: &SourceMap, span: Span) -> String {
+        match map.locate(span) {
+            Some((f, lc)) => {
+                let name = map.name(f);
+                let name = Path::new(name.trim_matches(|c| c == '<' || c == '>'))
+                    .file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default();
+                format!("{name}:{}", lc.line)
+            }
+            None => String::new(),
+        }
+    }
+
+    fn nc_lines_in(&self, map: &SourceMap, job: &Job, dialect: Dialect) -> Option<Vec<NcLine>> {
+        let locate = |s: Span| Self::locate(map, s);
+        let mut lines = Vec::new();
+        let r = lase_runtime::emit::emit(
+            job,
+            dialect,
+            &crate::emit_options(&locate),
+            &mut |l: &NcLine| {
+                lines.push(l.clone());
+                Ok(())
+            },
+        );
+        match r {
+            Ok(stats) => {
+                for w in &stats.warnings {
+                    eprintln!("warning: {w}");
+                }
+                Some(lines)
+            }
+            Err(e) => {
+                self.report_in(map, &Failure::one(e));
+                None
+            }
+        }
+    }
+
+    fn nc_lines(&self, job: &Job, dialect: Dialect) -> Option<Vec<NcLine>> {
+        self.nc_lines_in(&self.map, job, dialect)
+    }
+
+    fn emit(&self, rest: &str) {
+        let mut dialect = Dialect::LinuxCnc;
+        let mut file = None;
+        let mut words = rest.split_whitespace();
+        while let Some(w) = words.next() {
+            let d = if w == "--dialect" || w == "-d" {
+                match words.next() {
+                    Some(d) => d,
+                    None => {
+                        self.say_error("usage: :emit [--dialect linuxcnc|grbl|iso] [FILE]");
+                        return;
+                    }
+                }
+            } else if let Some(d) = w.strip_prefix("--dialect=") {
+                d
+            } else if w.parse::<Dialect>().is_ok() {
+                w
+            } else {
+                file = Some(w);
+                continue;
+            };
+            match d.parse::<Dialect>() {
+                Ok(d) => dialect = d,
+                Err(_) => {
+                    self.say_error(&format!(
+                        "unknown dialect `{d}`: choose linuxcnc, grbl or iso"
+                    ));
+                    return;
+                }
+            }
+        }
+        let Some(job) = self.job() else { return };
+        let Some(lines) = self.nc_lines(&job, dialect) else {
+            return;
+        };
+        match file {
+            None => {
+                let stdout = std::io::stdout();
+                let mut w = stdout.lock();
+                for l in &lines {
+                    let _ = writeln!(w, "{}", l.text);
+                }
+            }
+            Some(path) => {
+                let r = crate::output::write_atomic(Path::new(path), |w| {
+                    for l in &lines {
+                        writeln!(w, "{}", l.text).map_err(|e| {
+                            (
+                                SourceMap::new(),
+                                Failure::one(driver::IoError {
+                                    message: e.to_string(),
+                                }),
+                            )
+                        })?;
+                    }
+                    Ok(())
+                });
+                match r {
+                    Ok(()) => println!("wrote {path} ({} lines, {dialect})", lines.len()),
+                    Err((map, f)) => self.report_in(&map, &f),
+                }
+            }
+        }
+    }
+
+    fn connect(&mut self, arg: Option<&str>) {
+        let previous = self.station.url().clone();
+        if let Some(u) = arg {
+            match LinkUrl::parse(u) {
+                Ok(url) => self.station.set_url(url),
+                Err(e) => {
+                    self.report(&Failure::one(e));
+                    return;
+                }
+            }
+        }
+        let r = self.station.connect(self.eval.machine());
+        match r {
+            Ok(d) => println!("connected: {d}"),
+            Err(t) => {
+                self.show(Err(t));
+                // A link that does not answer is not the one to use next.
+                if arg.is_some() {
+                    self.station.set_url(previous);
+                    eprintln!("still using {}", self.station.url());
+                }
+            }
+        }
+    }
+
+    fn jog(&mut self, rest: &str) {
+        let usage =
+            "usage: :jog AXIS DIST [at SPEED], e.g. `:jog x 10 mm` or `:jog y -0.5 mm at 5 mm/s`";
+        let (main, speed) = match rest.split_once(" at ") {
+            Some((m, s)) => (m.trim(), Some(s.trim())),
+            None => (rest.trim(), None),
+        };
+        let Some((axis, dist)) = main.split_once(char::is_whitespace) else {
+            self.say_error(usage);
+            return;
+        };
+        let axis = axis.trim().to_ascii_lowercase();
+        let letter = match axis.as_str() {
+            "x" | "y" | "z" => axis.chars().next().unwrap_or('x'),
+            _ => {
+                self.say_error(&format!("`{axis}`: jog x, y or z"));
+                return;
+            }
+        };
+        let machine = self.eval.machine();
+        let axis_spec =
+            machine.and_then(|m| m.axes.iter().find(|a| a.name.eq_ignore_ascii_case(&axis)));
+        if let Some(m) = machine
+            && axis_spec.is_none()
+        {
+            self.say_error(&format!("machine `{}` has no axis {axis}", m.name));
+            return;
+        }
+        let dist_mm = match parse_typed(dist) {
+            Ok(Typed::Quantity(v, d)) if d == Dim::LENGTH => v,
+            Ok(Typed::Bare(v)) if v == 0.0 => v,
+            Ok(Typed::Bare(_)) => {
+                self.say_error(&format!(
+                    "give the distance with a unit: `:jog {axis} {} mm`",
+                    dist.trim()
+                ));
+                return;
+            }
+            Ok(_) => {
+                self.say_error("the distance is a length (mm, um, in, ...)");
+                return;
+            }
+            Err(e) => {
+                self.say_error(&e);
+                return;
+            }
+        };
+        let v_max = axis_spec.map_or(f64::INFINITY, |a| a.v_max);
+        let feed_mm_s = match speed.map(parse_typed) {
+            None => v_max.min(20.0),
+            Some(Ok(Typed::Quantity(v, d))) if d == Dim::SPEED && v > 0.0 => {
+                if v > v_max {
+                    self.say_error(&format!(
+                        "{} is above axis {axis}'s {}",
+                        units::format_quantity(v, Dim::SPEED),
+                        units::format_quantity(v_max, Dim::SPEED)
+                    ));
+                    return;
+                }
+                v
+            }
+            Some(Ok(_)) => {
+                self.say_error("the jog speed is a positive speed (mm/s, mm/min, ...)");
+                return;
+            }
+            Some(Err(e)) => {
+                self.say_error(&e);
+                return;
+            }
+        };
+        let r = self
+            .station
+            .jog(self.eval.machine(), letter, dist_mm, feed_mm_s * 60.0);
+        self.show(r);
+    }
+
+    fn set(&mut self, rest: &str) {
+        let mut words = rest.splitn(2, char::is_whitespace);
+        let key = words.next().unwrap_or("").trim();
+        let value = words.next().unwrap_or("").trim();
+        if key.is_empty() {
+            let note = self.overrides_note();
+            println!(
+                "{}",
+                if note.is_empty() {
+                    "no overrides".into()
+                } else {
+                    note
+                }
+            );
+            return;
+        }
+        let (slot, dim) = match key {
+            "power" => (&mut self.overrides.power, Dim::POWER),
+            "speed" | "feed" => (&mut self.overrides.speed, Dim::SPEED),
+            other => {
+                self.say_error(&format!(
+                    "`:set {other}`: overrides are `power` and `speed`"
+                ));
+                return;
+            }
+        };
+        if matches!(value, "off" | "-" | "none" | "clear" | "100%") {
+            *slot = None;
+            println!("{key}: as programmed");
+            return;
+        }
+        let amount = match parse_typed(value) {
+            Ok(Typed::Quantity(v, d)) if d == dim && v > 0.0 => Amount::Value(v),
+            Ok(Typed::Percent(k)) if k > 0.0 => Amount::Factor(k),
+            Ok(_) => {
+                let what = if dim == Dim::POWER {
+                    "a power (W, kW)"
+                } else {
+                    "a speed (mm/s, m/min)"
+                };
+                self.say_error(&format!(
+                    "`:set {key}` takes {what} or a percentage, e.g. 80%"
+                ));
+                return;
+            }
+            Err(e) => {
+                self.say_error(&e);
+                return;
+            }
+        };
+        if let (Amount::Value(v), Some(m)) = (amount, self.eval.machine())
+            && dim == Dim::POWER
+            && v > m.laser.max_power_w
+        {
+            self.say_error(&format!(
+                "{} is above the {} the laser of `{}` can give",
+                units::format_quantity(v, Dim::POWER),
+                units::format_quantity(m.laser.max_power_w, Dim::POWER),
+                m.name
+            ));
+            return;
+        }
+        *slot = Some(amount);
+        println!("{} for the next runs", self.overrides_note());
+    }
+
+    /// `:run`, `:run NAME`, `:run FILE`.
+    fn run(&mut self, arg: Option<&str>) {
+        match arg {
+            Some(a) if a.ends_with(".lase") || Path::new(a).is_file() => {
+                self.run_file(Path::new(a))
+            }
+            Some(name) => {
+                if !self.eval.ops().is_empty() {
+                    self.say_error(&format!(
+                        "the session has {} ops that have not run: `:run` them first, or `:clear`",
+                        self.eval.ops().len()
+                    ));
+                    return;
+                }
+                if !self.names.borrow().iter().any(|n| n == name) {
+                    self.say_error(&format!(
+                        "no process `{name}`: define one with `fn {name}() {{ ... }}`"
+                    ));
+                    return;
+                }
+                if !self.input(&format!("{name}()\n"), &format!("<run {name}>")) {
+                    let _ = self.eval.take_program("repl", Span::default());
+                    return;
+                }
+                let ran = self.run_pending(name);
+                // The process's moves are not the operator's to keep: drop them if they
+                // never ran.
+                if ran == Ran::NotStarted {
+                    let _ = self.eval.take_program("repl", Span::default());
+                }
+            }
+            None => {
+                if self.eval.ops().is_empty() {
+                    self.say_error(
+                        "nothing to run: type motion statements (`follow`, `move`), `:load FILE`, or `:run NAME` for a process `fn NAME()`",
+                    );
+                    return;
+                }
+                self.run_pending("repl");
+            }
+        }
+    }
+
+    /// Streams the session's pending ops; they are consumed once lines went out.
+    fn run_pending(&mut self, name: &str) -> Ran {
+        let Some(job) = self.job() else {
+            return Ran::NotStarted;
+        };
+        let Some(nc) = self.nc_lines(&job, Dialect::Grbl) else {
+            return Ran::NotStarted;
+        };
+        let map = self.map.clone();
+        let ran = self.stream(&map, &job, &nc, name);
+        if ran == Ran::Started {
+            let _ = self.eval.take_program("repl", Span::default());
+        }
+        ran
+    }
+
+    fn run_file(&mut self, path: &Path) {
+        let mut recipe = match driver::load(path) {
+            Ok(r) => r,
+            Err((map, f)) => return self.report_in(&map, &f),
+        };
+        if let Err(f) = driver::check(&recipe) {
+            return self.report_in(&recipe.map, &f);
+        }
+        let mut program = match driver::evaluate(&mut recipe) {
+            Ok(p) => p,
+            Err(f) => return self.report_in(&recipe.map, &f),
+        };
+        if let Err(m) = self.apply_overrides(&mut program) {
+            return self.say_error(&m);
+        }
+        let job = match driver::plan(program) {
+            Ok(j) => j,
+            Err(f) => return self.report_in(&recipe.map, &f),
+        };
+        let Some(nc) = self.nc_lines_in(&recipe.map, &job, Dialect::Grbl) else {
+            return;
+        };
+        let name = recipe.name();
+        self.stream(&recipe.map, &job, &nc, &name);
+    }
+
+    fn stream(&mut self, map: &SourceMap, job: &Job, nc: &[NcLine], name: &str) -> Ran {
+        let note = self.overrides_note();
+        if !note.is_empty() {
+            println!("{name}: {note}");
+        }
+        let machine = job.program.machine.clone();
+        let (ran, r) = self.station.run(&machine, &Stream { job, nc }, name);
+        match r {
+            Ok(msg) => println!("{msg}"),
+            Err(Trouble::Say(m)) => self.say_error(&m),
+            Err(Trouble::Diag(f)) => self.report_in(map, &f),
+        }
+        ran
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn typed_quantities_parse() {
+        assert!(
+            matches!(parse_typed("1.1 kW"), Ok(Typed::Quantity(v, d)) if (v - 1100.0).abs() < 1e-9 && d == Dim::POWER)
+        );
+        assert!(matches!(parse_typed("-5mm"), Ok(Typed::Quantity(v, _)) if v == -5.0));
+        assert!(matches!(parse_typed("80%"), Ok(Typed::Percent(k)) if (k - 0.8).abs() < 1e-12));
+        assert!(matches!(parse_typed("3"), Ok(Typed::Bare(v)) if v == 3.0));
+        assert!(parse_typed("3 kw").is_err());
+    }
+
+    #[test]
+    fn every_command_has_help() {
+        for c in COMMANDS {
+            assert!(c.name.starts_with(':') && !c.help.is_empty());
+        }
+        assert_eq!(find(":q").map(|c| c.name), Some(":quit"));
+    }
+}
