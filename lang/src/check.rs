@@ -65,7 +65,8 @@ impl Ty {
         }
     }
 
-    fn from_name(name: &str) -> Option<Ty> {
+    /// The type a type annotation names (`length`, `point`, `list`, ...).
+    pub fn from_name(name: &str) -> Option<Ty> {
         Some(match name {
             "bool" => Ty::Bool,
             "string" => Ty::Str,
@@ -324,15 +325,7 @@ impl Checker {
             }
             StmtKind::Fn(f) => self.fn_body(f),
             StmtKind::Import(path) => self.import(path),
-            StmtKind::Use(path) => self.err(CheckError::Unsupported {
-                what: format!("`use \"{}\"` (Rhai extensions)", path.value),
-                span: s.span,
-                help: Some(
-                    "Rhai extension modules are not available in this version; write the \
-                     function in lase with `fn`"
-                        .into(),
-                ),
-            }),
+            StmtKind::Use(path) => self.use_module(path, s.span),
             StmtKind::If { cond, then, els } => {
                 let t = self.expr(cond);
                 self.expect_ty(&t, &Ty::Bool, cond, "the condition of `if`");
@@ -429,17 +422,49 @@ impl Checker {
                 self.expect_count(&t, code, "an M-code number");
             }
             StmtKind::Event(_) => {}
-            StmtKind::Scan { kind, region, .. } => {
-                self.expr(region);
-                self.err(CheckError::Unsupported {
-                    what: format!("`scan {}`", kind.name),
-                    span: s.span,
-                    help: Some(
-                        "scan rasters are not available in this version; trace the region \
-                         with `follow` in a `for` loop meanwhile"
-                            .into(),
-                    ),
-                });
+            StmtKind::Scan {
+                kind,
+                region,
+                settings,
+            } => {
+                let t = self.expr(region);
+                let Some(sk) = schema::scan_kind(&kind.name) else {
+                    self.err(CheckError::UnknownName {
+                        name: kind.name.clone(),
+                        span: kind.span,
+                        help: did_you_mean(&kind.name, schema::SCAN_KINDS.iter().map(|k| k.name))
+                            .or_else(|| Some("scan kinds: `scan dots`, `scan raster`".into())),
+                    });
+                    return;
+                };
+                let ok = match &t {
+                    Ty::Profile | Ty::Unknown => true,
+                    Ty::Point => sk.name == "dots",
+                    Ty::List(inner) => match **inner {
+                        Ty::Profile | Ty::Unknown => true,
+                        Ty::Point => sk.name == "dots",
+                        _ => false,
+                    },
+                    _ => false,
+                };
+                if !ok {
+                    self.err(CheckError::TypeMismatch {
+                        expected: sk.region.into(),
+                        found: t.describe(),
+                        context: format!("the region of `scan {}`", sk.name),
+                        span: region.span,
+                        help: Some(if sk.name == "dots" {
+                            "e.g. `scan dots (0, 0) { rows 20, cols 30, pitch 0.2 mm, speed \
+                             20 mm/s }` or `scan dots profile rect((0, 0), 4 mm, 2 mm) { ... }`"
+                                .into()
+                        } else {
+                            "e.g. `scan raster profile rect((0, 0), 10 mm, 5 mm) { pitch \
+                             0.1 mm, speed 100 mm/s }`"
+                                .into()
+                        }),
+                    });
+                }
+                self.settings(&format!("scan {}", sk.name), settings, sk.settings);
             }
             StmtKind::Expr(e) => {
                 self.expr(e);
@@ -472,6 +497,47 @@ impl Checker {
             if let Some(s) = self.fns.get_mut(&f.name.name) {
                 s.ret = inferred;
             }
+        }
+    }
+
+    /// `use`: the declarations the caller resolved (see [`crate::Program::uses`]) come into
+    /// scope; extension functions are typed by their declared signatures.
+    fn use_module(&mut self, path: &StrLit, span: Span) {
+        let Some(ex) = self.program.uses.get(&path.span.start).cloned() else {
+            self.err(CheckError::Unsupported {
+                what: format!("`use {}` here", path.value),
+                span,
+                help: Some(
+                    "extension modules and presets are loaded by `lase` before checking; \
+                     this tool did not load them"
+                        .into(),
+                ),
+            });
+            return;
+        };
+        for f in ex.fns {
+            if let Some(prev) = self.fns.get(&f.name)
+                && prev.span != path.span
+            {
+                let first = prev.span;
+                self.err(CheckError::Duplicate {
+                    name: f.name.clone(),
+                    span: path.span,
+                    first,
+                });
+                continue;
+            }
+            self.fns.insert(
+                f.name,
+                FnSig {
+                    params: f.params,
+                    ret: f.ret,
+                    span: path.span,
+                },
+            );
+        }
+        for (name, ty) in ex.vars {
+            self.bind(&name, ty);
         }
     }
 

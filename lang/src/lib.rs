@@ -41,6 +41,29 @@ pub struct Program {
     pub modules: Vec<Module>,
     /// Each import statement, keyed by the start offset of its path literal.
     pub imports: HashMap<u32, Resolved>,
+    /// What each `use` statement brings in, keyed by the start offset of its path. The caller
+    /// fills it before checking (this crate reads no files and runs no Rhai): the runtime's
+    /// `ext` module loads the extension modules and presets and reports their declarations.
+    pub uses: HashMap<u32, UseExports>,
+}
+
+/// The declarations a `use` brings into scope: functions of a Rhai extension module (with the
+/// signatures their doc comments declare) and named values (a process preset).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct UseExports {
+    pub fns: Vec<ExtSig>,
+    pub vars: Vec<(String, Ty)>,
+}
+
+/// The declared signature of an extension function: the checker types its calls like those
+/// of a recipe `fn`, and the evaluator converts values at the boundary by it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExtSig {
+    pub name: String,
+    pub params: Vec<(String, Ty)>,
+    pub ret: Ty,
+    /// The doc comment, without the signature line.
+    pub doc: String,
 }
 
 /// Parses the main file and, through `loader`, every file it imports (each once). Returns the

@@ -6,6 +6,7 @@
 
 pub mod emit;
 pub mod eval;
+pub mod ext;
 pub mod geometry;
 pub mod kinematics;
 pub mod link;
@@ -13,4 +14,5 @@ pub mod machine;
 pub mod motion;
 pub mod planner;
 pub mod program;
+pub mod raster;
 pub mod report;

@@ -42,6 +42,11 @@ pub enum EvalError {
     #[diagnostic(transparent)]
     Machine(#[from] crate::machine::MachineError),
 
+    /// A Rhai extension failed or was stopped.
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Extension(Box<crate::ext::ExtError>),
+
     #[error("the machine cannot change once the recipe has moved")]
     #[diagnostic(
         code(lase::eval::machine_changed),
@@ -169,6 +174,13 @@ impl EvalError {
             | EvalError::NoPower { span }
             | EvalError::Budget { span, .. } => *span,
             EvalError::Machine(m) => m.span(),
+            EvalError::Extension(e) => e.span(),
         }
+    }
+}
+
+impl From<crate::ext::ExtError> for EvalError {
+    fn from(e: crate::ext::ExtError) -> EvalError {
+        EvalError::Extension(Box::new(e))
     }
 }
