@@ -40,6 +40,14 @@ impl Host for FsLoader {
     fn machine_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
         read(importer, path)
     }
+
+    fn data_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        read(importer, path)
+    }
+
+    fn extension_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        read(importer, path)
+    }
 }
 
 /// Everything wrong with a recipe, rendered or not.
@@ -62,6 +70,9 @@ pub struct Recipe {
     pub map: SourceMap,
     pub main: FileId,
     pub program: Program,
+    /// The Rhai extension modules and presets its `use`s load (before checking, so the
+    /// checker knows their signatures); handed to the evaluator.
+    pub ext: lase_runtime::ext::Extensions,
 }
 
 impl Recipe {
@@ -112,7 +123,23 @@ pub fn load(path: &Path) -> Result<Recipe, (SourceMap, Failure)> {
             },
         ));
     }
-    Ok(Recipe { map, main, program })
+    let mut program = program;
+    let mut ext = lase_runtime::ext::Extensions::new();
+    let errors = ext.load_uses(&mut program, &mut map, &mut FsLoader);
+    if !errors.is_empty() {
+        return Err((
+            map,
+            Failure {
+                diagnostics: boxed(errors),
+            },
+        ));
+    }
+    Ok(Recipe {
+        map,
+        main,
+        program,
+        ext,
+    })
 }
 
 fn boxed<E: Diagnostic + Send + Sync + 'static>(
@@ -138,6 +165,7 @@ pub fn check(recipe: &Recipe) -> Result<(), Failure> {
 /// Evaluates a checked recipe into its process program.
 pub fn evaluate(recipe: &mut Recipe) -> Result<ProcessProgram, Failure> {
     let mut ev = Evaluator::new();
+    ev.set_extensions(std::mem::take(&mut recipe.ext));
     let stmts = recipe.program.modules[0].stmts.clone();
     let end = Span::new(
         recipe.map.base(recipe.main) + recipe.map.text(recipe.main).len(),

@@ -3,6 +3,7 @@
 //! Only this binary touches the terminal, the file system for outputs, rustyline and miette's
 //! graphical renderer.
 
+mod doc;
 mod driver;
 mod live;
 mod output;
@@ -49,6 +50,9 @@ enum Command {
         /// Write a sampled trace as CSV.
         #[arg(long)]
         trace: Option<PathBuf>,
+        /// Write every laser pulse as CSV: time, spot position, speed, op.
+        #[arg(long)]
+        pulses: Option<PathBuf>,
         /// Trace sampling period, with a unit (e.g. 1ms, 500us).
         #[arg(long, default_value = "1ms")]
         period: String,
@@ -132,10 +136,24 @@ enum Command {
         #[arg(long)]
         allow_remote: bool,
     },
-    /// Interactive session: statements evaluated as you type.
+    /// Print the reference of a statement, function, profile, unit or standard library topic
+    /// (`lase doc` lists the topics; `lase doc --markdown` prints docs/reference.md).
+    Doc {
+        /// A topic: `follow`, `offset`, `units`, `extensions`, `stdlib::cams`, `presets`, ...
+        name: Option<String>,
+        /// The whole reference as Markdown.
+        #[arg(long)]
+        markdown: bool,
+    },
+    /// Interactive session at the machine: statements evaluated as you type, `:run` streams
+    /// them (`:help` lists the commands). Input piped in runs without prompts or colours.
     Repl {
         /// A recipe to load first.
         file: Option<PathBuf>,
+        /// Controller link URL (default: the simulator in-process): sim, tcp://HOST:PORT,
+        /// serial:///dev/ttyUSB0?baud=115200.
+        #[arg(long)]
+        link: Option<String>,
     },
 }
 
@@ -153,8 +171,15 @@ fn main() -> ExitCode {
             file,
             summary,
             trace,
+            pulses,
             period,
-        } => cmd_plan(&file, summary.as_deref(), trace.as_deref(), &period),
+        } => cmd_plan(
+            &file,
+            summary.as_deref(),
+            trace.as_deref(),
+            pulses.as_deref(),
+            &period,
+        ),
         Command::Plot { file, output } => cmd_plot(&file, output.as_deref()),
         Command::Run {
             file,
@@ -204,7 +229,8 @@ fn main() -> ExitCode {
             settings,
             allow_remote,
         }),
-        Command::Repl { file } => return repl::run(file.as_deref(), color),
+        Command::Repl { file, link } => return repl::run(file.as_deref(), link.as_deref(), color),
+        Command::Doc { name, markdown } => return cmd_doc(name.as_deref(), markdown),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -302,7 +328,13 @@ fn parse_period(p: &str) -> Result<f64, (SourceMap, Failure)> {
     Ok(n * unit.factor)
 }
 
-fn cmd_plan(file: &Path, summary: Option<&Path>, trace: Option<&Path>, period: &str) -> CmdResult {
+fn cmd_plan(
+    file: &Path,
+    summary: Option<&Path>,
+    trace: Option<&Path>,
+    pulses: Option<&Path>,
+    period: &str,
+) -> CmdResult {
     let period = parse_period(period)?;
     let (recipe, job) = driver::compile(file)?;
     let s = lase_runtime::report::summarize(&job);
@@ -315,6 +347,11 @@ fn cmd_plan(file: &Path, summary: Option<&Path>, trace: Option<&Path>, period: &
     if let Some(path) = trace {
         output::write_atomic(path, |w| {
             lase_runtime::report::write_trace(&job, period, w).map_err(|e| io_fail(e.to_string()))
+        })?;
+    }
+    if let Some(path) = pulses {
+        output::write_atomic(path, |w| {
+            lase_runtime::report::write_pulses(&job, w).map_err(|e| io_fail(e.to_string()))
         })?;
     }
     println!(
@@ -361,4 +398,26 @@ fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
     })?;
     println!("{}: wrote {}", recipe.name(), path.display());
     Ok(())
+}
+
+/// `lase doc [NAME]`: one reference text for the CLI, the REPL's `:help` and docs/reference.md.
+fn cmd_doc(name: Option<&str>, markdown: bool) -> ExitCode {
+    if markdown {
+        print!("{}", doc::reference_markdown());
+        return ExitCode::SUCCESS;
+    }
+    match doc::lookup(name) {
+        Some(text) => {
+            print!("{text}");
+            ExitCode::SUCCESS
+        }
+        None => {
+            let name = name.unwrap_or_default();
+            match doc::suggest(name) {
+                Some(s) => eprintln!("no topic `{name}`; did you mean `{s}`?"),
+                None => eprintln!("no topic `{name}`; `lase doc` lists the topics"),
+            }
+            ExitCode::FAILURE
+        }
+    }
 }

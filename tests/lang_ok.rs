@@ -95,6 +95,12 @@ fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
             OpKind::Dwell { seconds } => format!("dwell {}", n(*seconds)),
             OpKind::MCode { code, comment } => format!("mcode {code} {comment:?}"),
             OpKind::Event { name } => format!("event {name}"),
+            OpKind::Fire {
+                count,
+                period_s,
+                laser: l,
+                ..
+            } => format!("fire  {count} every {}{}", n(*period_s), laser(Some(l))),
         };
         writeln!(s, "{line:>3}  {text}").unwrap();
     }

@@ -292,13 +292,13 @@ fn laser_on_points_run_at_the_programmed_feed() {
     for ex in ["examples/frame_marking.lase", "examples/dial_marks.lase"] {
         let (code, ngc, err) = lase(&["emit", ex]);
         assert_eq!(code, 0, "{err}");
-        // Feed in force at each M62 (beam on), in order.
+        // Feed in force at each M62 P0 (beam on; P1 triggers pulses), in order.
         let mut feed = f64::NAN;
         let mut pending = false;
         let mut on_feeds = Vec::new();
         for line in ngc.lines() {
             let w = nc_words(line);
-            if w.iter().any(|&(c, v)| c == 'M' && v == 62.0) {
+            if w.iter().any(|&(c, v)| c == 'M' && v == 62.0) && w.contains(&('P', 0.0)) {
                 pending = true;
             }
             if let Some(&(_, f)) = w.iter().find(|(c, _)| *c == 'F') {

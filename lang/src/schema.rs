@@ -102,12 +102,17 @@ const NUM: PTy = PTy::Dim(Dim::NONE);
 pub const BUILTINS: &[Builtin] = &[
     Builtin {
         name: "offset",
-        params: &[req("profile", PTy::Profile), req("distance", L)],
+        params: &[
+            req("profile", PTy::Profile),
+            req("distance", L),
+            opt("trim", PTy::Bool),
+        ],
         ret: Ret::Profile,
         doc: "The equidistant curve C0 = C ± d·n. For a closed profile a positive distance \
               grows it outward; for an open one it moves to the left of the direction of \
               travel. A distance larger than a concave radius of the profile folds the \
-              offset over itself: lase reports it instead of emitting a self-intersecting path.",
+              offset over itself: lase reports it instead of emitting a self-intersecting path, \
+              unless `trim: true` asks for the clean offset with the loops cut away.",
     },
     Builtin {
         name: "reverse",
@@ -311,29 +316,46 @@ pub const PROFILE_KINDS: &[ProfileKind] = &[
         name: "spline",
         params: &[req("points", PTy::Points)],
         flags: &["closed"],
-        doc: "Cubic B-spline interpolating measured points.",
-        unsupported: true,
+        doc: "The cubic B-spline through measured points (PROCESS.md §2: P(j-1) + 4 P(j) + \
+              P(j+1) = 6 Q(j)); `closed` solves the cyclic system, so the curve is C² at the \
+              seam. Passes through every point; normals and curvature are exact.",
+        unsupported: false,
     },
     ProfileKind {
         name: "cam",
-        params: &[],
+        params: &[
+            req("base", L),
+            opt("lift", L),
+            opt("rise", ANG),
+            opt("top", ANG),
+            opt("fall", ANG),
+            opt("law", PTy::Str),
+            opt("table", PTy::Str),
+        ],
         flags: &[],
-        doc: "Disc cam from base radius and lift.",
-        unsupported: true,
+        doc: "A disc cam about the origin, r(θ) = base + lift(θ), counter-clockwise from +x. \
+              Either a motion program — rise by `lift` over `rise`, dwell at the top over `top`, \
+              fall back over `fall` (default: as `rise`), dwell at the base for the rest of the turn — with \
+              `law` one of \"harmonic\", \"cycloidal\" (default), \"345\", \
+              \"modified_trapezoid\"; or a lift table file `table: \"lift.csv\"` of \
+              `angle_deg, lift_mm` rows.",
+        unsupported: false,
     },
     ProfileKind {
         name: "dxf",
-        params: &[],
+        params: &[req("file", PTy::Str), opt("index", NUM)],
         flags: &[],
-        doc: "Contour imported from a DXF file.",
-        unsupported: true,
+        doc: "A contour imported from a DXF file (LINE, ARC, CIRCLE, LWPOLYLINE with bulges, \
+              SPLINE), chained end to end; `index` picks one of several contours (0 first).",
+        unsupported: false,
     },
     ProfileKind {
         name: "svg",
-        params: &[],
+        params: &[req("path", PTy::Str), opt("index", NUM)],
         flags: &[],
-        doc: "Contour imported from SVG path data.",
-        unsupported: true,
+        doc: "A contour from SVG path data (the `d` attribute: M, L, H, V, C, S, Q, T, A, Z), \
+              in mm with y up; `index` picks one of several subpaths.",
+        unsupported: false,
     },
 ];
 
@@ -366,6 +388,12 @@ pub const LASER_SETTINGS: &[SettingSpec] = &[
         "`speed`: power follows the planned speed (P = P_set · v / feed), constant energy per \
          length where the speed must ramp with the beam on; `none` (default): constant power.",
     ),
+    set(
+        "standoff",
+        L,
+        "Distance from the lens to the spot along the beam, held constant on machines that \
+         orient the beam (cam_xwb, arm_3r); required there.",
+    ),
 ];
 
 pub const COUPLINGS: &[&str] = &["none", "speed"];
@@ -382,7 +410,38 @@ pub const FOLLOW_SETTINGS: &[SettingSpec] = &[
         PTy::Word(COUPLINGS),
         "Power coupling for this path only: `speed` or `none`.",
     ),
+    set(
+        "standoff",
+        L,
+        "Lens-to-spot distance along the beam for this path only (oriented machines).",
+    ),
+    set(
+        "side",
+        PTy::Word(SIDES),
+        "Where the head stands, on machines that orient the beam: `outside` (default for a \
+         closed profile) or `inside` it, or `left` (default for an open profile) or `right` \
+         of the direction of travel. The beam points back along the exact surface normal.",
+    ),
+    set(
+        "normals",
+        PTy::Word(NORMALS),
+        "How the beam direction is found on machines that orient it: `exact` (default), the \
+         profile's exact normal at each scan point; `chord`, PROCESS.md §1's discrete method — \
+         scan points at the midpoints of the step chords, the beam along their perpendicular \
+         bisectors (second-order accurate: for comparison with the paper).",
+    ),
+    set(
+        "step",
+        L,
+        "Scan step on machines that orient the beam: the path is resampled at this constant \
+         arc length (shortened until the chord error is within the planner's `tolerance`), \
+         one pose per point (default: `planner { step }`, else 1 mm).",
+    ),
 ];
+
+pub const SIDES: &[&str] = &["outside", "inside", "left", "right"];
+
+pub const NORMALS: &[&str] = &["exact", "chord"];
 
 pub const PULSE_SETTINGS: &[SettingSpec] = &[
     set(
@@ -424,6 +483,11 @@ pub const PLANNER_SETTINGS: &[SettingSpec] = &[
         "How many moves the planner looks ahead when streaming (the offline plan sees all).",
     ),
     set(
+        "step",
+        L,
+        "Default scan step of `follow` on machines that orient the beam.",
+    ),
+    set(
         "leadin",
         PTy::Word(LEADINS),
         "`auto` (default): lead-ins and lead-outs so that the beam is only on at the programmed \
@@ -450,6 +514,139 @@ pub const LIMIT_SETTINGS: &[SettingSpec] = &[
         "Maximum axis jerk (used by `ramp scurve`).",
     ),
 ];
+
+/// A kind of `scan` statement: `scan KIND REGION { settings }`.
+#[derive(Debug, Clone, Copy)]
+pub struct ScanKind {
+    pub name: &'static str,
+    /// What the region expression may be.
+    pub region: &'static str,
+    pub settings: &'static [SettingSpec],
+    pub doc: &'static str,
+}
+
+pub const SCAN_ORDERS: &[&str] = &["serpentine", "unidirectional"];
+pub const SCAN_LAYOUTS: &[&str] = &["grid", "stagger", "hex"];
+pub const SCAN_MODES: &[&str] = &["fly", "dot"];
+
+const SCAN_COMMON: [SettingSpec; 8] = [
+    set(
+        "speed",
+        PTy::Dim(Dim::SPEED),
+        "Table speed along the rows (required); in dot mode the positioning speed between spots.",
+    ),
+    set(
+        "angle",
+        ANG,
+        "Row direction, counter-clockwise from +x (default 0 deg). Rows step along the direction turned +90°.",
+    ),
+    set(
+        "order",
+        PTy::Word(SCAN_ORDERS),
+        "`serpentine` (default): rows alternate direction (boustrophedon, the optimized strategy of PROCESS.md §3); `unidirectional`: every row in the same direction with an idle return stroke (the old one).",
+    ),
+    set(
+        "passes",
+        NUM,
+        "Times the whole raster is repeated (default 1). Each pass starts at the first row's approach point A, reached from one row pitch before it, so every row start — A included — is approached in the row-step direction. With serpentine order an even number of rows ends a pass on the start side, an odd number on the far side.",
+    ),
+    set(
+        "overscan",
+        L,
+        "Extension of every row before its first and after its last spot or line, so they are passed at the programmed speed. Default: computed from the planner's ramps (the lead-in length for the speed, the axes' limits and the ramp kind).",
+    ),
+    set(
+        "origin",
+        PTy::Point,
+        "Where the lattice (or the first hatch line) is anchored. Default: the corner of the region's bounding box in the raster's frame (hatch lines half a pitch inside).",
+    ),
+    set(
+        "power",
+        PTy::Dim(Dim::POWER),
+        "Laser power for this scan only.",
+    ),
+    set("spot", L, "Spot diameter for this scan only."),
+];
+
+pub const SCAN_KINDS: &[ScanKind] = &[
+    ScanKind {
+        name: "dots",
+        region: "a point (the origin of a `rows` × `cols` array), a closed profile, a list of closed profiles (a profile inside another is a hole), or a list of points (explicit spots)",
+        settings: &[
+            SCAN_COMMON[0],
+            SCAN_COMMON[1],
+            SCAN_COMMON[2],
+            SCAN_COMMON[3],
+            SCAN_COMMON[4],
+            SCAN_COMMON[5],
+            SCAN_COMMON[6],
+            SCAN_COMMON[7],
+            set("pitch", L, "L1: spot spacing along a row."),
+            set(
+                "row_pitch",
+                L,
+                "L2: spacing between rows (default: `pitch`; with `layout hex`, pitch·√3/2).",
+            ),
+            set("rows", NUM, "Rows of an array given by its origin point."),
+            set(
+                "cols",
+                NUM,
+                "Spots per row of an array given by its origin point.",
+            ),
+            set(
+                "layout",
+                PTy::Word(SCAN_LAYOUTS),
+                "`grid` (default), `stagger` (odd rows shifted by half a pitch) or `hex` (staggered, rows pitch·√3/2 apart: every spot L1 from six neighbours).",
+            ),
+            set(
+                "pulses",
+                NUM,
+                "Pulses per spot per pass (default 1: seed 3's single pulse, repeated over `passes`). More than one needs the spot at rest: dot mode.",
+            ),
+            set(
+                "mode",
+                PTy::Word(SCAN_MODES),
+                "`fly` (default with one pulse per spot): the table passes the spots at `speed` and a pulse fires at each, synchronized with the position; `dot`: move to each spot, stop, fire, move on (slow; any controller).",
+            ),
+            set(
+                "inset",
+                L,
+                "Keep spot centers this far inside the region's borders (offset machinery).",
+            ),
+        ],
+        doc: "A texturing dot array: spots on a lattice (L1 along a row, L2 between rows), in or from the region, fired with the pulse settings in force (`pulse { width, energy }`). Spots are counted from the lattice origin, never accumulated.",
+    },
+    ScanKind {
+        name: "raster",
+        region: "a closed profile or a list of closed profiles (a profile inside another is a hole)",
+        settings: &[
+            SCAN_COMMON[0],
+            SCAN_COMMON[1],
+            SCAN_COMMON[2],
+            SCAN_COMMON[3],
+            SCAN_COMMON[4],
+            SCAN_COMMON[5],
+            SCAN_COMMON[6],
+            SCAN_COMMON[7],
+            set("pitch", L, "Spacing between hatch lines (required)."),
+            set(
+                "cross",
+                PTy::Flag,
+                "Cross-hatch: a second set of lines at `angle` + 90°, after the first in every pass.",
+            ),
+            set(
+                "inset",
+                L,
+                "Shrink the region by this much from every border first (outer borders move in, holes grow), with the offset machinery.",
+            ),
+        ],
+        doc: "A hatch fill: parallel lines `pitch` apart clipped to the region, lit at `speed`; with `pulse interval` in force the beam pulses along each line from its start.",
+    },
+];
+
+pub fn scan_kind(name: &str) -> Option<&'static ScanKind> {
+    SCAN_KINDS.iter().find(|k| k.name == name)
+}
 
 /// The type names usable in annotations.
 pub const TYPE_NAMES: &[&str] = &[

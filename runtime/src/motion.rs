@@ -16,7 +16,7 @@ pub use leadin::{Lead, LeadKind, LitSection};
 
 use crate::kinematics::{self, KinError, ToolPose};
 use crate::planner::{self, Axes, AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind};
-use crate::program::{LeadIn, Op, OpKind, P3, ProcessProgram, Ramp};
+use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp};
 use lase_lang::Span;
 
 /// Planning errors that point at the recipe.
@@ -120,6 +120,39 @@ impl Job {
     pub fn n_axes(&self) -> usize {
         self.program.machine.axes.len()
     }
+
+    /// The standoff in force on the move tagged `tag` (the op index): the last orientation set
+    /// at or before it, 0 on a flat-bed machine.
+    pub fn standoff_of(&self, tag: u32) -> f64 {
+        let ops = &self.program.ops;
+        let end = (tag as usize + 1).min(ops.len());
+        ops[..end]
+            .iter()
+            .rev()
+            .find_map(|o| o.orient())
+            .or_else(|| ops[end..].iter().find_map(|o| o.orient()))
+            .map_or(0.0, |o| o.standoff_mm)
+    }
+
+    /// Where the spot is, part coordinates, when the axes stand at `q` on the move tagged
+    /// `tag`: forward kinematics at that move's standoff.
+    pub fn spot(&self, kin: &dyn kinematics::Kinematics, q: &Axes, tag: u32) -> [f64; 3] {
+        let s = kin.forward_at(q, self.standoff_of(tag)).spot;
+        [s.x, s.y, s.z]
+    }
+}
+
+/// The tool pose of spot `p` with the beam as `orient` says; without one, the flat-bed pose
+/// (beam down, no standoff).
+pub(crate) fn tool_pose(p: P3, orient: Option<Orient>) -> ToolPose {
+    match orient {
+        Some(o) => ToolPose {
+            spot: nalgebra::Vector3::new(p[0], p[1], p[2]),
+            beam: nalgebra::Vector3::new(o.beam[0], o.beam[1], o.beam[2]),
+            standoff: o.standoff_mm,
+        },
+        None => ToolPose::down(p),
+    }
 }
 
 /// Adds leads, lowers and plans a program.
@@ -127,7 +160,16 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     let kin = kinematics::for_machine(&program.machine);
     let n_axes = kin.axis_count();
     let start_span = program.ops.first().map(|o| o.span).unwrap_or_default();
-    let start = inverse(&*kin, program.start, start_span, &program)?;
+    // A machine that orients the beam starts from its axis zero (its home); a flat bed from
+    // the spot position the program starts at.
+    let start = if kin.oriented() {
+        let q = [0.0; MAX_AXES];
+        kin.check(&q)
+            .map_err(|e| kin_error(e, start_span, &program))?;
+        q
+    } else {
+        inverse(&*kin, program.start, None, None, start_span, &program)?
+    };
     let mut limits = AxisLimits {
         v: [f64::INFINITY; MAX_AXES],
         a: [f64::INFINITY; MAX_AXES],
@@ -171,7 +213,9 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     let mut pos = program.start;
     let mut q_prev = start;
     let mut lit_prev = false;
+    let mut orient: Option<Orient> = None;
     for (i, op) in program.ops.iter().enumerate() {
+        orient = op.orient().or(orient);
         let tag = i as u32;
         let stop_here =
             |moves: &mut Vec<Move>, initial: &mut f64, dwell: f64| match moves.last_mut() {
@@ -188,13 +232,13 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         }
         match &op.kind {
             OpKind::Rapid { to, .. } => {
-                let q = inverse(&*kin, *to, op.span, &program)?;
+                let q = inverse(&*kin, *to, orient, Some(&q_prev), op.span, &program)?;
                 push_line(&mut moves, q_prev, q, dist(pos, *to), f64::INFINITY, tag);
                 pos = *to;
                 q_prev = q;
             }
             OpKind::Line { to, feed_mm_s, .. } => {
-                let q = inverse(&*kin, *to, op.span, &program)?;
+                let q = inverse(&*kin, *to, orient, Some(&q_prev), op.span, &program)?;
                 push_line(&mut moves, q_prev, q, dist(pos, *to), *feed_mm_s, tag);
                 pos = *to;
                 q_prev = q;
@@ -207,13 +251,14 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
                 ..
             } => {
                 for p in arc_points(pos, *to, *center, *ccw, program.planner.arc_tolerance_mm) {
-                    let q = inverse(&*kin, p, op.span, &program)?;
+                    let q = inverse(&*kin, p, orient, Some(&q_prev), op.span, &program)?;
                     push_line(&mut moves, q_prev, q, dist(pos, p), *feed_mm_s, tag);
                     pos = p;
                     q_prev = q;
                 }
             }
             OpKind::Dwell { seconds } => stop_here(&mut moves, &mut initial_dwell_s, *seconds),
+            OpKind::Fire { window_s, .. } => stop_here(&mut moves, &mut initial_dwell_s, *window_s),
             OpKind::MCode { .. } => stop_here(&mut moves, &mut initial_dwell_s, 0.0),
             OpKind::Event { name } => {
                 let dwell = program
@@ -260,14 +305,27 @@ fn planner_error_move(e: &planner::PlanError) -> Option<usize> {
     }
 }
 
+/// Axis positions for spot `p` with beam `orient`, continuous with `prev`, inside travel.
 fn inverse(
     kin: &dyn kinematics::Kinematics,
     p: P3,
+    orient: Option<Orient>,
+    prev: Option<&Axes>,
     span: Span,
     program: &ProcessProgram,
 ) -> Result<Axes, MotionError> {
     let q = kin
-        .inverse(&ToolPose::down(p), None)
+        .inverse(&tool_pose(p, orient), prev)
+        .map_err(|e| match e {
+            // Say where along the path: the recipe line alone may be a whole contour.
+            KinError::Unreachable(reason) => KinError::Unreachable(format!(
+                "{reason} (at x {}, y {}, z {} mm)",
+                lase_lang::units::format_number(p[0]),
+                lase_lang::units::format_number(p[1]),
+                lase_lang::units::format_number(p[2])
+            )),
+            other => other,
+        })
         .map_err(|e| kin_error(e, span, program))?;
     kin.check(&q).map_err(|e| kin_error(e, span, program))?;
     Ok(q)

@@ -106,6 +106,15 @@ pub enum OpKind {
     MCode { code: u32, comment: Option<String> },
     /// A named machine event (head swing, shutter ...), translated by the machine's post.
     Event { name: String },
+    /// Dot mode: the spot at rest where it stands, the beam fires `count` pulses `period_s`
+    /// apart (the first at the start) in a gate window of `window_s` (`count · period_s`
+    /// rounded up to the NC programs' 0.1 ms); the machine stands still for the window.
+    Fire {
+        count: u32,
+        period_s: f64,
+        window_s: f64,
+        laser: Laser,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -133,7 +142,9 @@ impl Op {
     /// The end point of a motion op.
     pub fn target(&self) -> Option<P3> {
         match &self.kind {
-            OpKind::Rapid { to, .. } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => Some(*to),
+            OpKind::Rapid { to, .. } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => {
+                Some(*to)
+            }
             _ => None,
         }
     }

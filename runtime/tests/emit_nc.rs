@@ -800,18 +800,85 @@ fn linuxcnc_interpreter_rejects_a_broken_program() {
 
 #[test]
 fn every_stock_machine_emits_in_every_dialect_it_supports() {
+    use lase_runtime::program::Orient;
     let mut seen = BTreeMap::new();
     for name in lase_stdlib::machine_names() {
-        let j = job(
-            name,
+        let m = parse_machine(lase_stdlib::machine(name).unwrap(), 0).unwrap();
+        let oriented = lase_runtime::kinematics::for_machine(&m).oriented();
+        let rotary = m.axes.iter().any(|a| a.kind == AxisKind::Rotary);
+        let ops = if oriented {
+            // A short lit chord on a surface at y = 20 mm, the head above it at 12 mm, beam −y.
+            let o = Some(Orient {
+                beam: [0.0, -1.0, 0.0],
+                standoff_mm: 12.0,
+            });
+            let mut r = rapid(1, [0.0, 20.0, 0.0]);
+            let mut l = line(2, [1.0, 20.0, 0.0], 10.0, lit(5.0));
+            for op in [&mut r, &mut l] {
+                match &mut op.kind {
+                    OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } => *orient = o,
+                    _ => {}
+                }
+            }
+            vec![r, l]
+        } else {
             vec![
                 line(1, [1.0, 0.0, 0.0], 10.0, lit(5.0)),
                 rapid(2, [0.0, 0.0, 0.0]),
-            ],
-        );
+            ]
+        };
+        let j = job(name, ops);
         for d in Dialect::ALL {
-            seen.insert((name, d.name()), emit_to_string(&j, d).is_ok());
+            let r = emit_to_string(&j, d);
+            if d == Dialect::Grbl && rotary {
+                // GRBL has X, Y and Z only: a rotary machine is refused, with the reason.
+                let e = r.expect_err("GRBL cannot drive rotary axes");
+                assert!(e.to_string().contains("rotary"), "{e}");
+                continue;
+            }
+            seen.insert((name, d.name()), r.map(|_| ()).map_err(|e| e.to_string()));
         }
     }
-    assert!(seen.values().all(|ok| *ok), "{seen:?}");
+    assert!(seen.values().all(|r| r.is_ok()), "{seen:?}");
+}
+
+/// An oriented machine's program: axis words through the inverse kinematics, feed moves in
+/// inverse time (G93) with F = feed / chord length, G94 restored at the end.
+#[test]
+fn oriented_moves_are_written_in_inverse_time() {
+    use lase_runtime::program::Orient;
+    let o = Some(Orient {
+        beam: [0.0, -1.0, 0.0],
+        standoff_mm: 12.0,
+    });
+    let mut ops = vec![
+        rapid(1, [0.0, 20.0, 0.0]),
+        line(2, [2.0, 20.0, 0.0], 10.0, lit(5.0)),
+    ];
+    for op in &mut ops {
+        match &mut op.kind {
+            OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } => *orient = o,
+            _ => {}
+        }
+    }
+    let mut p = program("cam_xwb", ops);
+    p.planner.leadin = lase_runtime::program::LeadIn::Off;
+    let j = plan_program(p).expect("plans");
+    let out = emit_to_string(&j, Dialect::LinuxCnc).unwrap();
+    let lines: Vec<&str> = out.lines().collect();
+    let g93 = lines.iter().position(|l| *l == "G93").expect(&out);
+    let g94 = lines.iter().rposition(|l| *l == "G94").expect(&out);
+    assert!(g93 < g94, "{out}");
+    // 2 mm at 10 mm/s = 0.2 s = 1/300 min.
+    let feed_line = lines[g93..g94]
+        .iter()
+        .find(|l| l.starts_with("G1"))
+        .expect(&out);
+    let f: f64 = feed_line
+        .split(' ')
+        .find_map(|w| w.strip_prefix('F'))
+        .expect(feed_line)
+        .parse()
+        .unwrap();
+    assert!((f - 300.0).abs() < 1e-3, "{feed_line}");
 }

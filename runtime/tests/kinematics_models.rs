@@ -185,7 +185,9 @@ fn seed1_discrete_method_versus_exact_normals() {
     let mut last = (f64::INFINITY, f64::INFINITY);
     for step in [2.0, 1.0, 0.5, 0.25] {
         let n = (total / step).round() as usize;
-        let params: Vec<f64> = (0..=n).map(|k| param_at(k as f64 * total / n as f64)).collect();
+        let params: Vec<f64> = (0..=n)
+            .map(|k| param_at(k as f64 * total / n as f64))
+            .collect();
         let pts: Vec<Vector2<f64>> = params[..n].iter().map(|&t| point(t)).collect();
         let steps = cam.seed1_steps(&pts, 12.0);
         assert_eq!(steps.len(), n);

@@ -95,15 +95,35 @@ pub fn compile(path: &Path) -> Compiled {
     Compiled { job, lines, map }
 }
 
-/// The examples, sorted.
+/// The examples a GRBL controller can run (GRBL drives X, Y and Z only: recipes for machines
+/// with rotary axes are left out), sorted.
 pub fn examples() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(root().join("examples"))
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "lase"))
+        .filter(|p| grbl_can_drive(&std::fs::read_to_string(p).unwrap()))
         .collect();
     v.sort();
     v
+}
+
+/// Whether the stock machine a recipe selects has only linear axes.
+fn grbl_can_drive(recipe: &str) -> bool {
+    let Some(name) = recipe
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("machine "))
+        .map(|n| n.trim())
+    else {
+        return true;
+    };
+    let Some(text) = lase_stdlib::machine(name) else {
+        return true;
+    };
+    let m = lase_runtime::machine::parse_machine(text, 0).expect("stock machines parse");
+    m.axes
+        .iter()
+        .all(|a| a.kind == lase_runtime::machine::AxisKind::Linear)
 }
 
 /// Runs `lase ARGS` from the repository root: (exit code, stdout, stderr).
@@ -163,7 +183,10 @@ pub fn planned_op_ends(job: &Job) -> Vec<(usize, [f64; 3])> {
 }
 
 /// Lit runs of the plan: (start, end, length) of each maximal run of consecutive lit moves.
-pub fn planned_lit_runs(job: &Job) -> Vec<([f64; 3], [f64; 3], f64)> {
+/// (start, end, length, pulse pitch when the run fires pulses by distance).
+pub type PlannedRun = ([f64; 3], [f64; 3], f64, Option<f64>);
+
+pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
     let xyz: Vec<usize> = job
         .program
         .machine
@@ -178,20 +201,26 @@ pub fn planned_lit_runs(job: &Job) -> Vec<([f64; 3], [f64; 3], f64)> {
         }
         p
     };
-    let mut runs: Vec<([f64; 3], [f64; 3], f64)> = Vec::new();
+    let mut runs: Vec<PlannedRun> = Vec::new();
     let mut prev = map(&job.start);
     let mut in_run = false;
     for m in &job.moves {
         let to = map(&m.target);
         let op = &job.program.ops[m.tag as usize];
         let lit = op.laser().is_some() && !matches!(op.kind, OpKind::Rapid { .. });
+        let pitch = op
+            .laser()
+            .and_then(|l| match l.pulse.as_ref().map(|p| p.mode) {
+                Some(lase_runtime::program::PulseMode::Distance { pitch_mm }) => Some(pitch_mm),
+                _ => None,
+            });
         if lit {
             if in_run {
                 let r = runs.last_mut().unwrap();
                 r.1 = to;
                 r.2 += m.length;
             } else {
-                runs.push((prev, to, m.length));
+                runs.push((prev, to, m.length, pitch));
             }
         }
         in_run = lit;
@@ -271,12 +300,27 @@ pub fn assert_trajectory_matches(c: &Compiled, rec: &Recording, job_line_seqs: &
     assert!(close(end, planned_end, 1e-3), "{end:?} vs {planned_end:?}");
     let planned = planned_lit_runs(&c.job);
     let executed = executed_lit_runs(rec);
-    assert_eq!(
-        planned.len(),
-        executed.len(),
-        "lit runs: planned {planned:?}\nexecuted {executed:?}"
-    );
-    for (p, e) in planned.iter().zip(&executed) {
+    let mut j = 0;
+    for (i, p) in planned.iter().enumerate() {
+        if let Some(pitch) = p.3 {
+            // Pulses by distance reach GRBL as one short lit block per pulse: the run is
+            // executed as dashes, about one every `pitch`, up to the next planned run.
+            let next = planned.get(i + 1).map(|n| n.0);
+            let first = j;
+            while j < executed.len() && !next.is_some_and(|s| close(executed[j].0, s, 1e-3)) {
+                j += 1;
+            }
+            let dashes = (j - first) as f64;
+            let expected = p.2 / pitch;
+            assert!(
+                dashes >= expected.floor() && dashes <= expected.ceil() + 1.0,
+                "{dashes} pulses executed along {p:?}, about {expected:.1} planned"
+            );
+            continue;
+        }
+        let e = executed
+            .get(j)
+            .unwrap_or_else(|| panic!("planned run {p:?} was not executed: {executed:?}"));
         assert!(
             close(p.0, e.0, 1e-3) && close(p.1, e.1, 1e-3),
             "{p:?} vs {e:?}"
@@ -285,7 +329,13 @@ pub fn assert_trajectory_matches(c: &Compiled, rec: &Recording, job_line_seqs: &
             (p.2 - e.2).abs() <= 1e-3 * p.2.max(1.0),
             "length {p:?} vs {e:?}"
         );
+        j += 1;
     }
+    assert_eq!(
+        j,
+        executed.len(),
+        "executed lit runs beyond the plan: {executed:?}"
+    );
 }
 
 /// For each job line, the sequence number under which the controller executed it (the last

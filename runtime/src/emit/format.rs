@@ -6,6 +6,13 @@ use std::fmt::Write as _;
 /// A number as NC text: 4 decimals (0.1 µm in mm, 0.1 ms in s), trailing zeros and a trailing
 /// point trimmed, never `-0`.
 pub fn number(x: f64) -> String {
+    // Fast path, byte for byte what `{:.4}` writes: away from a rounding tie the product
+    // x·10⁴ (within an ulp of the exact value) rounds to the same integer as the exact decimal
+    // expansion `{:.4}` rounds. Ties and huge values take the exact formatter.
+    let y = x * 1e4;
+    if y.is_finite() && y.abs() < 9e15 && ((y - y.floor()) - 0.5).abs() > 1e-6 {
+        return fixed4(y.round() as i64);
+    }
     let mut s = format!("{x:.4}");
     if s.contains('.') {
         let t = s.trim_end_matches('0').trim_end_matches('.').len();
@@ -14,18 +21,84 @@ pub fn number(x: f64) -> String {
     if s == "-0" { "0".to_string() } else { s }
 }
 
+/// A rotary axis position in degrees: 6 decimals, since an angle is multiplied by the lever it
+/// turns (1e-6° on a 500 mm arm is 9 nm, where 1e-4° would be 0.9 µm).
+pub fn degrees(x: f64) -> String {
+    let mut s = format!("{x:.6}");
+    if s.contains('.') {
+        let t = s.trim_end_matches('0').trim_end_matches('.').len();
+        s.truncate(t);
+    }
+    if s == "-0" { "0".to_string() } else { s }
+}
+
+/// An inverse-time feed (G93's F, 1/min) to at least 7 significant digits, so the block time
+/// the controller derives is within 1e-6 of the planned one however long the block is.
+pub fn inverse_time(x: f64) -> String {
+    let digits = if x.abs() >= 1.0 {
+        x.abs().log10().floor() as i32 + 1
+    } else {
+        0
+    };
+    let decimals = (7 - digits).clamp(4, 10) as usize;
+    let mut s = format!("{x:.decimals$}");
+    if s.contains('.') {
+        let t = s.trim_end_matches('0').trim_end_matches('.').len();
+        s.truncate(t);
+    }
+    s
+}
+
+/// `n / 10⁴` with trailing zeros and point trimmed, never `-0`.
+fn fixed4(n: i64) -> String {
+    let a = n.unsigned_abs();
+    let (mut int, mut frac) = (a / 10_000, a % 10_000);
+    // Digits right to left into a small buffer: sign, up to 20 integer digits, point, 4.
+    let mut buf = [0u8; 27];
+    let mut i = buf.len();
+    let mut started = false;
+    for _ in 0..4 {
+        let d = (frac % 10) as u8;
+        frac /= 10;
+        if started || d != 0 {
+            i -= 1;
+            buf[i] = b'0' + d;
+            started = true;
+        }
+    }
+    if started {
+        i -= 1;
+        buf[i] = b'.';
+    }
+    loop {
+        i -= 1;
+        buf[i] = b'0' + (int % 10) as u8;
+        int /= 10;
+        if int == 0 {
+            break;
+        }
+    }
+    if n < 0 {
+        i -= 1;
+        buf[i] = b'-';
+    }
+    String::from_utf8_lossy(&buf[i..]).into_owned()
+}
+
 /// A comment in parentheses. Parentheses inside would end it early (and nested comments are an
-/// error in rs274ngc), so they become brackets; anything but printable ASCII becomes `?` (GRBL
-/// and many ISO controls read 7-bit text). `max_len` bounds the whole comment, parentheses
-/// included.
+/// error in rs274ngc), so they become brackets; anything but printable ASCII becomes `_` (GRBL
+/// and many ISO controls read 7-bit text), and so do `?`, `!` and `~`, which GRBL takes as
+/// real-time commands (status, feed hold, resume) wherever they appear in the stream.
+/// `max_len` bounds the whole comment, parentheses included.
 pub fn comment(text: &str, max_len: usize) -> String {
     let mut body: String = text
         .chars()
         .map(|c| match c {
             '(' => '[',
             ')' => ']',
-            ' '..='~' => c,
-            _ => '?',
+            '?' | '!' | '~' => '_',
+            ' '..='}' => c,
+            _ => '_',
         })
         .collect();
     let room = max_len.saturating_sub(2);
@@ -129,9 +202,44 @@ pub fn m_words(line: &str) -> Vec<u32> {
     out
 }
 
+/// Fills `{pitch}` (mm) and `{ppi}` (pulses per inch) of a PSO template (`[post.*] pso`); the
+/// other placeholders are left for [`fill`].
+pub fn fill_pitch(template: &str, pitch_mm: f64) -> String {
+    template
+        .replace("{pitch}", &number(pitch_mm))
+        .replace("{ppi}", &number(25.4 / pitch_mm))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_fast_number_path_writes_what_the_exact_formatter_writes() {
+        let exact = |x: f64| {
+            let mut s = format!("{x:.4}");
+            if s.contains('.') {
+                let t = s.trim_end_matches('0').trim_end_matches('.').len();
+                s.truncate(t);
+            }
+            if s == "-0" { "0".to_string() } else { s }
+        };
+        let mut x = -1234.5678f64;
+        let mut k = 0u64;
+        while x < 1234.5678 {
+            for v in [
+                x,
+                x * 1e-3,
+                x * 37.0,
+                0.1 * (k as f64),
+                -0.00005 * (k as f64),
+            ] {
+                assert_eq!(number(v), exact(v), "{v:e}");
+            }
+            x += 0.0137;
+            k += 1;
+        }
+    }
 
     #[test]
     fn numbers_are_trimmed_and_never_negative_zero() {
@@ -170,7 +278,7 @@ mod tests {
 
     #[test]
     fn comments_are_sanitized_and_bounded() {
-        assert_eq!(comment("a (b) °", 80), "(a [b] ?)");
+        assert_eq!(comment("a (b) ° ok? stop! ~", 80), "(a [b] _ ok_ stop_ _)");
         let c = comment(&"x".repeat(100), 20);
         assert_eq!(c.len(), 20);
         assert!(c.ends_with("...)"));

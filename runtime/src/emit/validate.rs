@@ -127,8 +127,19 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
     }
     let mut warnings = Vec::new();
 
-    if let Some(lit) = ops.iter().find(|o| o.laser().is_some()) {
+    if let Some(lit) = ops
+        .iter()
+        .find(|o| o.laser().is_some() || matches!(o.kind, OpKind::Fire { .. }))
+    {
         check_post(post, machine, dialect, lit.span)?;
+    }
+    if let Some(pulsed) = ops.iter().find(|o| {
+        matches!(o.kind, OpKind::Fire { .. })
+            || o.laser()
+                .and_then(|l| l.pulse.as_ref())
+                .is_some_and(|p| matches!(p.mode, crate::program::PulseMode::Distance { .. }))
+    }) {
+        check_pulse_post(post, machine, dialect, pulsed.span)?;
     }
     if let Some(coupled) = ops
         .iter()
@@ -228,6 +239,46 @@ fn check_post(
                 check_mcode(dialect, code, span, Origin::Post(what), &machine.name)?;
             }
             too_long(dialect, &format::fill(t, full), span, what)?;
+        }
+    }
+    Ok(())
+}
+
+/// The trigger and PSO lines of pulses by distance and dot mode (`writer::pulse`).
+fn check_pulse_post(
+    post: &DialectPost,
+    machine: &Machine,
+    dialect: Dialect,
+    span: Span,
+) -> Result<(), EmitError> {
+    let full = LaserWords {
+        power_w: machine.laser.max_power_w,
+        max_power_w: machine.laser.max_power_w,
+        s_max: post.s_max,
+    };
+    for (what, lines) in [
+        ("pulse_on", &post.pulse_on),
+        ("pulse_off", &post.pulse_off),
+        ("pso", &post.pso),
+    ] {
+        for t in lines {
+            let t = format::fill_pitch(t, 0.001);
+            if let Some(message) = format::template_problem(&t) {
+                return Err(EmitError::Template {
+                    template: t.clone(),
+                    machine: machine.name.clone(),
+                    message,
+                    span,
+                    help: format!(
+                        "templates in [post.{dialect}] {what} may use {{power}}, {{s}}, {{pct}}, \
+                         and in pso {{pitch}} (mm) and {{ppi}} (pulses per inch)"
+                    ),
+                });
+            }
+            for code in format::m_words(&t) {
+                check_mcode(dialect, code, span, Origin::Post(what), &machine.name)?;
+            }
+            too_long(dialect, &format::fill(&t, full), span, what)?;
         }
     }
     Ok(())

@@ -12,12 +12,14 @@
 use super::format::{self, LaserWords};
 use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
-use crate::kinematics::{self, Kinematics, ToolPose};
+use crate::kinematics::{self, Kinematics};
 use crate::machine::AxisKind;
 use crate::motion::{Job, arc_sweep, power};
 use crate::planner::{Axes, MAX_AXES};
-use crate::program::{Coupling, Op, OpKind, P3};
+use crate::program::{Coupling, Op, OpKind, Orient, P3};
 use std::io;
+
+mod pulse;
 
 /// ISO block numbers step by 10 (room to insert blocks by hand, as in the paper's program)
 /// and wrap before six digits, since many Fanuc controls read at most N99999.
@@ -78,6 +80,11 @@ struct Modal {
     power_w: f64,
     /// Last traceability comment.
     location: String,
+    /// The beam orientation in force (machines that orient the beam).
+    orient: Option<Orient>,
+    /// Feed moves are in inverse time (G93): on machines whose moves mix linear and rotary
+    /// axes, F is 1 / block time, so the controller holds the spot's surface speed.
+    inverse_time: bool,
 }
 
 pub(super) fn write(
@@ -133,8 +140,12 @@ pub(super) fn write(
         laser_on: false,
         power_w: 0.0,
         location: String::new(),
+        orient: None,
+        inverse_time: false,
     };
+    let oriented = kin.oriented();
     let arc_axes = validate::arc_axes(machine);
+    let mut train = pulse::Train::default();
     let ops = &program.ops;
     for (i, op) in ops.iter().enumerate() {
         let tag = Some(i as u32);
@@ -173,6 +184,17 @@ pub(super) fn write(
                     }
                 }
             }
+            OpKind::Fire { .. } => {
+                let gate = pulse::Gate {
+                    dialect,
+                    post,
+                    machine,
+                    kin: &*kin,
+                    arc_axes,
+                    words: &words,
+                };
+                pulse::write_fire(op, &mut out, &gate, tag)?;
+            }
             OpKind::Rapid { .. } | OpKind::Line { .. } | OpKind::Arc { .. } => {
                 if !moves(op, m.pos) {
                     continue;
@@ -183,6 +205,7 @@ pub(super) fn write(
                 } else {
                     Vec::new()
                 };
+                train.pso(op, m.laser_on, &mut out, post, tag)?;
                 if let Some(laser) = op.laser() {
                     let first = blocks.first().map_or(laser.power_w, |b| b.power_w);
                     if !m.laser_on {
@@ -208,7 +231,26 @@ pub(super) fn write(
                         m.power_w = laser.power_w;
                     }
                 }
-                if blocks.is_empty() {
+                if oriented && !m.inverse_time && matches!(op.kind, OpKind::Line { .. }) {
+                    out.put("G93", tag)?;
+                    m.inverse_time = true;
+                }
+                let gated = if blocks.is_empty() {
+                    train.gated(ops, i, post)
+                } else {
+                    None
+                };
+                if let Some(pitch) = gated {
+                    let gate = pulse::Gate {
+                        dialect,
+                        post,
+                        machine,
+                        kin: &*kin,
+                        arc_axes,
+                        words: &words,
+                    };
+                    pulse::write_gated(ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag)?;
+                } else if blocks.is_empty() {
                     let line = motion_line(op, &mut m, &*kin, machine, arc_axes);
                     out.put(&line, tag)?;
                     out.stats.motion_blocks += 1;
@@ -231,7 +273,7 @@ pub(super) fn write(
                         } else {
                             b.s_end / total
                         };
-                        let sub = sub_op(op, from, f);
+                        let sub = sub_op(op, from, m.orient, f);
                         let line = motion_line(&sub, &mut m, &*kin, machine, arc_axes);
                         out.put(&line, tag)?;
                         out.stats.motion_blocks += 1;
@@ -248,6 +290,10 @@ pub(super) fn write(
         }
     }
 
+    if m.inverse_time {
+        // Back to units-per-minute feeds, the mode any program after this one expects.
+        out.put("G94", None)?;
+    }
     // Footer: the beam off (always, for safety), then the program end.
     let final_off: Vec<String> = post
         .laser_off
@@ -327,9 +373,10 @@ fn synchronized(dialect: Dialect, line: &str) -> String {
     }
 }
 
-/// The part of motion op `op` (starting at `from`) from its start to fraction `f` of its
-/// length: a shorter line, or an arc about the same center ending at `f` of the sweep.
-fn sub_op(op: &Op, from: P3, f: f64) -> Op {
+/// The part of motion op `op` (starting at `from`, beam as `from_orient`) from its start to
+/// fraction `f` of its length: a shorter line (the beam turned by the same fraction), or an arc
+/// about the same center ending at `f` of the sweep.
+fn sub_op(op: &Op, from: P3, from_orient: Option<Orient>, f: f64) -> Op {
     let mut sub = op.clone();
     if f >= 1.0 {
         return sub;
@@ -342,7 +389,18 @@ fn sub_op(op: &Op, from: P3, f: f64) -> Op {
         ]
     };
     match &mut sub.kind {
-        OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => *to = lerp(*to),
+        OpKind::Rapid { to, orient } | OpKind::Line { to, orient, .. } => {
+            *to = lerp(*to);
+            if let (Some(a), Some(b)) = (from_orient, orient.as_mut()) {
+                let beam: [f64; 3] =
+                    std::array::from_fn(|k| a.beam[k] + f * (b.beam[k] - a.beam[k]));
+                let n = (beam[0].powi(2) + beam[1].powi(2) + beam[2].powi(2)).sqrt();
+                if n > 1e-12 {
+                    b.beam = beam.map(|c| c / n);
+                }
+                b.standoff_mm = a.standoff_mm + f * (b.standoff_mm - a.standoff_mm);
+            }
+        }
         OpKind::Arc {
             to, center, ccw, ..
         } => {
@@ -393,8 +451,11 @@ fn motion_line(
         } => (if *ccw { "G3" } else { "G2" }, *to, Some(*feed_mm_s)),
         _ => unreachable!("motion_line is called for motion ops only"),
     };
+    let orient = op.orient().or(m.orient);
     // Validated reachable by planning; keep the last position if a hand-built job is not.
-    let q = kin.inverse(&ToolPose::down(to), Some(&m.q)).unwrap_or(m.q);
+    let q = kin
+        .inverse(&crate::motion::tool_pose(to, orient), Some(&m.q))
+        .unwrap_or(m.q);
     let mut parts: Vec<String> = Vec::with_capacity(MAX_AXES + 3);
     if m.motion != Some(g) {
         parts.push(g.to_string());
@@ -407,11 +468,10 @@ fn motion_line(
         _ => None,
     };
     for (k, axis) in machine.axes.iter().enumerate() {
-        let value = match axis.kind {
-            AxisKind::Linear => q[k],
-            AxisKind::Rotary => q[k].to_degrees(),
+        let v = match axis.kind {
+            AxisKind::Linear => format::number(q[k]),
+            AxisKind::Rotary => format::degrees(q[k].to_degrees()),
         };
-        let v = format::number(value);
         let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
         if forced || m.words[k].as_deref() != Some(v.as_str()) {
             parts.push(format!("{}{v}", axis.name));
@@ -424,6 +484,23 @@ fn motion_line(
         parts.push(format!("J{}", format::number(center[1] - m.pos[1])));
     }
     match feed {
+        Some(f) if m.inverse_time => {
+            // G93: F is the inverse of the block's time in minutes, written on every block.
+            let len = crate::motion::dist(m.pos, to);
+            let minutes = if len > 1e-9 {
+                len / f / 60.0
+            } else {
+                // The beam turns in place: as fast as the slowest axis allows.
+                machine
+                    .axes
+                    .iter()
+                    .enumerate()
+                    .map(|(k, a)| (q[k] - m.q[k]).abs() / a.v_max / 60.0)
+                    .fold(1e-9, f64::max)
+            };
+            parts.push(format!("F{}", format::inverse_time(1.0 / minutes)));
+            m.feed = None;
+        }
         Some(f) => {
             let f = format::number(f * 60.0);
             if m.feed.as_deref() != Some(f.as_str()) {
@@ -435,5 +512,6 @@ fn motion_line(
     }
     m.pos = to;
     m.q = q;
+    m.orient = orient;
     parts.join(" ")
 }

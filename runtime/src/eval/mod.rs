@@ -8,6 +8,7 @@
 //! type (unannotated function parameters). A runaway recipe is stopped by a step budget.
 
 mod error;
+mod scan;
 mod value;
 
 pub use error::EvalError;
@@ -23,11 +24,26 @@ use lase_lang::{Program, Resolved, SourceMap, Span, schema};
 use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
-/// Where machine files come from: the standard library, or a path next to the recipe.
+/// Where machine files and data files (lift tables, DXF drawings) come from: the standard
+/// library, or a path next to the recipe.
 pub trait Host {
     /// Reads a machine file given by path, relative to the file `importer`. Returns the
     /// resolved name and the text.
     fn machine_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String>;
+    /// Reads a data file (a cam lift table, a DXF drawing) given by path, relative to the file
+    /// `importer`. Returns the resolved name and the text.
+    fn data_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        let _ = importer;
+        Err(format!("data files are not available here (\"{path}\")"))
+    }
+    /// Reads an extension module (`use "file.rhai"`) or a preset (`use "file.toml"`) given by
+    /// path, relative to the file `importer`. Returns the resolved name and the text.
+    fn extension_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        let _ = importer;
+        Err(format!(
+            "extension files are not available here (\"{path}\")"
+        ))
+    }
 }
 
 /// A host with no file system: stock machines only.
@@ -55,7 +71,18 @@ struct LaserState {
     power_w: Option<f64>,
     spot_mm: f64,
     couple: Coupling,
+    /// Lens-to-spot distance on machines that orient the beam.
+    standoff_mm: Option<f64>,
     on: bool,
+}
+
+/// Where the head stands relative to a followed profile (`follow ... { side ... }`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Side {
+    Outside,
+    Inside,
+    Left,
+    Right,
 }
 
 /// What one `laser { ... }` or `follow ... { ... }` settings list sets; `None` keeps the value in
@@ -65,6 +92,11 @@ struct LaserSet {
     power: Option<f64>,
     spot: Option<f64>,
     couple: Option<Coupling>,
+    standoff: Option<f64>,
+    side: Option<(Side, Span)>,
+    step: Option<f64>,
+    /// `normals chord`: seed 1's discrete method instead of exact normals.
+    chord_normals: bool,
 }
 
 /// The evaluator's state. A REPL session keeps one alive across lines.
@@ -78,12 +110,18 @@ pub struct Evaluator {
     planner: Option<PlannerSettings>,
     laser: LaserState,
     pulse: Option<Pulse>,
+    /// Default scan step of `follow` on oriented machines (`planner { step }`).
+    scan_step_mm: Option<f64>,
+    /// The beam orientation the last move left (oriented machines), kept by `move`.
+    orient: Option<Orient>,
     pos: P3,
     start: P3,
     ops: Vec<Op>,
     steps: u64,
     depth: usize,
     imported: HashSet<usize>,
+    /// Rhai extension modules and presets (`use`), loaded before checking.
+    ext: crate::ext::Extensions,
 }
 
 impl Default for Evaluator {
@@ -111,15 +149,19 @@ impl Evaluator {
                 power_w: None,
                 spot_mm: 0.05,
                 couple: Coupling::None,
+                standoff_mm: None,
                 on: false,
             },
             pulse: None,
+            scan_step_mm: None,
+            orient: None,
             pos: [0.0; 3],
             start: [0.0; 3],
             ops: Vec::new(),
             steps: 0,
             depth: 0,
             imported: HashSet::new(),
+            ext: crate::ext::Extensions::new(),
         }
     }
 
@@ -151,6 +193,17 @@ impl Evaluator {
     ) -> R<Value> {
         let mut cx = Cx { program, map, host };
         self.expr(e, &mut cx)
+    }
+
+    /// The extension modules this evaluator runs; load a program's `use`s into it
+    /// ([`crate::ext::Extensions::load_uses`]) before checking and evaluating.
+    pub fn extensions_mut(&mut self) -> &mut crate::ext::Extensions {
+        &mut self.ext
+    }
+
+    /// Hands over extension modules loaded before checking.
+    pub fn set_extensions(&mut self, ext: crate::ext::Extensions) {
+        self.ext = ext;
     }
 
     pub fn machine(&self) -> Option<&Machine> {
@@ -276,14 +329,16 @@ impl Evaluator {
                 self.fns.insert(f.name.name.clone(), f.clone());
             }
             StmtKind::Import(path) => self.import(path, cx)?,
-            StmtKind::Use(_) | StmtKind::Scan { .. } => {
-                return Err(EvalError::BadValue {
-                    message: "this statement is not supported in this version".into(),
-                    span: s.span,
-                    label: "not supported".into(),
-                    help: Some("`lase check` explains why".into()),
-                });
+            StmtKind::Use(path) => {
+                for (name, v) in self.ext.activate(path)? {
+                    self.bind(&name, v);
+                }
             }
+            StmtKind::Scan {
+                kind,
+                region,
+                settings,
+            } => self.scan(kind, region, settings, s.span, cx)?,
             StmtKind::If { cond, then, els } => {
                 let c = self.expr(cond, cx)?;
                 let c = self.as_bool(&c, cond.span, "the condition of `if`")?;
@@ -314,6 +369,9 @@ impl Evaluator {
                     }
                     if let Some(c) = ls.couple {
                         self.laser.couple = c;
+                    }
+                    if let Some(d) = ls.standoff {
+                        self.laser.standoff_mm = Some(d);
                     }
                 }
             },
@@ -397,10 +455,21 @@ impl Evaluator {
 
     fn push(&mut self, kind: OpKind, span: Span) {
         if let Some(t) = match &kind {
-            OpKind::Rapid { to, .. } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => Some(*to),
+            OpKind::Rapid { to, .. } | OpKind::Line { to, .. } | OpKind::Arc { to, .. } => {
+                Some(*to)
+            }
             _ => None,
         } {
             self.pos = t;
+        }
+        if let OpKind::Rapid {
+            orient: Some(o), ..
+        }
+        | OpKind::Line {
+            orient: Some(o), ..
+        } = &kind
+        {
+            self.orient = Some(*o);
         }
         self.ops.push(Op { kind, span });
     }
@@ -555,8 +624,29 @@ impl Evaluator {
         let mut power = None;
         let mut spot = None;
         let mut couple = None;
+        let mut standoff = None;
+        let mut side = None;
+        let mut step = None;
+        let mut chord_normals = false;
         for s in set {
             let Some(e) = &s.value else { continue };
+            if s.key.name == "normals" {
+                chord_normals = matches!(&e.kind, ExprKind::Var(w) if w == "chord");
+                continue;
+            }
+            if s.key.name == "side" {
+                // A word, checked against the schema's list by the checker.
+                side = Some((
+                    match &e.kind {
+                        ExprKind::Var(w) if w == "inside" => Side::Inside,
+                        ExprKind::Var(w) if w == "left" => Side::Left,
+                        ExprKind::Var(w) if w == "right" => Side::Right,
+                        _ => Side::Outside,
+                    },
+                    e.span,
+                ));
+                continue;
+            }
             if s.key.name == "couple" {
                 // A word, checked against the schema's list: anything but `speed` is `none`.
                 couple = Some(match &e.kind {
@@ -593,6 +683,19 @@ impl Evaluator {
                     }
                     power = Some(p);
                 }
+                "standoff" => {
+                    let d = self.as_dim(&v, Dim::LENGTH, e.span, "`standoff`")?;
+                    if !(d >= 0.0 && d.is_finite()) {
+                        return Err(bad(
+                            e.span,
+                            "the standoff cannot be negative",
+                            "negative",
+                            None,
+                        ));
+                    }
+                    standoff = Some(d);
+                }
+                "step" => step = Some(self.positive_length(&v, e.span, "`step`")?),
                 _ => {
                     let d = self.as_dim(&v, Dim::LENGTH, e.span, "`spot`")?;
                     if !(d > 0.0) {
@@ -611,7 +714,19 @@ impl Evaluator {
             power,
             spot,
             couple,
+            standoff,
+            side,
+            step,
+            chord_normals,
         })
+    }
+
+    fn positive_length(&self, v: &Value, span: Span, ctx: &str) -> R<f64> {
+        let x = self.as_dim(v, Dim::LENGTH, span, ctx)?;
+        if !(x > 0.0 && x.is_finite()) {
+            return Err(bad(span, "must be greater than zero", "not positive", None));
+        }
+        Ok(x)
     }
 
     fn pulse_settings(&mut self, set: &[Setting], cx: &mut Cx) -> R<()> {
@@ -719,6 +834,10 @@ impl Evaluator {
                         _ => Ramp::Scurve,
                     }
                 }
+                "step" => {
+                    let v = self.expr(e, cx)?;
+                    self.scan_step_mm = Some(self.positive_length(&v, e.span, "`step`")?);
+                }
                 "leadin" => {
                     p.leadin = match &e.kind {
                         ExprKind::Var(w) if w == "none" => LeadIn::Off,
@@ -818,8 +937,9 @@ impl Evaluator {
                 MoveKind::By => self.pos[k] + p[k],
             };
         }
+        let orient = self.move_orient(span)?;
         match speed {
-            MoveSpeed::Rapid => self.push(OpKind::Rapid { to, orient: None }, span),
+            MoveSpeed::Rapid => self.push(OpKind::Rapid { to, orient }, span),
             MoveSpeed::At(e) => {
                 let v = self.expr(e, cx)?;
                 let feed = self.feed(&v, e.span)?;
@@ -835,13 +955,40 @@ impl Evaluator {
                         to,
                         feed_mm_s: feed,
                         laser,
-                        orient: None,
+                        orient,
                     },
                     span,
                 );
             }
         }
         Ok(())
+    }
+
+    /// Whether the selected machine orients the beam (cam X-ω-B, arm).
+    fn oriented(&self) -> bool {
+        self.machine
+            .as_ref()
+            .is_some_and(|m| crate::kinematics::for_machine(m).oriented())
+    }
+
+    /// The orientation a `move` keeps: the last one on an oriented machine (a move there
+    /// needs one), none on a flat bed.
+    fn move_orient(&self, span: Span) -> R<Option<Orient>> {
+        if !self.oriented() {
+            return Ok(None);
+        }
+        match self.orient {
+            Some(o) => Ok(Some(o)),
+            None => Err(bad(
+                span,
+                "this machine orients the beam, and no path has set its direction yet",
+                "which way does the beam point here?",
+                Some(
+                    "`follow` a profile first (it sets the beam along the surface normal); a \
+                     `move` keeps the beam direction and standoff of the move before it",
+                ),
+            )),
+        }
     }
 
     fn feed(&self, v: &Value, span: Span) -> R<f64> {
@@ -875,6 +1022,17 @@ impl Evaluator {
         self.need_machine(span)?;
         let laser = self.current_laser(span, &set)?;
         self.check_pulse_rate(&laser, feed, speed.span)?;
+        if self.oriented() {
+            return self.follow_oriented(&profile, feed, laser, &set, span);
+        }
+        if let Some((_, side_span)) = set.side {
+            return Err(bad(
+                side_span,
+                "`side` only applies to machines that orient the beam",
+                "the beam of this machine always points down",
+                Some("remove `side`, or choose a machine such as cam_xwb or arm_3r"),
+            ));
+        }
         let z = self.pos[2];
         let start = profile.start();
         if (start.x - self.pos[0]).hypot(start.y - self.pos[1]) > 1e-9 {
@@ -930,6 +1088,174 @@ impl Evaluator {
             }
         }
         Ok(())
+    }
+
+    /// `follow` on a machine that orients the beam (PROCESS.md §1 and §2): the profile is
+    /// resampled at a constant arc-length step with exact frames, and every sample becomes a
+    /// pose — the spot on the surface, the beam back along the exact normal on the head's side,
+    /// the lens at the standoff. Equal steps at one feed give constant surface speed.
+    fn follow_oriented(
+        &mut self,
+        profile: &Profile,
+        feed: f64,
+        laser: Laser,
+        set: &LaserSet,
+        span: Span,
+    ) -> R<()> {
+        let machine = self.need_machine(span)?.name.clone();
+        let standoff = set.standoff.or(self.laser.standoff_mm).ok_or_else(|| {
+            bad(
+                span,
+                &format!("machine `{machine}` orients the beam: it needs a standoff"),
+                "no standoff in force",
+                Some("write `laser { standoff 12 mm }`, or `follow ... { standoff 12 mm }`"),
+            )
+        })?;
+        let side = match set.side {
+            Some((s @ (Side::Outside | Side::Inside), sp)) if !profile.closed => {
+                let word = if s == Side::Outside {
+                    "outside"
+                } else {
+                    "inside"
+                };
+                return Err(bad(
+                    sp,
+                    &format!("`side {word}` needs a closed profile"),
+                    "this path is open",
+                    Some(
+                        "say which side of the direction of travel the head stands on: `side left` or `side right`",
+                    ),
+                ));
+            }
+            Some((s, _)) => s,
+            None if profile.closed => Side::Outside,
+            None => Side::Left,
+        };
+        // The head-side normal is ±left: a counter-clockwise closed profile has its outside on
+        // the right of travel.
+        let ccw = profile.signed_area() > 0.0;
+        let head_on_left = match side {
+            Side::Left => true,
+            Side::Right => false,
+            Side::Outside => !ccw,
+            Side::Inside => ccw,
+        };
+        let step = set.step.or(self.scan_step_mm).unwrap_or(1.0);
+        let tol = self.planner_settings_now().arc_tolerance_mm;
+        let rs = profile
+            .resample_even(step, Some(tol))
+            .map_err(|g| geom_error(g, span, None))?;
+        // Where the surface is concave seen from the head with a radius below the standoff,
+        // the normals cross before they reach the lens: the lens path folds over (seed 2's
+        // offset rule, for the offset the head travels on) and the head would have to jump.
+        let toward_head = if head_on_left { 1.0 } else { -1.0 };
+        let folds: Vec<&crate::geometry::resample::Sample> = rs
+            .samples
+            .iter()
+            .filter(|smp| smp.curvature * toward_head * standoff >= 1.0 - 1e-9)
+            .collect();
+        if let (Some(a), Some(b)) = (folds.first(), folds.last()) {
+            let r_min = folds
+                .iter()
+                .map(|smp| 1.0 / smp.curvature.abs())
+                .fold(f64::INFINITY, f64::min);
+            return Err(EvalError::Geometry {
+                message: format!(
+                    "the surface is concave with a radius down to {} toward the head, less than \
+                     the standoff {}: the lens path folds over between s = {} and {}",
+                    format_quantity(r_min, Dim::LENGTH),
+                    format_quantity(standoff, Dim::LENGTH),
+                    format_quantity(a.s, Dim::LENGTH),
+                    format_quantity(b.s, Dim::LENGTH)
+                ),
+                span,
+                label: "this path".into(),
+                help: Some(format!(
+                    "use a standoff below {}, or round the concave region of the profile",
+                    format_quantity(r_min, Dim::LENGTH)
+                )),
+            });
+        }
+        let z = self.pos[2];
+        let pose = |smp: &crate::geometry::resample::Sample| {
+            let n = if head_on_left { smp.left } else { -smp.left };
+            (
+                [smp.point.x, smp.point.y, z],
+                Orient {
+                    beam: [-n.x, -n.y, 0.0],
+                    standoff_mm: standoff,
+                },
+            )
+        };
+        let mut samples = rs.samples;
+        if set.chord_normals {
+            // PROCESS.md §1's discrete method: the scan point is the chord's midpoint M and the
+            // normal the chord's perpendicular bisector (on an open profile the ends are kept).
+            let chords: Vec<crate::geometry::resample::Sample> = samples
+                .windows(2)
+                .map(|w| {
+                    let t = (w[1].point - w[0].point).normalize();
+                    crate::geometry::resample::Sample {
+                        s: 0.5 * (w[0].s + w[1].s),
+                        point: 0.5 * (w[0].point + w[1].point),
+                        tangent: t,
+                        left: V2::new(-t.y, t.x),
+                        curvature: 0.0,
+                    }
+                })
+                .collect();
+            samples = if profile.closed {
+                let mut c = chords.clone();
+                c.extend(chords.first().copied());
+                c
+            } else {
+                chords
+            };
+        }
+        let Some(first) = samples.first() else {
+            return Ok(());
+        };
+        let (p0, o0) = pose(first);
+        if dist3(p0, self.pos) > 1e-9 || self.orient != Some(o0) {
+            // Going to the start of a path, beam already along its normal: a rapid, laser off.
+            self.push(
+                OpKind::Rapid {
+                    to: p0,
+                    orient: Some(o0),
+                },
+                span,
+            );
+        }
+        for smp in &samples[1..] {
+            let (p, o) = pose(smp);
+            if dist3(p, self.pos) <= 1e-12 {
+                continue;
+            }
+            self.push(
+                OpKind::Line {
+                    to: p,
+                    feed_mm_s: feed,
+                    laser: Some(laser.clone()),
+                    orient: Some(o),
+                },
+                span,
+            );
+        }
+        Ok(())
+    }
+
+    /// The planner settings in force (machine defaults, overridden by `planner`).
+    fn planner_settings_now(&self) -> PlannerSettings {
+        self.planner.clone().unwrap_or_else(|| {
+            let m = self.machine.as_ref();
+            PlannerSettings {
+                ramp: m.map_or(Ramp::Trapezoid, |m| m.ramp),
+                junction_deviation_mm: m.map_or(0.01, |m| m.junction_deviation_mm),
+                arc_tolerance_mm: m.map_or(0.001, |m| m.arc_tolerance_mm),
+                lookahead: None,
+                leadin: LeadIn::Auto,
+            }
+        })
     }
 
     fn for_loop(&mut self, var: &Ident, iter: &ForIter, body: &[Stmt], cx: &mut Cx) -> R<Flow> {
@@ -1245,6 +1571,24 @@ impl Evaluator {
             }
             return Ok(v);
         }
+        if let Some(sig) = self.ext.lookup(&callee.name) {
+            // A Rhai extension function: bound like a recipe `fn`, converted and run by `ext`.
+            let names: Vec<String> = sig.params.iter().map(|(n, _)| n.clone()).collect();
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            let bound = self.bind_args(&names, args, cx)?;
+            let mut values = Vec::with_capacity(bound.len());
+            for (n, b) in names.iter().zip(bound) {
+                values.push(b.ok_or_else(|| {
+                    bad(
+                        span,
+                        &format!("missing argument `{n}`"),
+                        "in this call",
+                        None,
+                    )
+                })?);
+            }
+            return Ok(self.ext.call(&callee.name, &values, span)?);
+        }
         let Some(b) = schema::builtin(&callee.name) else {
             return Err(bad(
                 callee.span,
@@ -1298,7 +1642,24 @@ impl Evaluator {
             "offset" => {
                 let p = prof(self, 0)?;
                 let d = len(self, 1)?;
-                let o = p.offset(d).map_err(|g| geom_error(g, span, Some(d)))?;
+                let trim = match a.get(2).cloned().flatten() {
+                    Some((v, sp)) => self.as_bool(&v, sp, "`trim`")?,
+                    None => false,
+                };
+                let opts = crate::geometry::offset::OffsetOptions {
+                    trim,
+                    tol_mm: self.planner_settings_now().arc_tolerance_mm,
+                };
+                let o = p.offset_with(d, &opts).map_err(|g| {
+                    // A fold-over is a property of the profile: point at it.
+                    let at = match g {
+                        GeomError::FoldOver { .. } => {
+                            a.first().cloned().flatten().map_or(span, |x| x.1)
+                        }
+                        _ => span,
+                    };
+                    geom_error(g, at, Some(d))
+                })?;
                 Value::Profile(Rc::new(o))
             }
             "reverse" => Value::Profile(Rc::new(prof(self, 0)?.reversed())),
@@ -1540,6 +1901,20 @@ impl Evaluator {
                     true,
                 )
             }
+            "spline" => {
+                let (v, sp) = get(0)?;
+                let Value::List(items) = v else {
+                    return Err(type_err("a list of points", &v, sp, "`points`"));
+                };
+                let mut pts = Vec::with_capacity(items.len());
+                for it in items.iter() {
+                    let (p, _) = self.as_point(it, sp, "a spline point")?;
+                    pts.push(V2::new(p[0], p[1]));
+                }
+                Profile::interpolate(&pts, has("closed"))
+            }
+            "cam" => return self.cam_profile(&a, span, cx),
+            "dxf" | "svg" => return self.imported_profile(pk.name, &a, span, cx),
             other => {
                 return Err(bad(
                     kind.span,
@@ -1552,6 +1927,217 @@ impl Evaluator {
         r.map(|p| Value::Profile(Rc::new(p)))
             .map_err(|g| geom_error(g, span, None))
     }
+
+    /// `profile cam(...)`: a motion program (rise, top dwell, fall, base dwell) or a lift table.
+    fn cam_profile(&mut self, a: &[Option<(Value, Span)>], span: Span, cx: &mut Cx) -> R<Value> {
+        use crate::geometry::cam::{CamLaw, CamSegment, CamSegmentKind};
+        let arg = |i: usize| a.get(i).cloned().flatten();
+        let (bv, bs) = arg(0).ok_or_else(|| bad(span, "missing `base`", "in this cam", None))?;
+        let base = self.positive_length(&bv, bs, "`base`")?;
+        if let Some((tv, ts)) = arg(6) {
+            let Value::Str(path) = &tv else {
+                return Err(type_err("a file name", &tv, ts, "`table`"));
+            };
+            if let Some((_, ls)) = arg(1) {
+                return Err(bad(
+                    ls,
+                    "a cam takes its lift from a motion program or from a table, not both",
+                    "remove this",
+                    Some("with `table`, the lift of every angle is in the file"),
+                ));
+            }
+            let text = self.data_file(path, ts, cx)?;
+            let prof =
+                Profile::cam_from_lift_csv(base, &text).map_err(|e| EvalError::Geometry {
+                    message: format!("lift table \"{path}\": {e}"),
+                    span: ts,
+                    label: "this table".into(),
+                    help: Some(
+                        "one `angle_deg, lift_mm` row a line, angles increasing within one turn"
+                            .into(),
+                    ),
+                })?;
+            return Ok(Value::Profile(Rc::new(prof)));
+        }
+        let need = |i: usize, name: &str| {
+            arg(i).ok_or_else(|| {
+                bad(
+                    span,
+                    &format!("a cam motion program needs `{name}`"),
+                    "in this cam",
+                    Some("give `lift`, `rise` (and optionally `top`, `fall`, `law`), or a lift `table`"),
+                )
+            })
+        };
+        let (lv, ls) = need(1, "lift")?;
+        let lift = self.positive_length(&lv, ls, "`lift`")?;
+        let (rv, rs) = need(2, "rise")?;
+        let rise = self.as_dim(&rv, Dim::ANGLE, rs, "`rise`")?.to_degrees();
+        let dwell = match arg(3) {
+            Some((v, sp)) => self.as_dim(&v, Dim::ANGLE, sp, "`top`")?.to_degrees(),
+            None => 0.0,
+        };
+        let fall = match arg(4) {
+            Some((v, sp)) => self.as_dim(&v, Dim::ANGLE, sp, "`fall`")?.to_degrees(),
+            None => rise,
+        };
+        let law = match arg(5) {
+            None => CamLaw::Cycloidal,
+            Some((Value::Str(w), sp)) => match &*w {
+                "harmonic" => CamLaw::Harmonic,
+                "cycloidal" => CamLaw::Cycloidal,
+                "345" | "3-4-5" | "poly345" => CamLaw::Poly345,
+                "modified_trapezoid" => CamLaw::ModifiedTrapezoid,
+                other => {
+                    let help = did_you_mean(
+                        other,
+                        ["harmonic", "cycloidal", "345", "modified_trapezoid"].into_iter(),
+                    )
+                    .unwrap_or_else(|| {
+                        "the laws are \"harmonic\", \"cycloidal\", \"345\" and \"modified_trapezoid\"".into()
+                    });
+                    return Err(bad(
+                        sp,
+                        &format!("unknown cam law \"{other}\""),
+                        "not a cam law",
+                        Some(&help),
+                    ));
+                }
+            },
+            Some((v, sp)) => return Err(type_err("a law name", &v, sp, "`law`")),
+        };
+        for (name, deg, i) in [("rise", rise, 2), ("top", dwell, 3), ("fall", fall, 4)] {
+            let neg = if name == "top" { deg < 0.0 } else { deg <= 0.0 };
+            if neg || !deg.is_finite() {
+                let sp = arg(i).map_or(span, |x| x.1);
+                return Err(bad(
+                    sp,
+                    &format!("`{name}` must be a positive angle"),
+                    "out of range",
+                    None,
+                ));
+            }
+        }
+        let rest = 360.0 - rise - dwell - fall;
+        if rest < -1e-9 {
+            return Err(bad(
+                span,
+                &format!(
+                    "rise, top and fall add up to {}°, more than a turn",
+                    units::format_number(rise + dwell + fall)
+                ),
+                "this cam",
+                Some("the base dwell takes what is left of 360°"),
+            ));
+        }
+        let seg = |kind, duration_deg| CamSegment {
+            kind,
+            law,
+            duration_deg,
+            lift_mm: lift,
+        };
+        let mut segs = vec![seg(CamSegmentKind::Rise, rise)];
+        if dwell > 0.0 {
+            segs.push(seg(CamSegmentKind::Dwell, dwell));
+        }
+        segs.push(seg(CamSegmentKind::Return, fall));
+        if rest > 1e-9 {
+            segs.push(seg(CamSegmentKind::Dwell, rest));
+        }
+        // 0.25° samples: the spline through them follows the law's lift to well under a µm.
+        let prof = Profile::cam(base, &segs, 1440).map_err(|g| geom_error(g, span, None))?;
+        Ok(Value::Profile(Rc::new(prof)))
+    }
+
+    /// `profile dxf(file)` and `profile svg(path data)`.
+    fn imported_profile(
+        &mut self,
+        kind: &str,
+        a: &[Option<(Value, Span)>],
+        span: Span,
+        cx: &mut Cx,
+    ) -> R<Value> {
+        use crate::geometry::import::{ImportOptions, dxf_profiles, svg_path_profiles};
+        let (v, sp) = a
+            .first()
+            .cloned()
+            .flatten()
+            .ok_or_else(|| bad(span, "missing the source", "in this profile", None))?;
+        let Value::Str(src) = &v else {
+            return Err(type_err("a string", &v, sp, "the source"));
+        };
+        let tol = self.planner_settings_now().arc_tolerance_mm;
+        let opts = ImportOptions {
+            tol_mm: tol,
+            flip_y: kind == "svg",
+            ..ImportOptions::default()
+        };
+        let (profiles, what) = if kind == "dxf" {
+            let text = self.data_file(src, sp, cx)?;
+            (dxf_profiles(&text, &opts), format!("DXF file \"{src}\""))
+        } else {
+            (svg_path_profiles(src, &opts), "SVG path data".to_string())
+        };
+        let profiles = profiles.map_err(|e| EvalError::Geometry {
+            message: format!("{what}: {e}"),
+            span: sp,
+            label: "cannot be read".into(),
+            help: None,
+        })?;
+        let index = match a.get(1).cloned().flatten() {
+            Some((v, isp)) => Some((self.as_count(&v, isp, "`index`")?, isp)),
+            None => None,
+        };
+        let n = profiles.len();
+        let pick = match index {
+            Some((i, isp)) if i < 0 || i as usize >= n => {
+                return Err(bad(
+                    isp,
+                    &format!("{what} holds {n} contour(s)"),
+                    "no such contour",
+                    Some(&format!("`index` runs from 0 to {}", n.saturating_sub(1))),
+                ));
+            }
+            Some((i, _)) => i as usize,
+            None if n == 1 => 0,
+            None => {
+                return Err(bad(
+                    sp,
+                    &format!("{what} holds {n} contours"),
+                    "which one?",
+                    Some(&format!(
+                        "pick one with `index: 0` … `index: {}`",
+                        n.saturating_sub(1)
+                    )),
+                ));
+            }
+        };
+        Ok(Value::Profile(Rc::new(
+            profiles.into_iter().nth(pick).expect("checked"),
+        )))
+    }
+
+    /// The text of a data file named in the recipe, relative to the file that names it.
+    fn data_file(&self, path: &str, span: Span, cx: &mut Cx) -> R<String> {
+        let importer = cx
+            .map
+            .file_of(span.start as usize)
+            .map(|f| cx.map.name(f).to_string())
+            .unwrap_or_default();
+        cx.host
+            .data_file(&importer, path)
+            .map(|(_, text)| text)
+            .map_err(|reason| EvalError::Geometry {
+                message: format!("cannot read \"{path}\": {reason}"),
+                span,
+                label: "this file".into(),
+                help: Some("paths are relative to the recipe's folder".into()),
+            })
+    }
+}
+
+fn dist3(a: P3, b: P3) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 fn a_is_zero(a: &[Option<(Value, Span)>], i: usize) -> bool {
@@ -1600,7 +2186,9 @@ fn type_err(expected: &str, found: &Value, span: Span, ctx: &str) -> EvalError {
 fn geom_error(g: GeomError, span: Span, offset: Option<f64>) -> EvalError {
     let help = match (&g, offset) {
         (GeomError::FoldOver { radius, .. }, _) => Some(format!(
-            "offset by less than {} here, or round the profile's concave region to a radius above the distance",
+            "offset by less than {} here, round the profile's concave region to a radius above \
+             the distance, or write `offset(..., trim: true)` for the clean offset with the \
+             loops cut away",
             format_quantity(*radius, Dim::LENGTH)
         )),
         (GeomError::Split { .. }, Some(_)) => Some("use a smaller offset distance".into()),
@@ -1609,7 +2197,13 @@ fn geom_error(g: GeomError, span: Span, offset: Option<f64>) -> EvalError {
     EvalError::Geometry {
         message: g.to_string(),
         span,
-        label: if offset.is_some() {
+        label: if let GeomError::FoldOver { s_start, s_end, .. } = &g {
+            format!(
+                "this profile's concave region from s = {} to {} is too tight for the offset",
+                format_quantity(*s_start, Dim::LENGTH),
+                format_quantity(*s_end, Dim::LENGTH)
+            )
+        } else if offset.is_some() {
             "this offset".into()
         } else {
             "this profile".into()

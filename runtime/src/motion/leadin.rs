@@ -35,9 +35,9 @@
 //! rapid back to the section's end is inserted before it.
 
 use super::{MotionError, arc_points, dist};
-use crate::kinematics::{Kinematics, ToolPose};
+use crate::kinematics::Kinematics;
 use crate::planner::{self, Axes, AxisLimits, MAX_AXES, PlannerConfig};
-use crate::program::{Laser, Op, OpKind, P3};
+use crate::program::{Laser, Op, OpKind, Orient, P3};
 use lase_lang::units::format_number;
 
 /// What the lead computation needs to know about the machine and the planner.
@@ -151,9 +151,12 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
         // Lead-in: ends at the first lit point P0 at full speed.
         let op = &ops[first];
         let p0 = starts[first];
+        // On a machine that orients the beam, the lead-in keeps the orientation at P0 (set by
+        // the move before the section), so the first lit block starts on the normal.
+        let o_in = orient_before(ops, first).or(op.orient());
         let (u, chord_end) = entry_chord(op, p0, cx.arc_tolerance_mm);
         let feed = feed_of(op);
-        let (v, a, j) = limits_along(cx, p0, chord_end, feed, op)?;
+        let (v, a, j) = limits_along(cx, (p0, o_in), (chord_end, op.orient()), feed, op)?;
         let w_max = match prev_move {
             _ if cx.switch_stops => 0.0,
             None => 0.0,
@@ -162,7 +165,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
         };
         let d_in = planner::lead_distance(v, w_max, a, j);
         let p_lead = along(p0, u, -d_in);
-        let room = room_along(cx.kin, p0, u, -1.0, d_in);
+        let room = room_along(cx.kin, p0, o_in, u, -1.0, d_in);
         if room < d_in {
             return Err(MotionError::NoRoomForLeadIn {
                 needed: mm(d_in),
@@ -181,8 +184,8 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             {
                 ed.redirect[pm] = Some(p_lead)
             }
-            Some(pm) => ed.after[pm].push((rapid(p_lead, op), None)),
-            None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op)),
+            Some(pm) => ed.after[pm].push((rapid(p_lead, op, o_in), None)),
+            None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op, o_in)),
             None => {}
         }
         ed.before[first].push((
@@ -191,7 +194,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
                     to: p0,
                     feed_mm_s: feed,
                     laser: lit_lead.clone(),
-                    orient: op.orient(),
+                    orient: o_in,
                 },
                 span: op.span,
             },
@@ -203,7 +206,13 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
         let p1 = op.target().unwrap_or(starts[last]);
         let (u, chord_start) = exit_chord(op, starts[last], cx.arc_tolerance_mm);
         let feed = feed_of(op);
-        let (v, a, j) = limits_along(cx, chord_start, p1, feed, op)?;
+        let (v, a, j) = limits_along(
+            cx,
+            (chord_start, orient_before(ops, last).or(op.orient())),
+            (p1, op.orient()),
+            feed,
+            op,
+        )?;
         let w_max = match next_move {
             _ if cx.switch_stops => 0.0,
             None => 0.0,
@@ -212,7 +221,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
         };
         let d_out = planner::lead_distance(v, w_max, a, j);
         let p_out = along(p1, u, d_out);
-        let room = room_along(cx.kin, p1, u, 1.0, d_out);
+        let room = room_along(cx.kin, p1, op.orient(), u, 1.0, d_out);
         if room < d_out {
             return Err(MotionError::NoRoomForLeadOut {
                 needed: mm(d_out),
@@ -238,7 +247,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             && matches!(ops[nm].kind, OpKind::Arc { .. })
         {
             // An arc is defined from where it starts: go back to it.
-            ed.after[last].push((rapid(p1, op), None));
+            ed.after[last].push((rapid(p1, op, op.orient()), None));
         }
     }
     Ok(apply(ops, &starts, &runs, ed))
@@ -382,14 +391,16 @@ fn lead_laser(l: Option<&Laser>) -> Laser {
     l
 }
 
-fn rapid(to: P3, like: &Op) -> Op {
+fn rapid(to: P3, like: &Op, orient: Option<Orient>) -> Op {
     Op {
-        kind: OpKind::Rapid {
-            to,
-            orient: like.orient(),
-        },
+        kind: OpKind::Rapid { to, orient },
         span: like.span,
     }
+}
+
+/// The orientation in force when op `i` starts: the last one set before it.
+fn orient_before(ops: &[Op], i: usize) -> Option<Orient> {
+    ops[..i].iter().rev().find_map(|o| o.orient())
 }
 
 /// Unit direction and end point of the first straight piece the planner will see for `op`
@@ -437,8 +448,15 @@ fn along(p: P3, u: P3, t: f64) -> P3 {
     [p[0] + t * u[0], p[1] + t * u[1], p[2] + t * u[2]]
 }
 
-fn axes_at(kin: &dyn Kinematics, p: P3) -> Option<Axes> {
-    let q = kin.inverse(&ToolPose::down(p), None).ok()?;
+/// Axis positions of spot `p` with the beam as `orient` says (a lead keeps the orientation of
+/// the lit point it leads to), continuous with `prev` when given.
+fn axes_at(
+    kin: &dyn Kinematics,
+    p: P3,
+    orient: Option<Orient>,
+    prev: Option<&Axes>,
+) -> Option<Axes> {
+    let q = kin.inverse(&super::tool_pose(p, orient), prev).ok()?;
     kin.check(&q).ok()?;
     Some(q)
 }
@@ -447,13 +465,15 @@ fn axes_at(kin: &dyn Kinematics, p: P3) -> Option<Axes> {
 /// planner derives them. The feed must be reachable along it: a lead cannot help otherwise.
 fn limits_along(
     cx: &LeadContext<'_>,
-    from: P3,
-    to: P3,
+    (from, o_from): (P3, Option<Orient>),
+    (to, o_to): (P3, Option<Orient>),
     feed: f64,
     op: &Op,
 ) -> Result<(f64, f64, f64), MotionError> {
     let length = dist(from, to);
-    let (Some(q0), Some(q1)) = (axes_at(cx.kin, from), axes_at(cx.kin, to)) else {
+    let q0 = axes_at(cx.kin, from, o_from, None);
+    let q1 = q0.and_then(|q0| axes_at(cx.kin, to, o_to, Some(&q0)));
+    let (Some(q0), Some(q1)) = (q0, q1) else {
         // Unreachable ends are reported with their own diagnostic by the lowering; the feed
         // is then all a lead can aim for.
         return Ok((feed, f64::INFINITY, f64::INFINITY));
@@ -481,20 +501,27 @@ fn limits_along(
 /// How far from `p` along `sign · u` the machine can go, up to `want` (bisection on the
 /// kinematics' travel check; travel regions are intervals along a line for the machines lase
 /// knows).
-fn room_along(kin: &dyn Kinematics, p: P3, u: P3, sign: f64, want: f64) -> f64 {
+fn room_along(
+    kin: &dyn Kinematics,
+    p: P3,
+    orient: Option<Orient>,
+    u: P3,
+    sign: f64,
+    want: f64,
+) -> f64 {
     if !(want > 0.0) {
         return want.max(0.0);
     }
-    if axes_at(kin, along(p, u, sign * want)).is_some() {
+    if axes_at(kin, along(p, u, sign * want), orient, None).is_some() {
         return want;
     }
-    if axes_at(kin, p).is_none() {
+    if axes_at(kin, p, orient, None).is_none() {
         return 0.0;
     }
     let (mut lo, mut hi) = (0.0, want);
     for _ in 0..60 {
         let mid = 0.5 * (lo + hi);
-        if axes_at(kin, along(p, u, sign * mid)).is_some() {
+        if axes_at(kin, along(p, u, sign * mid), orient, None).is_some() {
             lo = mid;
         } else {
             hi = mid;

@@ -18,7 +18,7 @@ mod summary;
 mod trace;
 
 pub use plot::plot_svg;
-pub use pulses::{PulseEvent, PulseEvents, pulse_events};
+pub use pulses::{PulseEvent, PulseEvents, pulse_events, write_pulses};
 pub use summary::{AxisPeaks, Summary, summarize};
 pub use trace::write_trace;
 

@@ -50,7 +50,7 @@ pub fn write_trace(job: &Job, period_s: f64, out: &mut dyn Write) -> io::Result<
             pulses.next();
             fired += 1;
         }
-        let spot = kin.forward(&sample.pos).spot;
+        let spot = job.spot(&*kin, &sample.pos, sample.tag);
         row.clear();
         row.push_str(&fixed6(t));
         for (i, a) in machine.axes.iter().enumerate() {
