@@ -456,9 +456,18 @@ fn motion_line(
     let q = kin
         .inverse(&crate::motion::tool_pose(to, orient), Some(&m.q))
         .unwrap_or(m.q);
-    let mut parts: Vec<String> = Vec::with_capacity(MAX_AXES + 3);
+    // One buffer, words appended with a separating space: this runs once per NC block, and
+    // a million-spot raster writes millions of them.
+    let mut line = String::with_capacity(16 * (MAX_AXES + 3));
+    let mut word = |line: &mut String, letter: &str, value: &str| {
+        if !line.is_empty() {
+            line.push(' ');
+        }
+        line.push_str(letter);
+        line.push_str(value);
+    };
     if m.motion != Some(g) {
-        parts.push(g.to_string());
+        word(&mut line, g, "");
         m.motion = Some(g);
     }
     // An arc always names its plane's axes: a full circle ends where it starts, and G2/G3
@@ -474,14 +483,14 @@ fn motion_line(
         };
         let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
         if forced || m.words[k].as_deref() != Some(v.as_str()) {
-            parts.push(format!("{}{v}", axis.name));
+            word(&mut line, &axis.name, &v);
             m.words[k] = Some(v);
         }
     }
     if let OpKind::Arc { center, .. } = &op.kind {
         // Center relative to the start, in part x/y (= machine X/Y, validated).
-        parts.push(format!("I{}", format::number(center[0] - m.pos[0])));
-        parts.push(format!("J{}", format::number(center[1] - m.pos[1])));
+        word(&mut line, "I", &format::number(center[0] - m.pos[0]));
+        word(&mut line, "J", &format::number(center[1] - m.pos[1]));
     }
     match feed {
         Some(f) if m.inverse_time => {
@@ -498,13 +507,13 @@ fn motion_line(
                     .map(|(k, a)| (q[k] - m.q[k]).abs() / a.v_max / 60.0)
                     .fold(1e-9, f64::max)
             };
-            parts.push(format!("F{}", format::inverse_time(1.0 / minutes)));
+            word(&mut line, "F", &format::inverse_time(1.0 / minutes));
             m.feed = None;
         }
         Some(f) => {
             let f = format::number(f * 60.0);
             if m.feed.as_deref() != Some(f.as_str()) {
-                parts.push(format!("F{f}"));
+                word(&mut line, "F", &f);
                 m.feed = Some(f);
             }
         }
@@ -513,5 +522,5 @@ fn motion_line(
     m.pos = to;
     m.q = q;
     m.orient = orient;
-    parts.join(" ")
+    line
 }
