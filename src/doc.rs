@@ -438,8 +438,37 @@ pub fn lookup(topic: Option<&str>) -> Option<String> {
             );
             Some(s)
         }
-        Some(t) => render(Some(t)).or_else(|| stdlib_topic(t)),
+        Some(t) => render(Some(t))
+            .or_else(|| stdlib_topic(t))
+            .or_else(|| setting_topic(t)),
     }
+}
+
+/// A setting by its key alone (`:help standoff`): every statement that takes it, with its doc.
+fn setting_topic(key: &str) -> Option<String> {
+    use lase_lang::schema;
+    let mut tables: Vec<(String, &[schema::SettingSpec])> = vec![
+        ("laser".into(), schema::LASER_SETTINGS),
+        ("follow".into(), schema::FOLLOW_SETTINGS),
+        ("pulse".into(), schema::PULSE_SETTINGS),
+        ("planner".into(), schema::PLANNER_SETTINGS),
+        ("limits".into(), schema::LIMIT_SETTINGS),
+    ];
+    for k in schema::SCAN_KINDS {
+        tables.push((format!("scan {}", k.name), k.settings));
+    }
+    let mut out = String::new();
+    for (stmt, table) in tables {
+        for spec in table.iter().filter(|s| s.key == key) {
+            let _ = writeln!(
+                out,
+                "{stmt} {{ {key} ... }}  ({})\n    {}",
+                spec.ty.describe(),
+                spec.doc
+            );
+        }
+    }
+    (!out.is_empty()).then_some(out)
 }
 
 /// The whole reference as Markdown: `docs/reference.md` is this text (a test keeps it so).
