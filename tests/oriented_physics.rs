@@ -391,3 +391,38 @@ fn seed1_chord_normals_are_measurably_worse_than_exact_ones() {
     assert!(chord.0 > 10.0 * exact.0.max(1e-4), "{chord:?} vs {exact:?}");
     assert!(chord.1 > 1.0, "midpoints {} µm off the surface", chord.1);
 }
+
+/// The planned cam track is lit only at the programmed surface speed: the lead-in and lead-out
+/// continue the lit chords' axis-space direction, so there is no corner at the lit ends
+/// (measured from `lase plan --trace`, every 1 ms sample with the beam on).
+#[test]
+fn cam_track_is_lit_only_at_the_programmed_speed() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("t.csv");
+    let (code, _, err) = lase(&[
+        "plan",
+        "examples/cam_hardening.lase",
+        "--trace",
+        trace.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(trace).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let (v, laser) = (col("v"), col("laser"));
+    let mut lit = 0;
+    for l in lines {
+        let f: Vec<&str> = l.split(',').collect();
+        if f[laser] == "1" {
+            lit += 1;
+            let speed: f64 = f[v].parse().unwrap();
+            assert!(
+                (speed / 8.0 - 1.0).abs() <= 1e-3,
+                "lit at {speed} mm/s: {l}"
+            );
+        }
+    }
+    // 218 mm of track at 8 mm/s: about 27 300 samples.
+    assert!(lit > 27_000, "{lit}");
+}

@@ -459,7 +459,7 @@ fn motion_line(
     // One buffer, words appended with a separating space: this runs once per NC block, and
     // a million-spot raster writes millions of them.
     let mut line = String::with_capacity(16 * (MAX_AXES + 3));
-    let mut word = |line: &mut String, letter: &str, value: &str| {
+    let word = |line: &mut String, letter: &str, value: &str| {
         if !line.is_empty() {
             line.push(' ');
         }

@@ -102,8 +102,9 @@ type Insert = (Op, Option<(LeadKind, f64, bool)>);
 /// Edits to the op list, collected first and applied in one pass.
 #[derive(Default)]
 struct Edits {
-    /// New target of op i (an unlit straight move redirected to a lead-in start).
-    redirect: Vec<Option<P3>>,
+    /// New target (and orientation) of op i (an unlit straight move redirected to a lead-in
+    /// start).
+    redirect: Vec<Option<(P3, Option<Orient>)>>,
     /// Ops to insert before op i (index `ops.len()` = at the end).
     before: Vec<Vec<Insert>>,
     /// Ops to insert after op i.
@@ -164,8 +165,15 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             Some(_) => v,
         };
         let d_in = planner::lead_distance(v, w_max, a, j);
-        let p_lead = along(p0, u, -d_in);
-        let room = room_along(cx.kin, p0, o_in, u, -1.0, d_in);
+        let (p_lead, o_lead, room) =
+            match oriented_lead(cx, (p0, o_in), (chord_end, op.orient()), d_in) {
+                Some((p, o)) => (p, Some(o), d_in),
+                None => (
+                    along(p0, u, -d_in),
+                    o_in,
+                    room_along(cx.kin, p0, o_in, u, -1.0, d_in),
+                ),
+            };
         if room < d_in {
             return Err(MotionError::NoRoomForLeadIn {
                 needed: mm(d_in),
@@ -182,10 +190,10 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
                     OpKind::Rapid { .. } | OpKind::Line { laser: None, .. }
                 ) =>
             {
-                ed.redirect[pm] = Some(p_lead)
+                ed.redirect[pm] = Some((p_lead, o_lead))
             }
-            Some(pm) => ed.after[pm].push((rapid(p_lead, op, o_in), None)),
-            None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op, o_in)),
+            Some(pm) => ed.after[pm].push((rapid(p_lead, op, o_lead), None)),
+            None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op, o_lead)),
             None => {}
         }
         ed.before[first].push((
@@ -220,8 +228,16 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             Some(_) => v,
         };
         let d_out = planner::lead_distance(v, w_max, a, j);
-        let p_out = along(p1, u, d_out);
-        let room = room_along(cx.kin, p1, op.orient(), u, 1.0, d_out);
+        let o_start = orient_before(ops, last).or(op.orient());
+        let (p_out, o_out, room) =
+            match oriented_lead(cx, (p1, op.orient()), (chord_start, o_start), d_out) {
+                Some((p, o)) => (p, Some(o), d_out),
+                None => (
+                    along(p1, u, d_out),
+                    op.orient(),
+                    room_along(cx.kin, p1, op.orient(), u, 1.0, d_out),
+                ),
+            };
         if room < d_out {
             return Err(MotionError::NoRoomForLeadOut {
                 needed: mm(d_out),
@@ -237,7 +253,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
                     to: p_out,
                     feed_mm_s: feed,
                     laser: lit_lead,
-                    orient: op.orient(),
+                    orient: o_out,
                 },
                 span: op.span,
             },
@@ -274,9 +290,14 @@ fn apply(ops: &[Op], starts: &[P3], runs: &[(usize, usize)], mut ed: Edits) -> L
             push(&mut out, x);
         }
         let mut op = op.clone();
-        if let Some(p) = ed.redirect[i] {
+        if let Some((p, o)) = ed.redirect[i] {
             match &mut op.kind {
-                OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => *to = p,
+                OpKind::Rapid { to, orient } | OpKind::Line { to, orient, .. } => {
+                    *to = p;
+                    if o.is_some() {
+                        *orient = o;
+                    }
+                }
                 _ => {}
             }
         }
@@ -396,6 +417,45 @@ fn rapid(to: P3, like: &Op, orient: Option<Orient>) -> Op {
         kind: OpKind::Rapid { to, orient },
         span: like.span,
     }
+}
+
+/// A lead on a machine that orients the beam. A lead along the part's tangent would be a
+/// corner in axis space (the beam stops turning where the lead meets the lit path), and the
+/// planner would slow down exactly at the lit point. Instead the lead continues the adjacent
+/// lit chord's axis-space direction: its far end is the forward kinematics of the axes at
+/// `anchor` moved `d` further, away from `other`, along that chord. The spot then runs `d`
+/// (to first order) off the part's path with the beam still turning, and the junction at the
+/// lit point is straight. `None` on flat-bed machines, or when the extrapolated axes leave the
+/// travel (the straight lead and its room check apply then).
+fn oriented_lead(
+    cx: &LeadContext<'_>,
+    (anchor, o_anchor): (P3, Option<Orient>),
+    (other, o_other): (P3, Option<Orient>),
+    d: f64,
+) -> Option<(P3, Orient)> {
+    if !cx.kin.oriented() || !(d > 0.0) {
+        return None;
+    }
+    let o = o_anchor.or(o_other)?;
+    let len = dist(anchor, other);
+    if len <= 1e-12 {
+        return None;
+    }
+    let qa = axes_at(cx.kin, anchor, o_anchor.or(Some(o)), None)?;
+    let qo = axes_at(cx.kin, other, o_other.or(Some(o)), Some(&qa))?;
+    let mut q = qa;
+    for k in 0..MAX_AXES {
+        q[k] = qa[k] + (qa[k] - qo[k]) * d / len;
+    }
+    cx.kin.check(&q).ok()?;
+    let pose = cx.kin.forward_at(&q, o.standoff_mm);
+    Some((
+        [pose.spot.x, pose.spot.y, pose.spot.z],
+        Orient {
+            beam: [pose.beam.x, pose.beam.y, pose.beam.z],
+            standoff_mm: o.standoff_mm,
+        },
+    ))
 }
 
 /// The orientation in force when op `i` starts: the last one set before it.
