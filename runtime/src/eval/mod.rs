@@ -58,6 +58,10 @@ impl Host for StdlibOnly {
 
 /// Statements executed before the recipe is stopped as runaway.
 const STEP_BUDGET: u64 = 200_000_000;
+/// Ops (moves, pulses, machine events) a program may hold: about a gigabyte of process program
+/// and far beyond any real job (a million-spot raster is a few thousand ops). A loop that
+/// produces more is stopped before it exhausts memory or runs for hours.
+const MAX_OPS: usize = 10_000_000;
 /// Nested function calls before the recipe is stopped as runaway recursion.
 const MAX_DEPTH: usize = 200;
 
@@ -279,6 +283,20 @@ impl Evaluator {
                 message: format!("the recipe ran more than {STEP_BUDGET} steps"),
                 span,
                 help: Some("a loop runs far longer than intended; check its range".into()),
+            });
+        }
+        if self.ops.len() > MAX_OPS {
+            return Err(EvalError::Budget {
+                message: format!(
+                    "the program holds more than {} moves and machine events",
+                    units::format_number(MAX_OPS as f64)
+                ),
+                span,
+                help: Some(
+                    "a loop produces far more motion than a job needs; check its range (a job \
+                     this size, if meant, belongs in several recipes)"
+                        .into(),
+                ),
             });
         }
         Ok(())
