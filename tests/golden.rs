@@ -75,11 +75,7 @@ fn linuxcnc_interpreter_accepts_every_example() {
         let ngc = dir.path().join("job.ngc");
         let (code, _, err) = lase(&["emit", &rel, "-o", ngc.to_str().unwrap()]);
         assert_eq!(code, 0, "{err}");
-        let out = std::process::Command::new("rs274")
-            .arg("-g")
-            .arg(&ngc)
-            .output()
-            .unwrap();
+        let out = rs274_g(&ngc).unwrap();
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(
             out.status.success() && !text.contains("Unknown") && !text.contains("error"),

@@ -323,11 +323,7 @@ fn linuxcnc_accepts_both_oriented_programs() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("p.ngc");
         std::fs::write(&path, emit(ex)).unwrap();
-        let out = std::process::Command::new("rs274")
-            .arg("-g")
-            .arg(&path)
-            .output()
-            .unwrap();
+        let out = rs274_g(&path).unwrap();
         let text = String::from_utf8_lossy(&out.stdout).to_string()
             + String::from_utf8_lossy(&out.stderr).as_ref();
         assert!(out.status.success(), "{ex}: {text}");

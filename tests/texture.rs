@@ -244,11 +244,7 @@ fn linuxcnc_triggers_each_pulse_where_its_spot_is_and_rs274_accepts_it() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("t.ngc");
     std::fs::write(&f, &ngc).unwrap();
-    if let Ok(out) = std::process::Command::new("rs274")
-        .arg("-g")
-        .arg(&f)
-        .output()
-    {
+    if let Ok(out) = rs274_g(&f) {
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(out.status.success() && !text.contains("error") && text.contains("PROGRAM_END"));
         // rs274's canonical calls: one SET_MOTION_OUTPUT_BIT(1) per pulse.
@@ -369,11 +365,7 @@ fn regions_hatches_and_explicit_spots_emit_valid_linuxcnc() {
     assert_eq!(code, 0, "{err}");
     let f = dir.path().join("ring.ngc");
     std::fs::write(&f, &ngc).unwrap();
-    if let Ok(out) = std::process::Command::new("rs274")
-        .arg("-g")
-        .arg(&f)
-        .output()
-    {
+    if let Ok(out) = rs274_g(&f) {
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(
             out.status.success() && !text.contains("error") && text.contains("PROGRAM_END"),
