@@ -276,7 +276,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
 
     let eta = lase_runtime::link::eta::Eta::new(&job, &nc);
     let mut display = Display::new(lines.len(), from, eta);
-    let keys = Keys::start();
+    let keys = Keys::for_terminal();
     let report = stream::stream(
         &mut *link,
         &StreamJob {
@@ -290,7 +290,12 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         &StreamOptions::default(),
         &mut |p: &Progress, e: Option<&Event>| {
             display.update(p, e);
-            keys.as_ref().and_then(|k| k.rx.try_recv().ok())
+            // `lase run` has no prompt to go back to: Ctrl-C in raw mode aborts.
+            keys.as_ref().and_then(Keys::try_key).map(|k| match k {
+                Key::Interrupt | Key::Abort => Control::Abort,
+                Key::Hold => Control::Hold,
+                Key::Resume => Control::Resume,
+            })
         },
     );
     drop(keys);
@@ -515,19 +520,31 @@ impl Display {
     }
 }
 
+/// A key pressed during a job.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Key {
+    /// Ctrl-C typed in a raw-mode window (between windows it arrives as a signal).
+    Interrupt,
+    Hold,
+    Resume,
+    Abort,
+}
+
 /// Hold/resume/abort keys, read in raw mode in short windows so that output in between
-/// stays normal.
-struct Keys {
-    rx: Receiver<Control>,
+/// stays normal. Shared by `lase run` and the REPL's `:run`.
+pub(crate) struct Keys {
+    rx: Receiver<Key>,
     stop: Arc<AtomicBool>,
     thread: Option<std::thread::JoinHandle<()>>,
 }
 
 impl Keys {
-    fn start() -> Option<Keys> {
-        if !std::io::stdin().is_terminal() || !std::io::stderr().is_terminal() {
-            return None;
-        }
+    /// Starts the reader when stdin and stderr are terminals.
+    fn for_terminal() -> Option<Keys> {
+        (std::io::stdin().is_terminal() && std::io::stderr().is_terminal()).then(Keys::start)
+    }
+
+    pub(crate) fn start() -> Keys {
         use crossterm::event::{self, Event as CtEvent, KeyCode, KeyEventKind, KeyModifiers};
         let (tx, rx) = channel();
         let stop = Arc::new(AtomicBool::new(false));
@@ -549,31 +566,32 @@ impl Keys {
                 if k.kind != KeyEventKind::Press {
                     continue;
                 }
-                let control = match k.code {
+                let key = match k.code {
                     KeyCode::Char('c') if k.modifiers.contains(KeyModifiers::CONTROL) => {
-                        Some(Control::Abort)
+                        Some(Key::Interrupt)
                     }
-                    KeyCode::Char('h') | KeyCode::Char(' ') | KeyCode::Char('!') => {
-                        Some(Control::Hold)
-                    }
-                    KeyCode::Char('r') | KeyCode::Char('~') | KeyCode::Enter => {
-                        Some(Control::Resume)
-                    }
-                    KeyCode::Char('a') | KeyCode::Char('q') | KeyCode::Esc => Some(Control::Abort),
+                    KeyCode::Char('h') | KeyCode::Char(' ') | KeyCode::Char('!') => Some(Key::Hold),
+                    KeyCode::Char('r') | KeyCode::Char('~') | KeyCode::Enter => Some(Key::Resume),
+                    KeyCode::Char('a') | KeyCode::Char('q') | KeyCode::Esc => Some(Key::Abort),
                     _ => None,
                 };
-                if let Some(c) = control
-                    && tx.send(c).is_err()
+                if let Some(key) = key
+                    && tx.send(key).is_err()
                 {
                     return;
                 }
             }
         });
-        Some(Keys {
+        Keys {
             rx,
             stop,
             thread: Some(thread),
-        })
+        }
+    }
+
+    /// The next key pressed, if any.
+    pub(crate) fn try_key(&self) -> Option<Key> {
+        self.rx.try_recv().ok()
     }
 }
 

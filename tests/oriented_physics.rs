@@ -125,6 +125,29 @@ fn measure(
     w
 }
 
+/// Prints the worst errors and checks them against issue 3's tolerances: standoff ≤ 1 µm,
+/// beam to normal ≤ 0.01°, surface speed within 0.1 %, over more than `min_blocks` lit blocks.
+fn assert_seed_tolerances(name: &str, w: &Worst, min_blocks: usize) {
+    eprintln!(
+        "{name}: {} lit blocks; standoff error {:.4} µm, spot off the surface {:.4} µm, beam to \
+         normal {:.5}°, surface speed {:.4} %",
+        w.lit_blocks,
+        w.standoff_um,
+        w.surface_um,
+        w.angle_deg,
+        w.speed_rel * 100.0
+    );
+    assert!(w.lit_blocks > min_blocks, "{}", w.lit_blocks);
+    assert!(w.standoff_um <= 1.0, "standoff error {} µm", w.standoff_um);
+    assert!(
+        w.surface_um <= 1.0,
+        "spot {} µm off the surface",
+        w.surface_um
+    );
+    assert!(w.angle_deg <= 0.01, "beam {}° off the normal", w.angle_deg);
+    assert!(w.speed_rel <= 1e-3, "surface speed off by {}", w.speed_rel);
+}
+
 fn emit(example: &str) -> String {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.ngc");
@@ -201,25 +224,8 @@ fn cam_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
     let ngc = emit("examples/cam_hardening.lase");
     let b = blocks(&ngc, &m);
     let w = measure(&*kin, &b, 12.0, 8.0 * 60.0, &cam_foot);
-    eprintln!(
-        "cam: {} lit blocks; standoff error {:.4} µm, spot off the surface {:.4} µm, beam to \
-         normal {:.5}°, surface speed {:.4} %",
-        w.lit_blocks,
-        w.standoff_um,
-        w.surface_um,
-        w.angle_deg,
-        w.speed_rel * 100.0
-    );
     // The whole contour is hardened: its length over the mean step.
-    assert!(w.lit_blocks > 400, "{}", w.lit_blocks);
-    assert!(w.standoff_um <= 1.0, "standoff error {} µm", w.standoff_um);
-    assert!(
-        w.surface_um <= 1.0,
-        "spot {} µm off the surface",
-        w.surface_um
-    );
-    assert!(w.angle_deg <= 0.01, "beam {}° off the normal", w.angle_deg);
-    assert!(w.speed_rel <= 1e-3, "surface speed off by {}", w.speed_rel);
+    assert_seed_tolerances("cam", &w, 400);
 }
 
 /// The measured section of examples/surface_hardening_arm.lase and the spline through it.
@@ -275,25 +281,8 @@ fn arm_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
         ([f.point.x, f.point.y, p[2]], [f.left.x, f.left.y, 0.0])
     };
     let w = measure(&*kin, &b, 15.0, 10.0 * 60.0, &foot);
-    eprintln!(
-        "arm: {} lit blocks; standoff error {:.4} µm, spot off the surface {:.4} µm, beam to \
-         normal {:.5}°, surface speed {:.4} %",
-        w.lit_blocks,
-        w.standoff_um,
-        w.surface_um,
-        w.angle_deg,
-        w.speed_rel * 100.0
-    );
     // Six sections of about 130 mm at 0.5 mm steps.
-    assert!(w.lit_blocks > 6 * 250, "{}", w.lit_blocks);
-    assert!(w.standoff_um <= 1.0, "standoff error {} µm", w.standoff_um);
-    assert!(
-        w.surface_um <= 1.0,
-        "spot {} µm off the surface",
-        w.surface_um
-    );
-    assert!(w.angle_deg <= 0.01, "beam {}° off the normal", w.angle_deg);
-    assert!(w.speed_rel <= 1e-3, "surface speed off by {}", w.speed_rel);
+    assert_seed_tolerances("arm", &w, 6 * 250);
     // The slide steps 2 mm between sections: the lit blocks sit at z = 0, 2, …, 10 mm.
     let mut zs: Vec<i64> = b
         .iter()

@@ -137,7 +137,14 @@ impl Job {
     /// Where the spot is, part coordinates, when the axes stand at `q` on the move tagged
     /// `tag`: forward kinematics at that move's standoff.
     pub fn spot(&self, kin: &dyn kinematics::Kinematics, q: &Axes, tag: u32) -> [f64; 3] {
-        let s = kin.forward_at(q, self.standoff_of(tag)).spot;
+        // A flat bed has no standoff in its ops: skip the search (this runs per trace sample
+        // and per pulse).
+        let standoff = if kin.oriented() {
+            self.standoff_of(tag)
+        } else {
+            0.0
+        };
+        let s = kin.forward_at(q, standoff).spot;
         [s.x, s.y, s.z]
     }
 }

@@ -813,27 +813,17 @@ fn linuxcnc_interpreter_rejects_a_broken_program() {
 
 #[test]
 fn every_stock_machine_emits_in_every_dialect_it_supports() {
-    use lase_runtime::program::Orient;
     let mut seen = BTreeMap::new();
     for name in lase_stdlib::machine_names() {
         let m = parse_machine(lase_stdlib::machine(name).unwrap(), 0).unwrap();
-        let oriented = lase_runtime::kinematics::for_machine(&m).oriented();
+        let is_oriented = lase_runtime::kinematics::for_machine(&m).oriented();
         let rotary = m.axes.iter().any(|a| a.kind == AxisKind::Rotary);
-        let ops = if oriented {
+        let ops = if is_oriented {
             // A short lit chord on a surface at y = 20 mm, the head above it at 12 mm, beam −y.
-            let o = Some(Orient {
-                beam: [0.0, -1.0, 0.0],
-                standoff_mm: 12.0,
-            });
-            let mut r = rapid(1, [0.0, 20.0, 0.0]);
-            let mut l = line(2, [1.0, 20.0, 0.0], 10.0, lit(5.0));
-            for op in [&mut r, &mut l] {
-                match &mut op.kind {
-                    OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } => *orient = o,
-                    _ => {}
-                }
-            }
-            vec![r, l]
+            oriented(vec![
+                rapid(1, [0.0, 20.0, 0.0]),
+                line(2, [1.0, 20.0, 0.0], 10.0, lit(5.0)),
+            ])
         } else {
             vec![
                 line(1, [1.0, 0.0, 0.0], 10.0, lit(5.0)),
@@ -857,23 +847,27 @@ fn every_stock_machine_emits_in_every_dialect_it_supports() {
 
 /// An oriented machine's program: axis words through the inverse kinematics, feed moves in
 /// inverse time (G93) with F = feed / chord length, G94 restored at the end.
-#[test]
-fn oriented_moves_are_written_in_inverse_time() {
-    use lase_runtime::program::Orient;
-    let o = Some(Orient {
+/// The moves with the beam along −y at a 12 mm standoff: a surface at y = 20 mm, the head
+/// above it.
+fn oriented(mut ops: Vec<Op>) -> Vec<Op> {
+    let o = Some(lase_runtime::program::Orient {
         beam: [0.0, -1.0, 0.0],
         standoff_mm: 12.0,
     });
-    let mut ops = vec![
-        rapid(1, [0.0, 20.0, 0.0]),
-        line(2, [2.0, 20.0, 0.0], 10.0, lit(5.0)),
-    ];
     for op in &mut ops {
-        match &mut op.kind {
-            OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } => *orient = o,
-            _ => {}
+        if let OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } = &mut op.kind {
+            *orient = o;
         }
     }
+    ops
+}
+
+#[test]
+fn oriented_moves_are_written_in_inverse_time() {
+    let ops = oriented(vec![
+        rapid(1, [0.0, 20.0, 0.0]),
+        line(2, [2.0, 20.0, 0.0], 10.0, lit(5.0)),
+    ]);
     let mut p = program("cam_xwb", ops);
     p.planner.leadin = lase_runtime::program::LeadIn::Off;
     let j = plan_program(p).expect("plans");

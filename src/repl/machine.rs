@@ -9,7 +9,7 @@
 //! controller moves; at the prompt rustyline reads Ctrl-C as a key.
 
 use crate::driver::Failure;
-use crate::live::Display;
+use crate::live::{Display, Key, Keys};
 use crate::output;
 use lase_lang::Span;
 use lase_runtime::emit::{Dialect, NcLine};
@@ -23,7 +23,6 @@ use lase_runtime::machine::Machine;
 use lase_runtime::motion::Job;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{Receiver, channel};
 use std::time::{Duration, Instant};
 
 /// An open link.
@@ -105,79 +104,6 @@ impl Drop for SigGuard {
     fn drop(&mut self) {
         self.idle.store(true, Ordering::SeqCst);
         self.caught.store(false, Ordering::SeqCst);
-    }
-}
-
-/// A key pressed during a job.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Key {
-    Interrupt,
-    Hold,
-    Resume,
-    Abort,
-}
-
-/// Keys read in raw mode in short windows, so that output in between stays normal. A Ctrl-C
-/// that arrives between windows is a signal, which [`SigGuard`] catches.
-struct Keys {
-    rx: Receiver<Key>,
-    stop: Arc<AtomicBool>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl Keys {
-    fn start() -> Keys {
-        use crossterm::event::{self, Event as CtEvent, KeyCode, KeyEventKind, KeyModifiers};
-        let (tx, rx) = channel();
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::spawn(move || {
-            while !flag.load(Ordering::SeqCst) {
-                if crossterm::terminal::enable_raw_mode().is_err() {
-                    return;
-                }
-                let ev = match event::poll(Duration::from_millis(100)) {
-                    Ok(true) => event::read().ok(),
-                    _ => None,
-                };
-                let _ = crossterm::terminal::disable_raw_mode();
-                let Some(CtEvent::Key(k)) = ev else {
-                    continue;
-                };
-                if k.kind != KeyEventKind::Press {
-                    continue;
-                }
-                let key = match k.code {
-                    KeyCode::Char('c') if k.modifiers.contains(KeyModifiers::CONTROL) => {
-                        Some(Key::Interrupt)
-                    }
-                    KeyCode::Char('h') | KeyCode::Char(' ') | KeyCode::Char('!') => Some(Key::Hold),
-                    KeyCode::Char('r') | KeyCode::Char('~') | KeyCode::Enter => Some(Key::Resume),
-                    KeyCode::Char('a') | KeyCode::Char('q') | KeyCode::Esc => Some(Key::Abort),
-                    _ => None,
-                };
-                if let Some(key) = key
-                    && tx.send(key).is_err()
-                {
-                    return;
-                }
-            }
-        });
-        Keys {
-            rx,
-            stop,
-            thread: Some(thread),
-        }
-    }
-}
-
-impl Drop for Keys {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::SeqCst);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-        let _ = crossterm::terminal::disable_raw_mode();
     }
 }
 
@@ -529,7 +455,7 @@ impl Station {
             &StreamOptions::default(),
             &mut |p: &Progress, e: Option<&Event>| {
                 display.update(p, e);
-                let mut key = keys.as_ref().and_then(|k| k.rx.try_recv().ok());
+                let mut key = keys.as_ref().and_then(Keys::try_key);
                 if sig.take() {
                     key = Some(Key::Interrupt);
                 }

@@ -13,7 +13,11 @@ pub fn number(x: f64) -> String {
     if y.is_finite() && y.abs() < 9e15 && ((y - y.floor()) - 0.5).abs() > 1e-6 {
         return fixed4(y.round() as i64);
     }
-    let mut s = format!("{x:.4}");
+    trimmed(format!("{x:.4}"))
+}
+
+/// A fixed-point number with trailing zeros and a trailing point trimmed, never `-0`.
+fn trimmed(mut s: String) -> String {
     if s.contains('.') {
         let t = s.trim_end_matches('0').trim_end_matches('.').len();
         s.truncate(t);
@@ -24,12 +28,7 @@ pub fn number(x: f64) -> String {
 /// A rotary axis position in degrees: 6 decimals, since an angle is multiplied by the lever it
 /// turns (1e-6° on a 500 mm arm is 9 nm, where 1e-4° would be 0.9 µm).
 pub fn degrees(x: f64) -> String {
-    let mut s = format!("{x:.6}");
-    if s.contains('.') {
-        let t = s.trim_end_matches('0').trim_end_matches('.').len();
-        s.truncate(t);
-    }
-    if s == "-0" { "0".to_string() } else { s }
+    trimmed(format!("{x:.6}"))
 }
 
 /// An inverse-time feed (G93's F, 1/min) to at least 7 significant digits, so the block time
@@ -41,12 +40,7 @@ pub fn inverse_time(x: f64) -> String {
         0
     };
     let decimals = (7 - digits).clamp(4, 10) as usize;
-    let mut s = format!("{x:.decimals$}");
-    if s.contains('.') {
-        let t = s.trim_end_matches('0').trim_end_matches('.').len();
-        s.truncate(t);
-    }
-    s
+    trimmed(format!("{x:.decimals$}"))
 }
 
 /// `n / 10⁴` with trailing zeros and point trimmed, never `-0`.

@@ -248,13 +248,7 @@ impl Evaluator {
     /// The process program of everything evaluated so far.
     pub fn program(&self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let machine = self.machine.clone().ok_or_else(|| no_machine(span))?;
-        let planner = self.planner.clone().unwrap_or(PlannerSettings {
-            ramp: machine.ramp,
-            junction_deviation_mm: machine.junction_deviation_mm,
-            arc_tolerance_mm: machine.arc_tolerance_mm,
-            lookahead: None,
-            leadin: LeadIn::Auto,
-        });
+        let planner = self.planner_settings_now();
         Ok(ProcessProgram {
             recipe: recipe.to_string(),
             limits: self.limits.clone(),
@@ -835,14 +829,8 @@ impl Evaluator {
     }
 
     fn planner_settings(&mut self, set: &[Setting], span: Span, cx: &mut Cx) -> R<()> {
-        let m = self.need_machine(span)?;
-        let mut p = self.planner.clone().unwrap_or(PlannerSettings {
-            ramp: m.ramp,
-            junction_deviation_mm: m.junction_deviation_mm,
-            arc_tolerance_mm: m.arc_tolerance_mm,
-            lookahead: None,
-            leadin: LeadIn::Auto,
-        });
+        self.need_machine(span)?;
+        let mut p = self.planner_settings_now();
         for s in set {
             let Some(e) = &s.value else { continue };
             match s.key.name.as_str() {
@@ -1234,7 +1222,7 @@ impl Evaluator {
             return Ok(());
         };
         let (p0, o0) = pose(first);
-        if dist3(p0, self.pos) > 1e-9 || self.orient != Some(o0) {
+        if crate::motion::dist(p0, self.pos) > 1e-9 || self.orient != Some(o0) {
             // Going to the start of a path, beam already along its normal: a rapid, laser off.
             self.push(
                 OpKind::Rapid {
@@ -1246,7 +1234,7 @@ impl Evaluator {
         }
         for smp in &samples[1..] {
             let (p, o) = pose(smp);
-            if dist3(p, self.pos) <= 1e-12 {
+            if crate::motion::dist(p, self.pos) <= 1e-12 {
                 continue;
             }
             self.push(
@@ -2152,10 +2140,6 @@ impl Evaluator {
                 help: Some("paths are relative to the recipe's folder".into()),
             })
     }
-}
-
-fn dist3(a: P3, b: P3) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 fn a_is_zero(a: &[Option<(Value, Span)>], i: usize) -> bool {
