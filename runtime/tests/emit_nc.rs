@@ -247,7 +247,13 @@ fn dialect_names_round_trip() {
         assert_eq!(d.name().parse::<Dialect>().unwrap(), d);
     }
     assert_eq!("LinuxCNC".parse::<Dialect>().unwrap(), Dialect::LinuxCnc);
+    assert_eq!("grblHAL".parse::<Dialect>().unwrap(), Dialect::GrblHal);
     assert!("fanuc".parse::<Dialect>().is_err());
+    let family: Vec<_> = Dialect::ALL
+        .into_iter()
+        .filter(|d| d.is_grbl_family())
+        .collect();
+    assert_eq!(family, [Dialect::Grbl, Dialect::GrblHal]);
 }
 
 #[test]
@@ -888,4 +894,236 @@ fn oriented_moves_are_written_in_inverse_time() {
         .parse()
         .unwrap();
     assert!((f - 300.0).abs() < 1e-3, "{feed_line}");
+}
+
+// ------------------------------------------------------------------ grblHAL
+
+/// The lines of an NC program that move or set modes: no comments, no M-code lines (the
+/// dialects switch the beam differently), no LinuxCNC blending mode.
+fn motion_lines(nc: &str) -> Vec<&str> {
+    nc.lines()
+        .filter(|l| !l.starts_with('(') && !l.starts_with('M') && !l.starts_with("G64"))
+        .collect()
+}
+
+#[test]
+fn grblhal_writes_rotary_words_in_inverse_time_for_oriented_machines() {
+    for (machine, letters) in [("cam_xwb", "XCB"), ("arm_3r", "XABC")] {
+        let ops = oriented(vec![
+            rapid(1, [0.0, 20.0, 0.0]),
+            line(2, [2.0, 20.0, 0.0], 10.0, lit(5.0)),
+        ]);
+        let j = job(machine, ops);
+        let nc = emit_to_string(&j, Dialect::GrblHal).unwrap();
+        let lines: Vec<&str> = nc.lines().collect();
+        let g93 = lines.iter().position(|l| *l == "G93").expect(&nc);
+        let g94 = lines.iter().rposition(|l| *l == "G94").expect(&nc);
+        assert!(g93 < g94, "{nc}");
+        // Every axis has its word; rotary words to 1e-6°, never more.
+        for c in letters.chars() {
+            assert!(
+                lines.iter().any(|l| word(l, c).is_some()),
+                "{machine}: no {c} word\n{nc}"
+            );
+        }
+        for l in lines.iter().filter(|l| !l.starts_with('(')) {
+            for w in l.split(' ').filter(|w| w.starts_with(['A', 'B', 'C'])) {
+                let decimals = w.split_once('.').map_or(0, |(_, d)| d.len());
+                assert!(decimals <= 6, "{w} in `{l}`");
+            }
+        }
+        // 2 mm at 10 mm/s = 0.2 s = 1/300 min, on the lit G1 block.
+        let lit_block = lines[g93..g94]
+            .iter()
+            .find(|l| l.starts_with("G1"))
+            .expect(&nc);
+        let f = word(lit_block, 'F').expect(lit_block);
+        assert!((f - 300.0).abs() < 1e-3, "{lit_block}");
+        // GRBL's laser mode and program end; nothing of LinuxCNC's.
+        assert!(nc.contains("\nM3 S"), "{nc}");
+        assert!(nc.trim_end().ends_with("M5\nM2"), "{nc}");
+        assert!(!nc.contains("G64") && !nc.contains("M62") && !nc.contains("M68"));
+        // The axis words and feeds are LinuxCNC's, block for block.
+        let cnc = emit_to_string(&j, Dialect::LinuxCnc).unwrap();
+        assert_eq!(motion_lines(&nc), motion_lines(&cnc), "{machine}");
+    }
+}
+
+#[test]
+fn grblhal_drives_linear_xyz_and_abc_only() {
+    let axis = |name: &str, kind| Axis {
+        name: name.into(),
+        kind,
+        part_axis: None,
+        min: -10.0,
+        max: 10.0,
+        v_max: 1.0,
+        a_max: 1.0,
+        j_max: 1.0,
+    };
+    // A linear A is a grblHAL axis (GRBL 1.1 still refuses it).
+    let mut j = xy_demo();
+    j.program.machine.axes.push(axis("A", AxisKind::Linear));
+    assert!(emit_to_string(&j, Dialect::GrblHal).is_ok());
+    assert!(emit_to_string(&j, Dialect::Grbl).is_err());
+    // A seventh letter, U, is not.
+    j.program.machine.axes.push(axis("U", AxisKind::Linear));
+    let mut written = 0;
+    let err = emit::emit(
+        &j,
+        Dialect::GrblHal,
+        &EmitOptions::default(),
+        &mut |_: &NcLine| {
+            written += 1;
+            Ok(())
+        },
+    )
+    .unwrap_err();
+    assert_eq!(written, 0, "validation comes before the first line");
+    let EmitError::Dialect {
+        ref message,
+        dialect,
+        ref label,
+        ref help,
+        ..
+    } = err
+    else {
+        panic!("{err:?}")
+    };
+    assert_eq!(dialect, Dialect::GrblHal);
+    assert!(
+        message.contains("grblHAL") && message.contains("linear axis U"),
+        "{message}"
+    );
+    assert!(label.contains("grblHAL"), "{label}");
+    assert!(help.contains("A, B, C"), "{help}");
+    assert_eq!(code(&err), "lase::emit::dialect");
+    assert!(emit_to_string(&j, Dialect::LinuxCnc).is_ok());
+    // X, Y and Z are linear on grblHAL.
+    let mut j = xy_demo();
+    j.program.machine.axes[0].kind = AxisKind::Rotary;
+    let err = emit_to_string(&j, Dialect::GrblHal).unwrap_err();
+    assert!(err.to_string().contains("rotary axis X"), "{err}");
+}
+
+#[test]
+fn grblhal_lines_fit_its_256_character_buffer() {
+    // `M5 (` + pad + `)`: 256 characters with a pad of 251.
+    let with_off = |pad: usize| {
+        let mut j = xy_demo();
+        let post = j.program.machine.post.get_mut("grbl").unwrap();
+        post.laser_off = vec![format!("M5 ({})", "x".repeat(pad))];
+        j
+    };
+    let j = with_off(251);
+    let nc = emit_to_string(&j, Dialect::GrblHal).unwrap();
+    assert!(nc.lines().any(|l| l.len() == 256), "{nc}");
+    assert!(nc.lines().all(|l| l.len() <= 256));
+    // GRBL 1.1 reads 80.
+    assert!(emit_to_string(&j, Dialect::Grbl).is_err());
+    let err = emit_to_string(&with_off(252), Dialect::GrblHal).unwrap_err();
+    let EmitError::Dialect {
+        ref message,
+        ref label,
+        ..
+    } = err
+    else {
+        panic!("{err:?}")
+    };
+    assert!(
+        message.contains("257 characters; grblHAL reads at most 256"),
+        "{message}"
+    );
+    assert!(label.contains("too long for grblHAL"), "{label}");
+    // Traceability comments stay within GRBL's 80 on grblHAL too.
+    let locate = |s: Span| format!("{}:{}", "r".repeat(300), s.start / 100);
+    let nc = emit_to_string_with(
+        &xy_demo(),
+        Dialect::GrblHal,
+        &EmitOptions {
+            locate: Some(&locate),
+            comments: true,
+        },
+    )
+    .unwrap();
+    assert!(nc.lines().all(|l| l.len() <= 80), "{nc}");
+}
+
+#[test]
+fn grblhal_falls_back_to_the_grbl_post_and_event_codes() {
+    // xy_table has no [post.grblhal]: the program is GRBL's but for the header.
+    let j = xy_demo();
+    let hal = emit_to_string(&j, Dialect::GrblHal).unwrap();
+    let grbl = emit_to_string(&j, Dialect::Grbl).unwrap();
+    assert!(hal.starts_with("(generated by lase "), "{hal}");
+    assert!(
+        hal.lines().next().unwrap().ends_with(" for grblhal)"),
+        "{hal}"
+    );
+    assert_eq!(
+        hal.lines().skip(1).collect::<Vec<_>>(),
+        grbl.lines().skip(1).collect::<Vec<_>>()
+    );
+    // Its own section wins when there is one.
+    let mut j = xy_demo();
+    let mut own = j.program.machine.post["grbl"].clone();
+    own.laser_on = vec!["M4 S{s}".into()];
+    j.program.machine.post.insert("grblhal".into(), own);
+    let hal = emit_to_string(&j, Dialect::GrblHal).unwrap();
+    assert!(hal.contains("\nM4 S500\n") && !hal.contains("M3"), "{hal}");
+    assert!(
+        emit_to_string(&j, Dialect::Grbl)
+            .unwrap()
+            .contains("\nM3 S500\n")
+    );
+    // Events: the notcher maps its swing valve for grbl only; grblHAL uses that mapping, and
+    // its own when the machine has one.
+    let mut j = notcher_demo();
+    let hal = emit_to_string(&j, Dialect::GrblHal).unwrap();
+    assert!(hal.contains("\nM8\n") && hal.contains("\nM9\n"), "{hal}");
+    j.program
+        .machine
+        .events
+        .get_mut("swing_right")
+        .unwrap()
+        .codes
+        .insert("grblhal".into(), vec!["M7".into()]);
+    let hal = emit_to_string(&j, Dialect::GrblHal).unwrap();
+    assert!(hal.contains("\nM7\n") && !hal.contains("\nM8\n"), "{hal}");
+    // Neither: the diagnostics name both keys.
+    for ev in j.program.machine.events.values_mut() {
+        ev.codes.remove("grbl");
+        ev.codes.remove("grblhal");
+    }
+    let err = emit_to_string(&j, Dialect::GrblHal).unwrap_err();
+    let EmitError::UnsupportedEvent { ref help, .. } = err else {
+        panic!("{err:?}")
+    };
+    assert!(
+        help.contains("`grblhal = [...]` or `grbl = [...]`"),
+        "{help}"
+    );
+    let mut j = xy_demo();
+    j.program.machine.post.remove("grbl");
+    let err = emit_to_string(&j, Dialect::GrblHal).unwrap_err();
+    let EmitError::NoPost { ref help, .. } = err else {
+        panic!("{err:?}")
+    };
+    assert!(help.contains("[post.grblhal] or [post.grbl]"), "{help}");
+}
+
+#[test]
+fn grblhal_mcode_diagnostics_name_the_section_they_came_from() {
+    // An M-code grblHAL does not take, in the GRBL post it falls back to.
+    let mut j = xy_demo();
+    j.program.machine.post.get_mut("grbl").unwrap().laser_on = vec!["M62 P0".into()];
+    let err = emit_to_string(&j, Dialect::GrblHal).unwrap_err();
+    let EmitError::UnsupportedMCode {
+        code: c, ref help, ..
+    } = err
+    else {
+        panic!("{err:?}")
+    };
+    assert_eq!(c, 62);
+    assert!(help.contains("[post.grbl] laser_on"), "{help}");
 }

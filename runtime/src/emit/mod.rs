@@ -1,16 +1,17 @@
 //! NC program emitters: the only code in lase that knows NC text.
 //!
-//! A planned [`Job`] becomes an NC program for one [`Dialect`] (LinuxCNC, GRBL 1.1, ISO/Fanuc
-//! style), streamed line by line to a sink so that a texturing job of millions of lines never
-//! sits in memory. The machine file supplies what differs between machines of one dialect:
-//! the laser on/off/power lines (`[post.<dialect>]`) and the codes of named events.
+//! A planned [`Job`] becomes an NC program for one [`Dialect`] (LinuxCNC, GRBL 1.1, grblHAL,
+//! ISO/Fanuc style), streamed line by line to a sink so that a texturing job of millions of
+//! lines never sits in memory. The machine file supplies what differs between machines of one
+//! dialect: the laser on/off/power lines (`[post.<dialect>]`) and the codes of named events
+//! ([`Dialect::lookup`]: grblHAL falls back to GRBL's).
 //!
 //! The path of one op: [`validate`] checks the whole program for the dialect first (every
-//! M-code, event, axis letter, template and, for GRBL, line length), so that emission can only
-//! fail on the sink's IO, never halfway through a program ("validate before anything moves",
-//! CONVENTIONS.md). Then [`writer`] walks `program.ops` once, keeping the modal state a
-//! controller keeps (motion mode, feed, last axis words, laser state) and writes only what
-//! changes.
+//! M-code, event, axis letter, template and, for the GRBL family, line length), so that
+//! emission can only fail on the sink's IO, never halfway through a program ("validate before
+//! anything moves", CONVENTIONS.md). Then [`writer`] walks `program.ops` once, keeping the
+//! modal state a controller keeps (motion mode, feed, last axis words, laser state) and writes
+//! only what changes.
 //!
 //! Laser model (shared with `report`): the beam is switched at motion ops only. It goes on
 //! right before the first lit move after an unlit one and off right after the last lit move of
@@ -23,10 +24,11 @@ mod writer;
 
 use crate::motion::Job;
 use lase_lang::Span;
+use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-pub use format::number;
+pub use format::{degrees, number};
 
 /// An NC dialect lase can write.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -35,12 +37,21 @@ pub enum Dialect {
     LinuxCnc,
     /// GRBL 1.1 (laser mode `$32=1`): X, Y, Z only, 80-character lines.
     Grbl,
+    /// grblHAL, GRBL's 32-bit successor: GRBL's protocol, words and laser mode, with up to six
+    /// axes (linear X, Y, Z; A, B, C rotary or linear), so oriented machines run in inverse time
+    /// (G93), and 256-character lines.
+    GrblHal,
     /// ISO 6983 / Fanuc style: `%`, program number, `N` block numbers, `M30`.
     Iso,
 }
 
 impl Dialect {
-    pub const ALL: [Dialect; 3] = [Dialect::LinuxCnc, Dialect::Grbl, Dialect::Iso];
+    pub const ALL: [Dialect; 4] = [
+        Dialect::LinuxCnc,
+        Dialect::Grbl,
+        Dialect::GrblHal,
+        Dialect::Iso,
+    ];
 
     /// The name used on the command line and as the key of `[post.<name>]` and event codes in
     /// machine files.
@@ -48,8 +59,36 @@ impl Dialect {
         match self {
             Dialect::LinuxCnc => "linuxcnc",
             Dialect::Grbl => "grbl",
+            Dialect::GrblHal => "grblhal",
             Dialect::Iso => "iso",
         }
+    }
+
+    /// GRBL 1.1 or a controller that reads its programs (grblHAL): laser mode with `M3`/`M4`
+    /// and S words, GRBL's M-codes, no synchronized outputs, no path blending mode.
+    pub fn is_grbl_family(self) -> bool {
+        matches!(self, Dialect::Grbl | Dialect::GrblHal)
+    }
+
+    /// The keys this dialect reads in a machine file's per-dialect tables (`[post.<key>]`, an
+    /// event's `codes`), most specific first: grblHAL runs GRBL programs, so a machine's GRBL
+    /// lines serve it when it has none of its own.
+    pub fn post_keys(self) -> &'static [&'static str] {
+        match self {
+            Dialect::LinuxCnc => &["linuxcnc"],
+            Dialect::Grbl => &["grbl"],
+            Dialect::GrblHal => &["grblhal", "grbl"],
+            Dialect::Iso => &["iso"],
+        }
+    }
+
+    /// The entry of a per-dialect table of a machine file (`machine.post`, an event's `codes`)
+    /// this dialect uses, with the key it was found under (the first of
+    /// [`post_keys`](Self::post_keys) present). The one place the fallback is decided.
+    pub fn lookup<V>(self, table: &BTreeMap<String, V>) -> Option<(&'static str, &V)> {
+        self.post_keys()
+            .iter()
+            .find_map(|&k| table.get(k).map(|v| (k, v)))
     }
 }
 
@@ -59,12 +98,12 @@ impl fmt::Display for Dialect {
     }
 }
 
-/// A dialect name that is not one of `linuxcnc`, `grbl`, `iso`.
+/// A dialect name that is not one of `linuxcnc`, `grbl`, `grblhal`, `iso`.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error, miette::Diagnostic)]
 #[error("unknown NC dialect `{0}`")]
 #[diagnostic(
     code(lase::emit::unknown_dialect),
-    help("the dialects are linuxcnc, grbl and iso")
+    help("the dialects are linuxcnc, grbl, grblhal and iso")
 )]
 pub struct UnknownDialect(pub String);
 

@@ -1,5 +1,5 @@
 //! Checks a whole program against a dialect before a single line is written: M-codes, events,
-//! axis letters, post templates, arc planes and (GRBL) line lengths.
+//! axis letters, post templates, arc planes and (GRBL family) line lengths.
 
 use super::format::{self, LaserWords};
 use super::{Dialect, EmitError, EmitWarning};
@@ -10,6 +10,30 @@ use lase_lang::Span;
 
 /// GRBL's serial line buffer (`LINE_BUFFER_SIZE`): longer lines overflow it.
 pub(super) const GRBL_MAX_LINE: usize = 80;
+
+/// grblHAL's line buffer: `LINE_BUFFER_SIZE` is 257 in its `protocol.h`, "256 characters plus
+/// terminator", and unlike GRBL 1.1 it keeps spaces and comments in the count.
+const GRBLHAL_MAX_LINE: usize = 256;
+
+/// The longest line a dialect's controller reads, without the newline; `None`: no limit lase
+/// knows of.
+fn max_line(dialect: Dialect) -> Option<usize> {
+    match dialect {
+        Dialect::Grbl => Some(GRBL_MAX_LINE),
+        Dialect::GrblHal => Some(GRBLHAL_MAX_LINE),
+        Dialect::LinuxCnc | Dialect::Iso => None,
+    }
+}
+
+/// The controller's own spelling, for messages.
+fn controller(dialect: Dialect) -> &'static str {
+    match dialect {
+        Dialect::LinuxCnc => "LinuxCNC",
+        Dialect::Grbl => "GRBL",
+        Dialect::GrblHal => "grblHAL",
+        Dialect::Iso => "ISO",
+    }
+}
 
 /// What validation learned that the writer needs.
 #[derive(Debug)]
@@ -23,8 +47,9 @@ pub(super) fn mcode_supported(dialect: Dialect, code: u32) -> bool {
     match dialect {
         // rs274ngc's built-in M-codes plus user M100–M199.
         Dialect::LinuxCnc => matches!(code, 0..=9 | 30 | 48..=53 | 60..=68 | 70..=73 | 100..=199),
-        // GRBL 1.1's M-codes; M56 (parking override) exists only in some builds.
-        Dialect::Grbl => matches!(code, 0..=5 | 7..=9 | 30),
+        // GRBL 1.1's M-codes; M56 (parking override) exists only in some builds. grblHAL
+        // knows more (M56, M62–M68 with aux I/O) depending on its build; lase keeps to GRBL's.
+        Dialect::Grbl | Dialect::GrblHal => matches!(code, 0..=5 | 7..=9 | 30),
         Dialect::Iso => true,
     }
 }
@@ -32,16 +57,17 @@ pub(super) fn mcode_supported(dialect: Dialect, code: u32) -> bool {
 fn mcode_list(dialect: Dialect) -> &'static str {
     match dialect {
         Dialect::LinuxCnc => "M0–M9, M30, M48–M53, M60–M68, M70–M73 and user M100–M199",
-        Dialect::Grbl => "M0, M1, M2, M3, M4, M5, M7, M8, M9 and M30",
+        Dialect::Grbl | Dialect::GrblHal => "M0, M1, M2, M3, M4, M5, M7, M8, M9 and M30",
         Dialect::Iso => "any M-code",
     }
 }
 
-/// Where an M word came from, for the diagnostic's label.
+/// Where an M word came from, for the diagnostic's label: an op, the post lines `what` of
+/// `[post.<key>]`, or the `codes.<key>` of an event.
 enum Origin<'a> {
     Op,
-    Post(&'a str),
-    Event(&'a str),
+    Post { key: &'a str, what: &'a str },
+    Event { name: &'a str, key: &'a str },
 }
 
 fn check_mcode(
@@ -64,17 +90,17 @@ fn check_mcode(
                 mcode_list(dialect)
             ),
         ),
-        Origin::Post(what) => (
+        Origin::Post { key, what } => (
             format!("the {what} lines of machine `{machine}` use M{code}"),
             format!(
-                "{dialect} accepts {}; fix `[post.{dialect}] {what}` in the machine file",
+                "{dialect} accepts {}; fix `[post.{key}] {what}` in the machine file",
                 mcode_list(dialect)
             ),
         ),
-        Origin::Event(name) => (
+        Origin::Event { name, key } => (
             format!("event `{name}` of machine `{machine}` uses M{code}"),
             format!(
-                "{dialect} accepts {}; fix `[events.{name}] codes.{dialect}` in the machine file",
+                "{dialect} accepts {}; fix `[events.{name}] codes.{key}` in the machine file",
                 mcode_list(dialect)
             ),
         ),
@@ -89,19 +115,22 @@ fn check_mcode(
 }
 
 fn too_long(dialect: Dialect, line: &str, span: Span, what: &str) -> Result<(), EmitError> {
-    if dialect == Dialect::Grbl && line.len() > GRBL_MAX_LINE {
-        return Err(EmitError::Dialect {
-            message: format!(
-                "{what} `{line}` is {} characters; GRBL reads at most {GRBL_MAX_LINE}",
-                line.len()
-            ),
-            dialect,
-            span,
-            label: "emits a line too long for GRBL".into(),
-            help: "shorten the line in the machine file (comments count)".into(),
-        });
+    match max_line(dialect) {
+        Some(max) if line.len() > max => {
+            let name = controller(dialect);
+            Err(EmitError::Dialect {
+                message: format!(
+                    "{what} `{line}` is {} characters; {name} reads at most {max}",
+                    line.len()
+                ),
+                dialect,
+                span,
+                label: format!("emits a line too long for {name}"),
+                help: "shorten the line in the machine file (comments count)".into(),
+            })
+        }
+        _ => Ok(()),
     }
-    Ok(())
 }
 
 pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitError> {
@@ -109,29 +138,27 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
     let machine = &program.machine;
     let ops = &program.ops;
     let first_span = ops.first().map(|o| o.span).unwrap_or_default();
-    let post = machine
-        .post
-        .get(dialect.name())
+    let (key, post) = dialect
+        .lookup(&machine.post)
         .ok_or_else(|| EmitError::NoPost {
             machine: machine.name.clone(),
             dialect,
             span: first_span,
             help: format!(
-                "the machine has posts for: {}; add a [post.{dialect}] section (laser_on, \
-             laser_off, power) to its file",
-                names(machine.post.keys())
+                "the machine has posts for: {}; add a {} section (laser_on, laser_off, power) \
+                 to its file",
+                names(machine.post.keys()),
+                alternatives(dialect, |k| format!("[post.{k}]"))
             ),
         })?;
-    if dialect == Dialect::Grbl {
-        check_grbl_axes(machine, first_span)?;
-    }
+    check_axes(machine, dialect, first_span)?;
     let mut warnings = Vec::new();
 
     if let Some(lit) = ops
         .iter()
         .find(|o| o.laser().is_some() || matches!(o.kind, OpKind::Fire { .. }))
     {
-        check_post(post, machine, dialect, lit.span)?;
+        check_post(post, key, machine, dialect, lit.span)?;
     }
     if let Some(pulsed) = ops.iter().find(|o| {
         matches!(o.kind, OpKind::Fire { .. })
@@ -139,13 +166,13 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
                 .and_then(|l| l.pulse.as_ref())
                 .is_some_and(|p| matches!(p.mode, crate::program::PulseMode::Distance { .. }))
     }) {
-        check_pulse_post(post, machine, dialect, pulsed.span)?;
+        check_pulse_post(post, key, machine, dialect, pulsed.span)?;
     }
     if let Some(coupled) = ops
         .iter()
         .find(|o| o.laser().is_some_and(|l| l.couple == Coupling::Speed))
     {
-        check_coupling(post, machine, dialect, coupled.span)?;
+        check_coupling(post, key, machine, dialect, coupled.span)?;
     }
     for (i, op) in ops.iter().enumerate() {
         match &op.kind {
@@ -181,32 +208,56 @@ fn names<'a>(it: impl Iterator<Item = &'a String>) -> String {
     }
 }
 
-fn check_grbl_axes(machine: &Machine, span: Span) -> Result<(), EmitError> {
-    for a in &machine.axes {
-        if a.kind == AxisKind::Rotary || !matches!(a.name.as_str(), "X" | "Y" | "Z") {
-            return Err(EmitError::Dialect {
-                message: format!(
-                    "GRBL drives X, Y and Z only; machine `{}` has {} axis {}",
-                    machine.name,
-                    if a.kind == AxisKind::Rotary {
-                        "rotary"
-                    } else {
-                        "linear"
-                    },
-                    a.name
-                ),
-                dialect: Dialect::Grbl,
-                span,
-                label: "this program cannot run on GRBL".into(),
-                help: "emit for linuxcnc or iso, or use a machine whose axes are X, Y and Z".into(),
-            });
-        }
-    }
-    Ok(())
+/// `[post.a]`-style mentions of every key `dialect` reads, joined with "or".
+fn alternatives(dialect: Dialect, mention: impl Fn(&str) -> String) -> String {
+    let v: Vec<String> = dialect.post_keys().iter().map(|k| mention(k)).collect();
+    v.join(" or ")
+}
+
+/// The axes the GRBL family drives: GRBL 1.1 linear X, Y and Z; grblHAL also A, B and C, each
+/// rotary or linear as the controller is configured. Other dialects take any letter.
+fn check_axes(machine: &Machine, dialect: Dialect, span: Span) -> Result<(), EmitError> {
+    let (drives, help, accepts): (&str, &str, fn(&str, AxisKind) -> bool) = match dialect {
+        Dialect::Grbl => (
+            "X, Y and Z only",
+            "a grblHAL controller also drives A, B and C: emit or run with `--dialect grblhal`; or emit for linuxcnc or iso",
+            |name, kind| kind == AxisKind::Linear && matches!(name, "X" | "Y" | "Z"),
+        ),
+        Dialect::GrblHal => (
+            "linear X, Y and Z and A, B and C only",
+            "emit for linuxcnc or iso, or name the machine's axes X, Y, Z (linear) and A, B, C",
+            |name, kind| match name {
+                "X" | "Y" | "Z" => kind == AxisKind::Linear,
+                "A" | "B" | "C" => true,
+                _ => false,
+            },
+        ),
+        Dialect::LinuxCnc | Dialect::Iso => return Ok(()),
+    };
+    let Some(a) = machine.axes.iter().find(|a| !accepts(&a.name, a.kind)) else {
+        return Ok(());
+    };
+    let name = controller(dialect);
+    Err(EmitError::Dialect {
+        message: format!(
+            "{name} drives {drives}; machine `{}` has {} axis {}",
+            machine.name,
+            match a.kind {
+                AxisKind::Rotary => "rotary",
+                AxisKind::Linear => "linear",
+            },
+            a.name
+        ),
+        dialect,
+        span,
+        label: format!("this program cannot run on {name}"),
+        help: help.into(),
+    })
 }
 
 fn check_post(
     post: &DialectPost,
+    key: &str,
     machine: &Machine,
     dialect: Dialect,
     span: Span,
@@ -230,13 +281,14 @@ fn check_post(
                     message,
                     span,
                     help: format!(
-                        "templates in [post.{dialect}] {what} may use {{power}} (W), {{s}} \
+                        "templates in [post.{key}] {what} may use {{power}} (W), {{s}} \
                          (power scaled to s_max) and {{pct}} (percent of max power)"
                     ),
                 });
             }
             for code in format::m_words(t) {
-                check_mcode(dialect, code, span, Origin::Post(what), &machine.name)?;
+                let origin = Origin::Post { key, what };
+                check_mcode(dialect, code, span, origin, &machine.name)?;
             }
             too_long(dialect, &format::fill(t, full), span, what)?;
         }
@@ -247,6 +299,7 @@ fn check_post(
 /// The trigger and PSO lines of pulses by distance and dot mode (`writer::pulse`).
 fn check_pulse_post(
     post: &DialectPost,
+    key: &str,
     machine: &Machine,
     dialect: Dialect,
     span: Span,
@@ -270,13 +323,14 @@ fn check_pulse_post(
                     message,
                     span,
                     help: format!(
-                        "templates in [post.{dialect}] {what} may use {{power}}, {{s}}, {{pct}}, \
+                        "templates in [post.{key}] {what} may use {{power}}, {{s}}, {{pct}}, \
                          and in pso {{pitch}} (mm) and {{ppi}} (pulses per inch)"
                     ),
                 });
             }
             for code in format::m_words(&t) {
-                check_mcode(dialect, code, span, Origin::Post(what), &machine.name)?;
+                let origin = Origin::Post { key, what };
+                check_mcode(dialect, code, span, origin, &machine.name)?;
             }
             too_long(dialect, &format::fill(&t, full), span, what)?;
         }
@@ -284,45 +338,50 @@ fn check_pulse_post(
     Ok(())
 }
 
-/// Power that follows the speed needs a way to say so: GRBL's dynamic mode (an `M3` in
-/// `laser_on` to turn into `M4`), elsewhere a `power` line per sub-block.
+/// Power that follows the speed needs a way to say so: the GRBL family's dynamic mode (an
+/// `M3` in `laser_on` to turn into `M4`), elsewhere a `power` line per sub-block.
 fn check_coupling(
     post: &DialectPost,
+    key: &str,
     machine: &Machine,
     dialect: Dialect,
     span: Span,
 ) -> Result<(), EmitError> {
-    let ok = match dialect {
-        Dialect::Grbl => post
-            .laser_on
+    let ok = if dialect.is_grbl_family() {
+        post.laser_on
             .iter()
-            .any(|t| format::m_words(t).iter().any(|&c| c == 3 || c == 4)),
-        Dialect::LinuxCnc | Dialect::Iso => !post.power.is_empty(),
+            .any(|t| format::m_words(t).iter().any(|&c| c == 3 || c == 4))
+    } else {
+        !post.power.is_empty()
     };
     if ok {
         return Ok(());
     }
-    let (message, help) = match dialect {
-        Dialect::Grbl => (
+    let (message, help) = if dialect.is_grbl_family() {
+        (
             format!(
-                "power coupled to speed needs GRBL's M4, but [post.grbl] laser_on of machine `{}` \
+                "power coupled to speed needs {}'s M4, but [post.{key}] laser_on of machine `{}` \
                  has no M3",
+                controller(dialect),
                 machine.name
             ),
-            "switch the laser with `M3 S{s}` in [post.grbl] laser_on, or remove `couple speed`"
-                .to_string(),
-        ),
-        _ => (
             format!(
-                "power coupled to speed needs a power line, but [post.{dialect}] power of \
+                "switch the laser with `M3 S{{s}}` in [post.{key}] laser_on, or remove \
+                 `couple speed`"
+            ),
+        )
+    } else {
+        (
+            format!(
+                "power coupled to speed needs a power line, but [post.{key}] power of \
                  machine `{}` is empty",
                 machine.name
             ),
             format!(
-                "add e.g. `power = [\"S{{s}}\"]` to [post.{dialect}] in the machine file, emit for \
+                "add e.g. `power = [\"S{{s}}\"]` to [post.{key}] in the machine file, emit for \
                  another dialect, or remove `couple speed`"
             ),
-        ),
+        )
     };
     Err(EmitError::Dialect {
         message,
@@ -347,22 +406,24 @@ fn check_event(op: &Op, name: &str, machine: &Machine, dialect: Dialect) -> Resu
             ),
         });
     };
-    let Some(codes) = ev.codes.get(dialect.name()) else {
+    let Some((key, codes)) = dialect.lookup(&ev.codes) else {
         return Err(EmitError::UnsupportedEvent {
             name: name.to_string(),
             dialect,
             machine: machine.name.clone(),
             span: op.span,
             help: format!(
-                "event `{name}` has codes for: {}; emit for one of those, or add \
-                 `{dialect} = [...]` to `[events.{name}] codes` in the machine file",
-                names(ev.codes.keys())
+                "event `{name}` has codes for: {}; emit for one of those, or add {} to \
+                 `[events.{name}] codes` in the machine file",
+                names(ev.codes.keys()),
+                alternatives(dialect, |k| format!("`{k} = [...]`"))
             ),
         });
     };
     for line in codes {
         for code in format::m_words(line) {
-            check_mcode(dialect, code, op.span, Origin::Event(name), &machine.name)?;
+            let origin = Origin::Event { name, key };
+            check_mcode(dialect, code, op.span, origin, &machine.name)?;
         }
         too_long(dialect, line, op.span, &format!("event `{name}` line"))?;
     }

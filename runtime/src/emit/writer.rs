@@ -1,13 +1,13 @@
 //! Streams a validated job as NC lines, keeping the modal state a controller keeps so that
 //! only what changes is written.
 //!
-//! Power coupled to speed (PROCESS.md §1, eq. 1): GRBL scales power by speed itself in its
-//! dynamic laser mode, so a coupled section is switched on with `M4` instead of `M3`. LinuxCNC
-//! and ISO controls cannot, so a coupled lit move is written as the sub-blocks of
-//! `motion::power` (ramps cut at 1 % speed steps, each with its time-mean power), each preceded
-//! by the post's power line when the value changes; LinuxCNC's immediate `M68` becomes the
-//! motion-synchronized `M67` there, so the change lands at the start of its sub-block and
-//! does not break blending.
+//! Power coupled to speed (PROCESS.md §1, eq. 1): GRBL (and grblHAL) scales power by speed
+//! itself in its dynamic laser mode, so a coupled section is switched on with `M4` instead of
+//! `M3`. LinuxCNC and ISO controls cannot, so a coupled lit move is written as the sub-blocks
+//! of `motion::power` (ramps cut at 1 % speed steps, each with its time-mean power), each
+//! preceded by the post's power line when the value changes; LinuxCNC's immediate `M68`
+//! becomes the motion-synchronized `M67` there, so the change lands at the start of its
+//! sub-block and does not break blending.
 
 use super::format::{self, LaserWords};
 use super::validate::{self, Checked, GRBL_MAX_LINE};
@@ -26,7 +26,8 @@ mod pulse;
 const BLOCK_STEP: u64 = 10;
 const BLOCK_WRAP: u64 = 99_990;
 
-/// Longest comment written, parentheses included; GRBL's line buffer bounds every line.
+/// Longest comment written, parentheses included, in every dialect: GRBL's line buffer, the
+/// smallest of them, bounds every line.
 const COMMENT_MAX: usize = GRBL_MAX_LINE;
 
 struct Out<'s> {
@@ -176,7 +177,7 @@ pub(super) fn write(
             OpKind::Event { name } => {
                 // Validated: the event exists and has codes for this dialect.
                 if let Some(ev) = machine.events.get(name) {
-                    for line in ev.codes.get(dialect.name()).into_iter().flatten() {
+                    for line in dialect.lookup(&ev.codes).into_iter().flat_map(|(_, c)| c) {
                         out.put(line, tag)?;
                     }
                     if ev.dwell_s > 0.0 {
@@ -200,7 +201,7 @@ pub(super) fn write(
                     continue;
                 }
                 let coupled = op.laser().is_some_and(|l| l.couple == Coupling::Speed);
-                let blocks = if coupled && dialect != Dialect::Grbl {
+                let blocks = if coupled && !dialect.is_grbl_family() {
                     power::coupled_blocks(job, i)
                 } else {
                     Vec::new()
@@ -231,6 +232,8 @@ pub(super) fn write(
                         m.power_w = laser.power_w;
                     }
                 }
+                // By machine, not dialect: every dialect that can drive an oriented machine's
+                // axes writes its feed moves in inverse time.
                 if oriented && !m.inverse_time && matches!(op.kind, OpKind::Line { .. }) {
                     out.put("G93", tag)?;
                     m.inverse_time = true;
@@ -322,7 +325,7 @@ pub(super) fn write(
             out.put("M30", None)?;
             out.raw("%".into(), None)?;
         }
-        Dialect::LinuxCnc | Dialect::Grbl => out.put("M2", None)?,
+        Dialect::LinuxCnc | Dialect::Grbl | Dialect::GrblHal => out.put("M2", None)?,
     }
     Ok(out.stats)
 }
@@ -335,7 +338,7 @@ fn dwell(dialect: Dialect, seconds: f64) -> String {
     let s = format::number(seconds);
     match dialect {
         Dialect::Iso => format!("G4 X{s}"),
-        Dialect::LinuxCnc | Dialect::Grbl => format!("G4 P{s}"),
+        Dialect::LinuxCnc | Dialect::Grbl | Dialect::GrblHal => format!("G4 P{s}"),
     }
 }
 
@@ -348,10 +351,10 @@ fn immediate(line: &str) -> String {
         .replace("m62", "m64")
 }
 
-/// GRBL's dynamic laser mode: `M4` scales the power by the current speed over the programmed
-/// feed, so a coupled section switches on with `M4` where the post writes `M3`.
+/// GRBL's dynamic laser mode (grblHAL's too): `M4` scales the power by the current speed over
+/// the programmed feed, so a coupled section switches on with `M4` where the post writes `M3`.
 fn dynamic(dialect: Dialect, line: &str) -> String {
-    if dialect != Dialect::Grbl {
+    if !dialect.is_grbl_family() {
         return line.to_string();
     }
     line.split(' ')

@@ -27,9 +27,9 @@ pub struct SettingMismatch {
 pub struct AxisNeed {
     /// The NC address letter.
     pub letter: char,
-    /// Peak speed, mm/min (the unit of controller rate settings).
+    /// Peak speed, mm/min or deg/min for a rotary axis (the unit of controller rate settings).
     pub v_mm_min: f64,
-    /// Peak acceleration, mm/s².
+    /// Peak acceleration, mm/s² (deg/s² for a rotary axis).
     pub a_mm_s2: f64,
     /// Where the peak speed and the peak acceleration are reached.
     pub v_span: Span,
@@ -91,10 +91,9 @@ impl Requirements {
                 a_span: best_a.1,
             });
         }
-        let s_max = program
-            .machine
-            .post
-            .get(dialect.name())
+        let s_max = dialect
+            .lookup(&program.machine.post)
+            .map(|(_, p)| p)
             .filter(|p| p.laser_on.iter().chain(&p.power).any(|t| t.contains("{s}")))
             .and_then(|p| laser.map(|span| (p.s_max, span)));
         Requirements { laser, axes, s_max }

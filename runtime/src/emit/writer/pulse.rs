@@ -7,11 +7,11 @@
 //!   (counted from the start of its lit section, as `report::pulse_events` counts them) into a
 //!   trigger-high block of half a pitch (at most the rest of the move) and a trigger-low block
 //!   to the next pulse. LinuxCNC's `M62`/`M63` are motion-synchronized: written on the block
-//!   they belong to, they switch exactly where that block starts, without stopping. GRBL has no
-//!   synchronized output: in laser mode the S word changes without a stop, so the high block is
-//!   written at the section's power and the low block at `S0`, and the high block is kept to
-//!   half the spot diameter (a dot, not a dash). A post without `pulse_on` lines gates each
-//!   pulse with the beam's own on/off lines.
+//!   they belong to, they switch exactly where that block starts, without stopping. GRBL (and
+//!   grblHAL, as lase writes it) has no synchronized output: in laser mode the S word changes
+//!   without a stop, so the high block is written at the section's power and the low block at
+//!   `S0`, and the high block is kept to half the spot diameter (a dot, not a dash). A post
+//!   without `pulse_on` lines gates each pulse with the beam's own on/off lines.
 //! * With `pso` lines in the post the controller fires by distance itself: the lines are
 //!   written (with the pitch) when a section with a new pitch starts, and the lit moves are
 //!   written as plain blocks with the beam on.
@@ -157,9 +157,10 @@ pub(super) fn write_gated(
     let len = op_length(op, from);
     let laser = op.laser();
     let power = laser.map_or(0.0, |l| l.power_w);
-    let gate = match g.dialect {
-        Dialect::Grbl => (0.5 * pitch).min(0.5 * laser.map_or(pitch, |l| l.spot_mm)),
-        _ => 0.5 * pitch,
+    let gate = if g.dialect.is_grbl_family() {
+        (0.5 * pitch).min(0.5 * laser.map_or(pitch, |l| l.spot_mm))
+    } else {
+        0.5 * pitch
     };
     let goes_on = continues(ops, i);
     let eps = 1e-9;
@@ -211,7 +212,7 @@ pub(super) fn write_gated(
     }
     if trigger && !goes_on {
         // Lowered with the next motion, the section's end (GRBL: the beam-off line does it).
-        if g.dialect != Dialect::Grbl {
+        if !g.dialect.is_grbl_family() {
             let w = (g.words)(0.0);
             for t in &g.post.pulse_off {
                 out.put(&format::fill(t, w), tag)?;
@@ -232,7 +233,7 @@ fn write_edge(
     line: String,
     tag: Option<u32>,
 ) -> io::Result<()> {
-    if g.dialect == Dialect::Grbl {
+    if g.dialect.is_grbl_family() {
         let w = (g.words)(if high { power_w } else { 0.0 });
         let s = format::number(w.power_w / w.max_power_w * w.s_max);
         return out.put(&format!("{line} S{s}"), tag);
@@ -292,7 +293,7 @@ pub(super) fn write_fire(
         }
     };
     let half = super::dwell(g.dialect, 0.5 * period_s);
-    let triggered = !g.post.pulse_on.is_empty() && g.dialect != Dialect::Grbl;
+    let triggered = !g.post.pulse_on.is_empty() && !g.dialect.is_grbl_family();
     if triggered {
         for t in &g.post.laser_on {
             out.put(&at_rest(format::fill(t, w)), tag)?;
