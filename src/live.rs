@@ -11,7 +11,7 @@ use lase_runtime::link::journal::{self, Header, Journal};
 use lase_runtime::link::sim::{self, Faults, SimOptions, TimeScale};
 use lase_runtime::link::stream::{self, Control, Outcome, Progress, StreamJob, StreamOptions};
 use lase_runtime::link::{
-    self, ConnectOptions, Event, Link, LinkError, LinkUrl, Requirements, resume,
+    self, AxisPos, ConnectOptions, Event, Link, LinkError, LinkUrl, MAX_AXES, Requirements, resume,
 };
 use std::io::IsTerminal;
 use std::net::SocketAddr;
@@ -97,24 +97,25 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .or_else(|| resumed.as_ref().map(|s| s.header.link.clone()))
         .unwrap_or_else(|| "sim".into());
     let url = LinkUrl::parse(&url_text).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
-    // Every link lase has speaks GRBL 1.1: it takes the grbl dialect.
+    let (recipe, job) = driver::compile(&file)?;
+    // Every link lase has speaks the GRBL 1.1 protocol: to GRBL (X, Y, Z) or, for machines
+    // with more axes, grblHAL (up to six, inverse-time feed). The machine says which.
+    let machine_dialect = link::live_dialect(&job.program.machine);
     let dialect_name = args
         .dialect
         .clone()
         .or_else(|| resumed.as_ref().map(|s| s.header.dialect.clone()))
-        .unwrap_or_else(|| "grbl".into());
+        .unwrap_or_else(|| machine_dialect.to_string());
     let dialect = dialect_name.parse::<Dialect>().map_err(|_| {
         io_fail(format!(
-            "unknown dialect `{dialect_name}`: choose linuxcnc, grbl or iso"
+            "unknown dialect `{dialect_name}`: choose grbl or grblhal (linuxcnc and iso are written with `lase emit`)"
         ))
     })?;
-    if dialect != Dialect::Grbl {
+    if !dialect.is_grbl_family() {
         return Err(io_fail(format!(
-            "the link to {url} speaks GRBL 1.1 and takes the grbl dialect, not {dialect}; write a {dialect} program with `lase emit --dialect {dialect}`"
+            "the link to {url} speaks the GRBL 1.1 protocol and takes the grbl or grblhal dialect, not {dialect}; write a {dialect} program with `lase emit --dialect {dialect}`"
         )));
     }
-
-    let (recipe, job) = driver::compile(&file)?;
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
     let nc = nc_lines(&recipe, &job, dialect)?;
@@ -236,7 +237,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             let path = journal_path(&args, &file, &url);
             let st = link.query_status(Duration::from_secs(2)).map_err(fail)?;
             let pos = st.work_position(st.wco.as_deref()).unwrap_or_default();
-            let start = [0, 1, 2].map(|i| pos.get(i).copied().unwrap_or(0.0));
+            let start: AxisPos = std::array::from_fn(|i| pos.get(i).copied().unwrap_or(0.0));
             let j = match path {
                 Some(path) => {
                     let recipe_path = std::fs::canonicalize(&file).unwrap_or(file.clone());
@@ -382,8 +383,8 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     }
 }
 
-fn st_start(st: &Option<journal::State>) -> [f64; 3] {
-    st.as_ref().map_or([0.0; 3], |s| s.header.start)
+fn st_start(st: &Option<journal::State>) -> AxisPos {
+    st.as_ref().map_or([0.0; MAX_AXES], |s| s.header.start)
 }
 
 /// `--check`: GRBL check mode parses every line and moves nothing.
@@ -688,8 +689,12 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
     let handle = sim::serve(&machine, addr, opts)
         .map_err(|e| io_fail(format!("cannot listen on {addr}: {e}")))?;
     let bound = handle.addr().unwrap_or(addr);
+    let firmware = match sim::Firmware::for_machine(&machine) {
+        sim::Firmware::Grbl => "GRBL 1.1".to_string(),
+        sim::Firmware::GrblHal { axes } => format!("grblHAL ({axes} axes)"),
+    };
     println!(
-        "lase sim: GRBL 1.1 simulator for `{}` listening on {bound} (time scale {time_scale}{}, RX buffer {} bytes, {} planner blocks)",
+        "lase sim: {firmware} simulator for `{}` listening on {bound} (time scale {time_scale}{}, RX buffer {} bytes, {} planner blocks)",
         machine.name,
         args.baud.map(|b| format!(", {b} baud")).unwrap_or_default(),
         args.rx_buffer,

@@ -37,7 +37,7 @@ enum Command {
         file: PathBuf,
         #[arg(short, long)]
         output: Option<PathBuf>,
-        /// NC dialect: linuxcnc, grbl or iso.
+        /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso.
         #[arg(long, default_value = "linuxcnc")]
         dialect: String,
     },
@@ -65,7 +65,7 @@ enum Command {
     },
     /// Check, plan and stream the job to a controller (the built-in simulator by default).
     ///
-    /// Links: `sim` (in-process simulated GRBL controller, the default; options as a query:
+    /// Links: `sim` (in-process simulated GRBL/grblHAL controller, the default; options as a query:
     /// `sim://?time-scale=real&baud=115200`), `tcp://HOST:PORT`, `serial:///dev/ttyUSB0?baud=115200`.
     /// Over tcp and serial a journal records every line sent and acknowledged (default: beside
     /// the recipe, `FILE.journal`); after a dropped link, `--resume JOURNAL` continues the job.
@@ -75,7 +75,8 @@ enum Command {
         /// Controller link URL.
         #[arg(long)]
         link: Option<String>,
-        /// NC dialect sent over the link (the GRBL links take grbl, the default).
+        /// NC dialect sent over the link: grbl (GRBL 1.1, X Y Z) or grblhal (up to six axes,
+        /// G93); default: grbl, or grblhal when the machine has axes beyond X, Y, Z.
         #[arg(long)]
         dialect: Option<String>,
         /// Job journal file (default: beside the recipe for tcp and serial links).
@@ -97,7 +98,8 @@ enum Command {
         #[arg(long, default_value_t = 128)]
         rx_buffer: usize,
     },
-    /// Run the simulated GRBL 1.1 controller as a TCP server.
+    /// Run the simulated controller as a TCP server: GRBL 1.1, or grblHAL with up to six axes
+    /// for a machine with axes beyond X, Y, Z.
     Sim {
         /// Address to listen on (loopback unless --allow-remote); port 0 picks a free one.
         #[arg(long, default_value = "127.0.0.1:0")]
@@ -263,7 +265,7 @@ fn cmd_check(file: &Path) -> CmdResult {
 fn parse_dialect(d: &str) -> Result<Dialect, (SourceMap, Failure)> {
     d.parse::<Dialect>().map_err(|_| {
         io_fail(format!(
-            "unknown dialect `{d}`: choose linuxcnc, grbl or iso"
+            "unknown dialect `{d}`: choose linuxcnc, grbl, grblhal or iso"
         ))
     })
 }

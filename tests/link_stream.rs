@@ -40,8 +40,10 @@ fn every_example_streams_exactly_once_and_executes_its_plan() {
         assert_eq!(code, 0, "{}: {err}", ex.display());
         assert!(sim.wait_quiet(Duration::from_secs(5)));
         let rec = sim.stop();
-        // The lines `lase emit --dialect grbl` writes, each received exactly once, in order.
-        let (_, emitted, _) = lase(&["emit", ex.to_str().unwrap(), "--dialect", "grbl"]);
+        // The lines `lase emit` writes in the machine's live dialect (grbl, or grblhal for
+        // rotary axes), each received exactly once, in order.
+        let dialect = lase_runtime::link::live_dialect(&c.job.program.machine).to_string();
+        let (_, emitted, _) = lase(&["emit", ex.to_str().unwrap(), "--dialect", &dialect]);
         let emitted: Vec<String> = emitted.lines().map(str::to_string).collect();
         let texts: Vec<String> = c.lines.iter().map(|l| l.text.clone()).collect();
         assert_eq!(texts, emitted, "library and binary emit the same lines");

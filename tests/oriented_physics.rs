@@ -1,5 +1,6 @@
 //! Seeds 1 and 2 measured from the emitted NC program: every block of `lase emit --dialect
-//! linuxcnc` is read back, the axis words go through the machine's forward kinematics, and the
+//! linuxcnc` (and of `--dialect grblhal`, the GRBL-protocol controller that drives rotary
+//! axes) is read back, the axis words go through the machine's forward kinematics, and the
 //! spot, lens and beam are compared with the surface computed independently of lase's
 //! resampling — the cam from its motion law in closed form, the arm's section from the spline
 //! through the measured points. The three conditions of PROCESS.md §1 and §2 are checked at
@@ -29,7 +30,8 @@ fn machine(name: &str) -> Machine {
     parse_machine(lase_stdlib::machine(name).unwrap(), 0).unwrap()
 }
 
-/// Reads a LinuxCNC program back into blocks (M62/M63 switch the beam at the next motion).
+/// Reads a LinuxCNC or grblHAL program back into blocks (LinuxCNC: M62/M63 switch the beam at
+/// the next motion; grblHAL: M3/M4 and M5 in laser mode, without a stop).
 fn blocks(ngc: &str, m: &Machine) -> Vec<Block> {
     let mut q = [0.0; MAX_AXES];
     let mut g93 = false;
@@ -41,8 +43,8 @@ fn blocks(ngc: &str, m: &Machine) -> Vec<Block> {
             match (c, v as i32) {
                 ('G', 93) => g93 = true,
                 ('G', 94) => g93 = false,
-                ('M', 62) => lit = true,
-                ('M', 63) | ('M', 65) => lit = false,
+                ('M', 62) | ('M', 3) | ('M', 4) => lit = true,
+                ('M', 63) | ('M', 65) | ('M', 5) => lit = false,
                 _ => {}
             }
         }
@@ -148,13 +150,13 @@ fn assert_seed_tolerances(name: &str, w: &Worst, min_blocks: usize) {
     assert!(w.speed_rel <= 1e-3, "surface speed off by {}", w.speed_rel);
 }
 
-fn emit(example: &str) -> String {
+fn emit(example: &str, dialect: &str) -> String {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("out.ngc");
+    let out = dir.path().join("out.nc");
     let (code, _, err) = lase(&[
         "emit",
         "--dialect",
-        "linuxcnc",
+        dialect,
         example,
         "-o",
         out.to_str().unwrap(),
@@ -217,15 +219,107 @@ fn cam_foot(p: [f64; 3]) -> ([f64; 3], [f64; 3]) {
     ([f.x, f.y, 0.0], [n.x, n.y, 0.0])
 }
 
-#[test]
-fn cam_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
+/// Where the measured blocks come from: a program `lase emit` writes in a dialect, or what
+/// the simulated grblHAL controller executed when `lase run` streamed the job to it over TCP.
+#[derive(Clone, Copy)]
+enum Source {
+    Emitted(&'static str),
+    Streamed,
+}
+
+impl std::fmt::Display for Source {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Source::Emitted(d) => write!(f, "{d}"),
+            Source::Streamed => write!(f, "streamed to grblHAL"),
+        }
+    }
+}
+
+fn blocks_of(example: &str, source: Source, m: &Machine) -> Vec<Block> {
+    match source {
+        Source::Emitted(dialect) => blocks(&emit(example, dialect), m),
+        Source::Streamed => executed_blocks(example, m),
+    }
+}
+
+/// Streams `example` with `lase run` to a simulated controller for `m` and reads back the
+/// blocks it executed: axis positions from the controller's own interpolation (degrees back
+/// to radians), the block time it took, the laser power it had.
+fn executed_blocks(example: &str, m: &Machine) -> Vec<Block> {
+    use lase_runtime::link::sim::{self, SimOptions, TimeScale};
+    let sim = sim::serve(
+        m,
+        "127.0.0.1:0".parse().unwrap(),
+        SimOptions {
+            time_scale: TimeScale::Max,
+            ..SimOptions::default()
+        },
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("job.journal");
+    let url = format!("tcp://{}", sim.addr().unwrap());
+    let (code, out, err) = lase(&[
+        "run",
+        example,
+        "--link",
+        &url,
+        "--journal",
+        journal.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("GrblHAL"), "{err}");
+    assert!(out.contains("done"), "{out}");
+    assert!(sim.wait_quiet(std::time::Duration::from_secs(10)));
+    let rec = sim.stop();
+    let q_of = |p: &[f64; 6]| {
+        let mut q = [0.0; MAX_AXES];
+        for (k, a) in m.axes.iter().enumerate() {
+            let i = lase_runtime::link::axis_index(a.name.chars().next().unwrap()).unwrap();
+            q[k] = match a.kind {
+                AxisKind::Linear => p[i],
+                AxisKind::Rotary => p[i].to_radians(),
+            };
+        }
+        q
+    };
+    rec.blocks
+        .iter()
+        .map(|b| Block {
+            q: q_of(&b.to),
+            prev: q_of(&b.from),
+            // The controller's own block time, as an inverse-time F (1/min).
+            inverse_time: Some(60.0 / b.duration),
+            lit: b.laser_s > 0.0,
+        })
+        .collect()
+}
+
+fn check_cam_hardening(source: Source) {
     let m = machine("cam_xwb");
     let kin = kinematics::for_machine(&m);
-    let ngc = emit("examples/cam_hardening.lase");
-    let b = blocks(&ngc, &m);
+    let b = blocks_of("examples/cam_hardening.lase", source, &m);
     let w = measure(&*kin, &b, 12.0, 8.0 * 60.0, &cam_foot);
     // The whole contour is hardened: its length over the mean step.
-    assert_seed_tolerances("cam", &w, 400);
+    assert_seed_tolerances(&format!("cam ({source})"), &w, 400);
+}
+
+#[test]
+fn cam_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
+    check_cam_hardening(Source::Emitted("linuxcnc"));
+}
+
+#[test]
+fn cam_hardening_on_grblhal_keeps_standoff_normal_and_surface_speed_at_every_block() {
+    check_cam_hardening(Source::Emitted("grblhal"));
+}
+
+/// `lase run` to the simulated grblHAL: the motion the controller executed keeps the three
+/// conditions, its block times giving the surface speed.
+#[test]
+fn cam_hardening_streamed_live_keeps_standoff_normal_and_surface_speed() {
+    check_cam_hardening(Source::Streamed);
 }
 
 /// The measured section of examples/surface_hardening_arm.lase and the spline through it.
@@ -243,12 +337,10 @@ fn arm_section() -> Profile {
     Profile::interpolate(&pts, false).unwrap()
 }
 
-#[test]
-fn arm_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
+fn check_arm_hardening(source: Source) {
     let m = machine("arm_3r");
     let kin = kinematics::for_machine(&m);
-    let ngc = emit("examples/surface_hardening_arm.lase");
-    let b = blocks(&ngc, &m);
+    let b = blocks_of("examples/surface_hardening_arm.lase", source, &m);
     let section = arm_section();
     let len = section.length();
     let n = 4000;
@@ -282,7 +374,7 @@ fn arm_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
     };
     let w = measure(&*kin, &b, 15.0, 10.0 * 60.0, &foot);
     // Six sections of about 130 mm at 0.5 mm steps.
-    assert_seed_tolerances("arm", &w, 6 * 250);
+    assert_seed_tolerances(&format!("arm ({source})"), &w, 6 * 250);
     // The slide steps 2 mm between sections: the lit blocks sit at z = 0, 2, …, 10 mm.
     let mut zs: Vec<i64> = b
         .iter()
@@ -293,6 +385,21 @@ fn arm_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
     zs.sort();
     zs.dedup();
     assert_eq!(zs, vec![0, 2000, 4000, 6000, 8000, 10000]);
+}
+
+#[test]
+fn arm_hardening_keeps_standoff_normal_and_surface_speed_at_every_block() {
+    check_arm_hardening(Source::Emitted("linuxcnc"));
+}
+
+#[test]
+fn arm_hardening_on_grblhal_keeps_standoff_normal_and_surface_speed_at_every_block() {
+    check_arm_hardening(Source::Emitted("grblhal"));
+}
+
+#[test]
+fn arm_hardening_streamed_live_keeps_standoff_normal_and_surface_speed() {
+    check_arm_hardening(Source::Streamed);
 }
 
 #[test]
@@ -311,7 +418,7 @@ fn linuxcnc_accepts_both_oriented_programs() {
     ] {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("p.ngc");
-        std::fs::write(&path, emit(ex)).unwrap();
+        std::fs::write(&path, emit(ex, "linuxcnc")).unwrap();
         let out = rs274_g(&path).unwrap();
         let text = String::from_utf8_lossy(&out.stdout).to_string()
             + String::from_utf8_lossy(&out.stderr).as_ref();

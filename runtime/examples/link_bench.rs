@@ -87,7 +87,7 @@ fn main() {
                 dialect: "grbl".into(),
                 lines: lines.len(),
                 hash: program_hash(lines.iter().map(String::as_str)),
-                start: [0.0; 3],
+                start: [0.0; lase_runtime::link::MAX_AXES],
             },
         )
         .expect("journal")

@@ -95,6 +95,92 @@ fn answers_error_codes_status_and_parser_state() {
     assert_eq!(rec.rx_overflows, 0);
 }
 
+fn stock(name: &str) -> Machine {
+    parse_machine(lase_stdlib::machine(name).unwrap(), 0).unwrap()
+}
+
+#[test]
+fn a_rotary_machine_gets_a_six_axis_grblhal_that_times_g93_blocks() {
+    let cam = stock("cam_xwb");
+    let h = sim::serve(&cam, "127.0.0.1:0".parse().unwrap(), max()).unwrap();
+    let mut link = connect(&h, &ConnectOptions::default());
+    assert!(
+        link.describe().contains("GrblHAL 1.1f"),
+        "{}",
+        link.describe()
+    );
+    // Rates and accelerations in degrees: C at 180 deg/s is $115 = 10800 deg/min.
+    let needs = |letter: char, v: f64, a: f64| Requirements {
+        axes: vec![lase_runtime::link::AxisNeed {
+            letter,
+            v_mm_min: v,
+            a_mm_s2: a,
+            v_span: Default::default(),
+            a_span: Default::default(),
+        }],
+        ..Requirements::default()
+    };
+    assert!(
+        link.check_settings(&needs('C', 10800.0, 1800.0))
+            .unwrap()
+            .is_empty()
+    );
+    let too_fast = link.check_settings(&needs('B', 10900.0, 1800.0)).unwrap();
+    assert_eq!(too_fast.len(), 1, "{too_fast:?}");
+    assert!(
+        too_fast[0].setting.contains("$114"),
+        "{}",
+        too_fast[0].setting
+    );
+    // One G93 block: X, B and C together, in 0.5 s (F = 120 per minute).
+    assert_eq!(link.send("G21 G90 G93").unwrap(), Reply::Ok);
+    assert_eq!(link.send("G1 X10 B-5.5 C90 F120").unwrap(), Reply::Ok);
+    assert!(h.wait_quiet(Duration::from_secs(5)));
+    let s = link.query_status(Duration::from_secs(2)).unwrap();
+    assert_eq!(s.mpos, Some(vec![10.0, 0.0, 0.0, 0.0, -5.5, 90.0]));
+    let m = link.modal_state().unwrap();
+    assert!(m.inverse_time);
+    // Beyond B's travel (±100°, checked in degrees): soft limit, ALARM:2 instead of an answer.
+    link.send_line("G1 B120 F60").unwrap();
+    let mut alarm = None;
+    for _ in 0..100 {
+        if let Some(Event::Alarm { code, .. }) = link.poll(Duration::from_millis(50)).unwrap() {
+            alarm = Some(code);
+            break;
+        }
+    }
+    assert_eq!(alarm, Some(2));
+    drop(link);
+    let rec = h.stop();
+    let b = &rec.blocks[0];
+    assert_eq!(b.to, [10.0, 0.0, 0.0, 0.0, -5.5, 90.0]);
+    assert!((b.duration - 0.5).abs() < 1e-12, "{}", b.duration);
+    assert_eq!(rec.alarms, vec![2]);
+}
+
+#[test]
+fn a_grbl_controller_is_refused_for_a_job_that_moves_c() {
+    // An xy_table simulator is GRBL 1.1: three axes in its status report.
+    let h = start(max());
+    let mut link = connect(&h, &ConnectOptions::default());
+    let needs = Requirements {
+        axes: vec![lase_runtime::link::AxisNeed {
+            letter: 'C',
+            v_mm_min: 600.0,
+            a_mm_s2: 100.0,
+            v_span: Default::default(),
+            a_span: Default::default(),
+        }],
+        ..Requirements::default()
+    };
+    let errs = link.check_settings(&needs).unwrap();
+    assert_eq!(errs.len(), 1, "{errs:?}");
+    assert_eq!(errs[0].setting, "axes");
+    assert!(errs[0].help.contains("grblHAL"), "{}", errs[0].help);
+    drop(link);
+    h.stop();
+}
+
 #[test]
 fn a_soft_limit_raises_alarm_2_at_its_line_and_the_job_stops() {
     let h = start(max());
@@ -189,7 +275,10 @@ fn send_response_and_character_counting_deliver_the_same_lines() {
             .map(|l| l.text.clone())
             .collect();
         assert_eq!(got, job);
-        assert_eq!(rec.blocks.last().unwrap().to, [0.0, 14.95, 0.0]);
+        assert_eq!(
+            rec.blocks.last().unwrap().to,
+            [0.0, 14.95, 0.0, 0.0, 0.0, 0.0]
+        );
         fills.push(rec.max_rx_fill);
     }
     let longest = job.iter().map(|l| l.len() + 1).max().unwrap();

@@ -7,7 +7,8 @@ use crate::driver::{self, Failure};
 use lase_lang::units::{self, Dim};
 use lase_lang::{SourceMap, Span};
 use lase_runtime::emit::{Dialect, NcLine};
-use lase_runtime::link::LinkUrl;
+use lase_runtime::link::{self, LinkUrl};
+use lase_runtime::machine::AxisKind;
 use lase_runtime::motion::Job;
 use lase_runtime::program::{OpKind, ProcessProgram};
 use std::io::Write;
@@ -44,7 +45,7 @@ pub const COMMANDS: &[Command] = &[
     cmd(
         ":emit",
         "[--dialect D] [FILE]",
-        "the NC program of what would run now (linuxcnc, grbl, iso)",
+        "the NC program of what would run now (linuxcnc, grbl, grblhal, iso)",
     ),
     cmd(
         ":connect",
@@ -59,7 +60,7 @@ pub const COMMANDS: &[Command] = &[
     cmd(
         ":jog",
         "AXIS DIST [at SPEED]",
-        "jog one axis by a distance (`:jog x 10 mm`), laser off; Ctrl-C cancels",
+        "jog one axis by a distance (`:jog x 10 mm`, `:jog c 90 deg`), laser off; Ctrl-C cancels",
     ),
     cmd(":home", "", "run the controller's homing cycle"),
     cmd(
@@ -403,10 +404,15 @@ impl Session {
             println!("ok — nothing to run yet");
             return;
         }
-        if let Some(job) = self.job()
-            && let Some(nc) = self.nc_lines(&job, Dialect::Grbl)
-        {
-            println!("ok — {}, {} grbl lines", self.summary_line(&job), nc.len());
+        if let Some(job) = self.job() {
+            let dialect = link::live_dialect(&job.program.machine);
+            if let Some(nc) = self.nc_lines(&job, dialect) {
+                println!(
+                    "ok — {}, {} {dialect} lines",
+                    self.summary_line(&job),
+                    nc.len()
+                );
+            }
         }
     }
 
@@ -489,7 +495,7 @@ impl Session {
                 match words.next() {
                     Some(d) => d,
                     None => {
-                        self.say_error("usage: :emit [--dialect linuxcnc|grbl|iso] [FILE]");
+                        self.say_error("usage: :emit [--dialect linuxcnc|grbl|grblhal|iso] [FILE]");
                         return;
                     }
                 }
@@ -505,7 +511,7 @@ impl Session {
                 Ok(d) => dialect = d,
                 Err(_) => {
                     self.say_error(&format!(
-                        "unknown dialect `{d}`: choose linuxcnc, grbl or iso"
+                        "unknown dialect `{d}`: choose linuxcnc, grbl, grblhal or iso"
                     ));
                     return;
                 }
@@ -571,8 +577,7 @@ impl Session {
     }
 
     fn jog(&mut self, rest: &str) {
-        let usage =
-            "usage: :jog AXIS DIST [at SPEED], e.g. `:jog x 10 mm` or `:jog y -0.5 mm at 5 mm/s`";
+        let usage = "usage: :jog AXIS DIST [at SPEED], e.g. `:jog x 10 mm`, `:jog y -0.5 mm at 5 mm/s` or `:jog c 90 deg at 30 deg/s`";
         let (main, speed) = match rest.split_once(" at ") {
             Some((m, s)) => (m.trim(), Some(s.trim())),
             None => (rest.trim(), None),
@@ -583,9 +588,9 @@ impl Session {
         };
         let axis = axis.trim().to_ascii_lowercase();
         let letter = match axis.as_str() {
-            "x" | "y" | "z" => axis.chars().next().unwrap_or('x'),
+            "x" | "y" | "z" | "a" | "b" | "c" => axis.chars().next().unwrap_or('x'),
             _ => {
-                self.say_error(&format!("`{axis}`: jog x, y or z"));
+                self.say_error(&format!("`{axis}`: jog x, y, z, a, b or c"));
                 return;
             }
         };
@@ -598,13 +603,32 @@ impl Session {
             self.say_error(&format!("machine `{}` has no axis {axis}", m.name));
             return;
         }
-        let dist_mm = match parse_typed(dist) {
-            Ok(Typed::Quantity(v, d)) if d == Dim::LENGTH => v,
+        // A rotary axis jogs by an angle, sent in degrees (deg/min for its rate); without a
+        // machine, x, y, z are linear and a, b, c rotary.
+        let rotary = axis_spec.map_or(letter >= 'a', |a| a.kind == AxisKind::Rotary);
+        let (dist_dim, speed_dim, to_wire, unit) = if rotary {
+            (
+                Dim::ANGLE,
+                Dim::ANGULAR_SPEED,
+                180.0 / std::f64::consts::PI,
+                "deg",
+            )
+        } else {
+            (Dim::LENGTH, Dim::SPEED, 1.0, "mm")
+        };
+        let dist_internal = match parse_typed(dist) {
+            Ok(Typed::Quantity(v, d)) if d == dist_dim => v,
             Ok(Typed::Bare(v)) if v == 0.0 => v,
             Ok(Typed::Bare(_)) => {
                 self.say_error(&format!(
-                    "give the distance with a unit: `:jog {axis} {} mm`",
+                    "give the distance with a unit: `:jog {axis} {} {unit}`",
                     dist.trim()
+                ));
+                return;
+            }
+            Ok(_) if rotary => {
+                self.say_error(&format!(
+                    "axis {axis} is rotary: the distance is an angle (deg, rad)"
                 ));
                 return;
             }
@@ -618,18 +642,24 @@ impl Session {
             }
         };
         let v_max = axis_spec.map_or(f64::INFINITY, |a| a.v_max);
-        let feed_mm_s = match speed.map(parse_typed) {
-            None => v_max.min(20.0),
-            Some(Ok(Typed::Quantity(v, d))) if d == Dim::SPEED && v > 0.0 => {
+        // Default: 20 mm/s, or 30 deg/s on a rotary axis, within the axis's limit.
+        let default_speed = if rotary { 30.0 / to_wire } else { 20.0 };
+        let speed_internal = match speed.map(parse_typed) {
+            None => v_max.min(default_speed),
+            Some(Ok(Typed::Quantity(v, d))) if d == speed_dim && v > 0.0 => {
                 if v > v_max {
                     self.say_error(&format!(
                         "{} is above axis {axis}'s {}",
-                        units::format_quantity(v, Dim::SPEED),
-                        units::format_quantity(v_max, Dim::SPEED)
+                        units::format_quantity(v, speed_dim),
+                        units::format_quantity(v_max, speed_dim)
                     ));
                     return;
                 }
                 v
+            }
+            Some(Ok(_)) if rotary => {
+                self.say_error("the jog speed of a rotary axis is a positive angular speed (deg/s, rad/s, ...)");
+                return;
             }
             Some(Ok(_)) => {
                 self.say_error("the jog speed is a positive speed (mm/s, mm/min, ...)");
@@ -640,9 +670,12 @@ impl Session {
                 return;
             }
         };
-        let r = self
-            .station
-            .jog(self.eval.machine(), letter, dist_mm, feed_mm_s * 60.0);
+        let r = self.station.jog(
+            self.eval.machine(),
+            letter,
+            dist_internal * to_wire,
+            speed_internal * to_wire * 60.0,
+        );
         self.show(r);
     }
 
@@ -760,7 +793,8 @@ impl Session {
         let Some(job) = self.job() else {
             return Ran::NotStarted;
         };
-        let Some(nc) = self.nc_lines(&job, Dialect::Grbl) else {
+        let dialect = link::live_dialect(&job.program.machine);
+        let Some(nc) = self.nc_lines(&job, dialect) else {
             return Ran::NotStarted;
         };
         let map = self.map.clone();
@@ -790,7 +824,8 @@ impl Session {
             Ok(j) => j,
             Err(f) => return self.report_in(&recipe.map, &f),
         };
-        let Some(nc) = self.nc_lines_in(&recipe.map, &job, Dialect::Grbl) else {
+        let dialect = link::live_dialect(&job.program.machine);
+        let Some(nc) = self.nc_lines_in(&recipe.map, &job, dialect) else {
             return;
         };
         let name = recipe.name();

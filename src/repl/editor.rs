@@ -141,13 +141,17 @@ impl LaseHelper {
                 "",
             ),
             ":set" => pairs(word, ["power", "speed"].into_iter(), " "),
-            ":jog" => pairs(word, ["x", "y", "z"].into_iter(), " "),
+            ":jog" => pairs(word, ["x", "y", "z", "a", "b", "c"].into_iter(), " "),
             ":emit" if word.starts_with('-') => pairs(word, ["--dialect"].into_iter(), " "),
             ":emit"
                 if rest.trim_end().ends_with("--dialect")
                     || rest.split_whitespace().last() == Some("--dialect") =>
             {
-                pairs(word, ["linuxcnc", "grbl", "iso"].into_iter(), " ")
+                pairs(
+                    word,
+                    ["linuxcnc", "grbl", "grblhal", "iso"].into_iter(),
+                    " ",
+                )
             }
             ":run" => {
                 let mut v = pairs(word, names.iter().map(String::as_str), "");

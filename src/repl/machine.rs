@@ -12,12 +12,13 @@ use crate::driver::Failure;
 use crate::live::{Display, Key, Keys};
 use crate::output;
 use lase_lang::Span;
-use lase_runtime::emit::{Dialect, NcLine};
+use lase_runtime::emit::NcLine;
 use lase_runtime::link::grbl::GrblLink;
 use lase_runtime::link::sim::{self, SimHandle};
 use lase_runtime::link::stream::{self, Control, Outcome, Progress, StreamJob, StreamOptions};
 use lase_runtime::link::{
-    ConnectOptions, Event, Link, LinkError, LinkUrl, MachineState, Realtime, Requirements, Status,
+    self, ConnectOptions, Event, Link, LinkError, LinkUrl, MachineState, Realtime, Requirements,
+    Status,
 };
 use lase_runtime::machine::Machine;
 use lase_runtime::motion::Job;
@@ -260,15 +261,16 @@ impl Station {
         &mut self,
         machine: Option<&Machine>,
         axis: char,
-        dist_mm: f64,
-        feed_mm_min: f64,
+        dist: f64,
+        feed_per_min: f64,
     ) -> R<String> {
         let link = self.link(machine)?;
+        // Distance and rate in the controller's units: mm, or degrees for a rotary axis.
         let line = format!(
             "$J=G91 G21 {}{} F{}",
             axis.to_ascii_uppercase(),
-            fmt3(dist_mm),
-            fmt3(feed_mm_min)
+            fmt3(dist),
+            fmt3(feed_per_min)
         );
         let reply = link.send(&line)?;
         if let lase_runtime::link::Reply::Error { code, message } = reply {
@@ -394,7 +396,7 @@ impl Station {
                 );
             }
         }
-        let needs = Requirements::of_job(job.job, Dialect::Grbl);
+        let needs = Requirements::of_job(job.job, link::live_dialect(&job.job.program.machine));
         match link.check_settings(&needs) {
             Ok(m) if m.is_empty() => {}
             Ok(m) => {

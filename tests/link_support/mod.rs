@@ -5,9 +5,11 @@
 #![allow(dead_code)]
 
 use lase_lang::{Loader, SourceMap, Span};
-use lase_runtime::emit::{Dialect, EmitOptions, NcLine};
+use lase_runtime::emit::{EmitOptions, NcLine};
 use lase_runtime::eval::{Evaluator, Host};
 use lase_runtime::link::sim::{self, Recording, SimHandle, SimOptions};
+use lase_runtime::link::{AxisPos, MAX_AXES, axis_index};
+use lase_runtime::machine::{AxisKind, Machine};
 use lase_runtime::motion::Job;
 use lase_runtime::program::OpKind;
 use std::path::{Path, PathBuf};
@@ -43,10 +45,18 @@ impl Host for Fs {
     fn machine_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
         read(importer, path)
     }
+
+    fn data_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        read(importer, path)
+    }
+
+    fn extension_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
+        read(importer, path)
+    }
 }
 
-/// A compiled example: its planned job and its GRBL lines, as `lase emit --dialect grbl`
-/// writes them.
+/// A compiled example: its planned job and its lines for the controller, as `lase run`
+/// sends them (the grbl dialect, or grblhal for machines with rotary axes).
 pub struct Compiled {
     pub job: Job,
     pub lines: Vec<NcLine>,
@@ -57,10 +67,16 @@ pub fn compile(path: &Path) -> Compiled {
     let mut map = SourceMap::new();
     let text = std::fs::read_to_string(path).unwrap();
     let main = map.add(path.to_string_lossy(), text);
-    let (program, errors) = lase_lang::load(&mut map, main, &mut Fs);
+    let (mut program, errors) = lase_lang::load(&mut map, main, &mut Fs);
     assert!(errors.is_empty(), "{errors:?}");
-    assert!(lase_lang::check_program(&program).is_empty());
+    // Rhai extensions (`use`) declare their functions before checking, as `lase` does.
+    let mut ext = lase_runtime::ext::Extensions::new();
+    let ext_errors = ext.load_uses(&mut program, &mut map, &mut Fs);
+    assert!(ext_errors.is_empty(), "{ext_errors:?}");
+    let check = lase_lang::check_program(&program);
+    assert!(check.is_empty(), "{check:?}");
     let mut ev = Evaluator::new();
+    ev.set_extensions(ext);
     let stmts = program.modules[0].stmts.clone();
     let end = map.base(main) + map.text(main).len();
     let name = path.file_name().unwrap().to_string_lossy().into_owned();
@@ -81,7 +97,7 @@ pub fn compile(path: &Path) -> Compiled {
     let mut lines = Vec::new();
     lase_runtime::emit::emit(
         &job,
-        Dialect::Grbl,
+        lase_runtime::link::live_dialect(&job.program.machine),
         &EmitOptions {
             locate: Some(&locate),
             comments: true,
@@ -95,35 +111,38 @@ pub fn compile(path: &Path) -> Compiled {
     Compiled { job, lines, map }
 }
 
-/// The examples a GRBL controller can run (GRBL drives X, Y and Z only: recipes for machines
-/// with rotary axes are left out), sorted.
+/// Every example recipe, sorted: GRBL runs the Cartesian ones, grblHAL those with rotary
+/// axes.
 pub fn examples() -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(root().join("examples"))
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "lase"))
-        .filter(|p| grbl_can_drive(&std::fs::read_to_string(p).unwrap()))
         .collect();
     v.sort();
     v
 }
 
-/// Whether the stock machine a recipe selects has only linear axes.
-fn grbl_can_drive(recipe: &str) -> bool {
-    let Some(name) = recipe
-        .lines()
-        .find_map(|l| l.trim().strip_prefix("machine "))
-        .map(|n| n.trim())
-    else {
-        return true;
-    };
-    let Some(text) = lase_stdlib::machine(name) else {
-        return true;
-    };
-    let m = lase_runtime::machine::parse_machine(text, 0).expect("stock machines parse");
-    m.axes
-        .iter()
-        .all(|a| a.kind == lase_runtime::machine::AxisKind::Linear)
+/// Machine axes in a controller's position: X Y Z A B C by letter, rotary axes in degrees.
+pub fn to_controller(m: &Machine) -> impl Fn(&[f64]) -> AxisPos + '_ {
+    move |q: &[f64]| {
+        let mut p = [0.0; MAX_AXES];
+        for (k, a) in m.axes.iter().enumerate() {
+            let i = axis_index(a.name.chars().next().unwrap()).unwrap();
+            p[i] = match a.kind {
+                AxisKind::Rotary => q[k].to_degrees(),
+                AxisKind::Linear => q[k],
+            };
+        }
+        p
+    }
+}
+
+fn dist(a: AxisPos, b: AxisPos) -> f64 {
+    (0..MAX_AXES)
+        .map(|i| (b[i] - a[i]).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// Runs `lase ARGS` from the repository root: (exit code, stdout, stderr).
@@ -159,21 +178,12 @@ pub fn gcode_lines(rec: &Recording) -> Vec<String> {
         .collect()
 }
 
-/// Planned end position of every motion op (machine axes mapped to X/Y/Z), by op index.
-pub fn planned_op_ends(job: &Job) -> Vec<(usize, [f64; 3])> {
-    let xyz: Vec<usize> = job
-        .program
-        .machine
-        .axes
-        .iter()
-        .map(|a| "XYZ".find(a.name.as_str()).unwrap())
-        .collect();
-    let mut out: Vec<(usize, [f64; 3])> = Vec::new();
+/// Planned end position of every motion op (in the controller's axes), by op index.
+pub fn planned_op_ends(job: &Job) -> Vec<(usize, AxisPos)> {
+    let map = to_controller(&job.program.machine);
+    let mut out: Vec<(usize, AxisPos)> = Vec::new();
     for m in &job.moves {
-        let mut p = [0.0; 3];
-        for (k, &i) in xyz.iter().enumerate() {
-            p[i] = m.target[k];
-        }
+        let p = map(&m.target);
         match out.last_mut() {
             Some((op, q)) if *op == m.tag as usize => *q = p,
             _ => out.push((m.tag as usize, p)),
@@ -182,25 +192,14 @@ pub fn planned_op_ends(job: &Job) -> Vec<(usize, [f64; 3])> {
     out
 }
 
-/// Lit runs of the plan: (start, end, length) of each maximal run of consecutive lit moves.
-/// (start, end, length, pulse pitch when the run fires pulses by distance).
-pub type PlannedRun = ([f64; 3], [f64; 3], f64, Option<f64>);
+/// Lit runs of the plan: (start, end, length) of each maximal run of consecutive lit moves,
+/// in the controller's axes (the length in axis space, degrees counting as mm, as the
+/// controller's own blocks are measured), and the pulse pitch when the run fires pulses by
+/// distance.
+pub type PlannedRun = (AxisPos, AxisPos, f64, Option<f64>);
 
 pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
-    let xyz: Vec<usize> = job
-        .program
-        .machine
-        .axes
-        .iter()
-        .map(|a| "XYZ".find(a.name.as_str()).unwrap())
-        .collect();
-    let map = |q: &[f64]| {
-        let mut p = [0.0; 3];
-        for (k, &i) in xyz.iter().enumerate() {
-            p[i] = q[k];
-        }
-        p
-    };
+    let map = to_controller(&job.program.machine);
     let mut runs: Vec<PlannedRun> = Vec::new();
     let mut prev = map(&job.start);
     let mut in_run = false;
@@ -214,13 +213,14 @@ pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
                 Some(lase_runtime::program::PulseMode::Distance { pitch_mm }) => Some(pitch_mm),
                 _ => None,
             });
+        let length = dist(prev, to);
         if lit {
             if in_run {
                 let r = runs.last_mut().unwrap();
                 r.1 = to;
-                r.2 += m.length;
+                r.2 += length;
             } else {
-                runs.push((prev, to, m.length, pitch));
+                runs.push((prev, to, length, pitch));
             }
         }
         in_run = lit;
@@ -230,15 +230,12 @@ pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
 }
 
 /// Lit runs the controller executed.
-pub fn executed_lit_runs(rec: &Recording) -> Vec<([f64; 3], [f64; 3], f64)> {
-    let mut runs: Vec<([f64; 3], [f64; 3], f64)> = Vec::new();
+pub fn executed_lit_runs(rec: &Recording) -> Vec<(AxisPos, AxisPos, f64)> {
+    let mut runs: Vec<(AxisPos, AxisPos, f64)> = Vec::new();
     let mut in_run = false;
     for b in &rec.blocks {
         let lit = b.laser_s > 0.0;
-        let len = (0..3)
-            .map(|i| (b.to[i] - b.from[i]).powi(2))
-            .sum::<f64>()
-            .sqrt();
+        let len = dist(b.from, b.to);
         if lit {
             if in_run {
                 let r = runs.last_mut().unwrap();
@@ -253,8 +250,8 @@ pub fn executed_lit_runs(rec: &Recording) -> Vec<([f64; 3], [f64; 3], f64)> {
     runs
 }
 
-fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
-    (0..3).all(|i| (a[i] - b[i]).abs() <= tol)
+fn close(a: AxisPos, b: AxisPos, tol: f64) -> bool {
+    (0..MAX_AXES).all(|i| (a[i] - b[i]).abs() <= tol)
 }
 
 /// The executed trajectory equals the plan: every op's end position within 1 µm (the end of
@@ -263,13 +260,7 @@ fn close(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
 pub fn assert_trajectory_matches(c: &Compiled, rec: &Recording, job_line_seqs: &[Option<u64>]) {
     // Position after each job line: the end of its last executed block, else the previous.
     let mut pos_after = Vec::with_capacity(c.lines.len());
-    let start = {
-        let mut p = [0.0; 3];
-        for (k, a) in c.job.program.machine.axes.iter().enumerate() {
-            p["XYZ".find(a.name.as_str()).unwrap()] = c.job.start[k];
-        }
-        p
-    };
+    let start = to_controller(&c.job.program.machine)(&c.job.start);
     let mut cur = start;
     let mut by_seq = std::collections::HashMap::new();
     for b in &rec.blocks {
@@ -423,10 +414,7 @@ pub fn baseline(c: &Compiled) -> Vec<(String, sim::Effect)> {
     let m = &c.job.program.machine;
     let mut ctl = sim::Controller::new(sim::ControllerConfig {
         rx_buffer: 1024,
-        planner_blocks: 15,
-        travel: sim::controller::travel_for(m),
-        settings: sim::controller::settings_for(m),
-        error_at_line: Vec::new(),
+        ..sim::ControllerConfig::for_machine(m)
     });
     for l in &c.lines {
         for b in l.text.bytes().chain(std::iter::once(b'\n')) {

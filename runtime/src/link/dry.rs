@@ -6,7 +6,7 @@
 //! ([`super::sim`]).
 
 use super::{DryLink, LinkError, Reply};
-use crate::machine::Machine;
+use crate::machine::{AxisKind, Machine};
 
 #[derive(Debug, Clone)]
 pub struct SimController {
@@ -29,7 +29,15 @@ impl SimController {
                 .iter()
                 .map(|a| a.name.chars().next().unwrap_or('X'))
                 .collect(),
-            travel: m.axes.iter().map(|a| (a.min, a.max)).collect(),
+            // NC words are mm and degrees; the machine file's limits are mm and radians.
+            travel: m
+                .axes
+                .iter()
+                .map(|a| match a.kind {
+                    AxisKind::Rotary => (a.min.to_degrees(), a.max.to_degrees()),
+                    AxisKind::Linear => (a.min, a.max),
+                })
+                .collect(),
             pos: vec![0.0; m.axes.len()],
             feed_mm_min: 0.0,
             motion: 0,
@@ -199,5 +207,17 @@ mod tests {
         );
         assert!(words("G1 X1.2.3").is_err());
         assert!(words("G1 #5").is_err());
+    }
+
+    #[test]
+    fn rotary_travel_is_checked_in_degrees() {
+        let m = crate::machine::parse_machine(lase_stdlib::machine("cam_xwb").unwrap(), 0).unwrap();
+        let mut c = SimController::new(&m);
+        // B travels ±100°: 30° is inside (it was refused when the limits stayed in radians).
+        assert_eq!(c.send("G0 X10 B30 C720").unwrap(), Reply::Ok);
+        assert!(matches!(
+            c.send("G0 B120").unwrap(),
+            Reply::Error { code: 15, .. }
+        ));
     }
 }

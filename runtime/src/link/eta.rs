@@ -6,7 +6,9 @@
 //! position, matched against the planned segments of the last lines, says where in them the
 //! machine is.
 
+use super::{AxisPos, MAX_AXES, axis_index};
 use crate::emit::NcLine;
+use crate::machine::AxisKind;
 use crate::motion::Job;
 
 /// How far back from the last acknowledged line the position is searched, in planned
@@ -17,9 +19,9 @@ const WINDOW: usize = 256;
 pub struct Eta {
     /// Planned job time when each line's op has finished, s.
     line_end: Vec<f64>,
-    /// Planned segments: job time at start and end of motion, start and end point in
-    /// X/Y/Z (machine axes mapped by letter), mm.
-    segs: Vec<(f64, f64, [f64; 3], [f64; 3])>,
+    /// Planned segments: job time at start and end of motion, start and end point in the
+    /// controller's X Y Z A B C (machine axes mapped by letter), mm and degrees.
+    segs: Vec<(f64, f64, AxisPos, AxisPos)>,
     total: f64,
 }
 
@@ -27,18 +29,29 @@ impl Eta {
     pub fn new(job: &Job, lines: &[NcLine]) -> Eta {
         let plan = &job.plan;
         let t0 = job.initial_dwell_s;
-        let xyz: Vec<Option<usize>> = job
+        // Machine axis k → (controller axis, scale to its unit).
+        let slots: Vec<Option<(usize, f64)>> = job
             .program
             .machine
             .axes
             .iter()
-            .map(|a| "XYZ".find(a.name.to_ascii_uppercase().as_str()))
+            .map(|a| {
+                let scale = match a.kind {
+                    AxisKind::Rotary => 180.0 / std::f64::consts::PI,
+                    AxisKind::Linear => 1.0,
+                };
+                let mut letters = a.name.chars();
+                match (letters.next(), letters.next()) {
+                    (Some(l), None) => axis_index(l).map(|i| (i, scale)),
+                    _ => None,
+                }
+            })
             .collect();
         let map = |q: &[f64]| {
-            let mut p = [0.0; 3];
-            for (k, slot) in xyz.iter().enumerate() {
-                if let (Some(i), Some(v)) = (slot, q.get(k)) {
-                    p[*i] = *v;
+            let mut p = [0.0; MAX_AXES];
+            for (k, slot) in slots.iter().enumerate() {
+                if let (Some((i, scale)), Some(v)) = (slot, q.get(k)) {
+                    p[*i] = *v * scale;
                 }
             }
             p
@@ -80,7 +93,8 @@ impl Eta {
     }
 
     /// Planned job time done: at most what the acknowledged lines account for, placed by the
-    /// controller's position (work coordinates X/Y/Z) when it is known.
+    /// controller's position (work coordinates X Y Z A B C) when it is known. Degrees count
+    /// as mm in the distance to a segment, as a GRBL-family controller counts them.
     pub fn done(&self, acked: usize, pos: Option<&[f64]>) -> f64 {
         let upper = match acked.checked_sub(1).and_then(|i| self.line_end.get(i)) {
             Some(t) => *t,
@@ -94,10 +108,10 @@ impl Eta {
         let first = last.saturating_sub(WINDOW);
         let mut best = (f64::INFINITY, upper);
         for &(ta, tb, a, b) in &self.segs[first..last] {
-            let d: [f64; 3] = std::array::from_fn(|i| b[i] - a[i]);
+            let d: AxisPos = std::array::from_fn(|i| b[i] - a[i]);
             let len2: f64 = d.iter().map(|x| x * x).sum();
             let f = if len2 > 0.0 {
-                ((0..3)
+                ((0..MAX_AXES)
                     .map(|i| (pos.get(i).copied().unwrap_or(0.0) - a[i]) * d[i])
                     .sum::<f64>()
                     / len2)
@@ -105,7 +119,7 @@ impl Eta {
             } else {
                 1.0
             };
-            let dist2: f64 = (0..3)
+            let dist2: f64 = (0..MAX_AXES)
                 .map(|i| (a[i] + f * d[i] - pos.get(i).copied().unwrap_or(0.0)).powi(2))
                 .sum();
             // Later segments win ties: a path that passes a point twice is further along.

@@ -28,7 +28,7 @@
 //! e done          or `e error 12 20`, `e alarm 2`, `e abort`
 //! ```
 
-use super::LinkError;
+use super::{AxisPos, LinkError, MAX_AXES};
 use std::fs::{File, OpenOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -46,8 +46,9 @@ pub struct Header {
     pub lines: usize,
     /// FNV-1a of the program text, to refuse resuming a changed recipe.
     pub hash: u64,
-    /// Work position when the job started, X Y Z.
-    pub start: [f64; 3],
+    /// Work position when the job started, X Y Z A B C (written as three values when A, B
+    /// and C are zero, as journals of GRBL jobs always were).
+    pub start: AxisPos,
 }
 
 /// FNV-1a 64 of the lines, each followed by a newline.
@@ -117,9 +118,20 @@ impl Journal {
         }
         let mut file = File::create(path).map_err(|e| jerr(path, e))?;
         let h = header;
+        let n = if h.start[3..].iter().all(|v| *v == 0.0) {
+            3
+        } else {
+            MAX_AXES
+        };
+        let start: Vec<String> = h.start[..n].iter().map(f64::to_string).collect();
         let text = format!(
-            "lase-journal 1\nrecipe {}\nlink {}\ndialect {}\nlines {}\nhash {:016x}\nstart {} {} {}\n",
-            h.recipe, h.link, h.dialect, h.lines, h.hash, h.start[0], h.start[1], h.start[2]
+            "lase-journal 1\nrecipe {}\nlink {}\ndialect {}\nlines {}\nhash {:016x}\nstart {}\n",
+            h.recipe,
+            h.link,
+            h.dialect,
+            h.lines,
+            h.hash,
+            start.join(" ")
         );
         file.write_all(text.as_bytes()).map_err(|e| jerr(path, e))?;
         file.sync_all().map_err(|e| jerr(path, e))?;
@@ -263,9 +275,10 @@ pub fn read(path: &Path) -> Result<State, LinkError> {
         .split_whitespace()
         .filter_map(|v| v.parse().ok())
         .collect();
-    if start.len() != 3 {
+    if !(3..=MAX_AXES).contains(&start.len()) {
         return Err(bad("start"));
     }
+    let start: AxisPos = std::array::from_fn(|i| start.get(i).copied().unwrap_or(0.0));
     let mut st = State {
         header: Header {
             recipe,
@@ -273,7 +286,7 @@ pub fn read(path: &Path) -> Result<State, LinkError> {
             dialect,
             lines: n,
             hash,
-            start: [start[0], start[1], start[2]],
+            start,
         },
         acked: 0,
         sent_bound: 0,
@@ -320,7 +333,7 @@ mod tests {
             dialect: "grbl".into(),
             lines: 100,
             hash: program_hash(["G0 X1", "M2"]),
-            start: [0.0, 1.5, 0.0],
+            start: [0.0, 1.5, 0.0, 0.0, 0.0, 0.0],
         };
         {
             let mut j = Journal::create(&path, &header).unwrap();
@@ -335,6 +348,11 @@ mod tests {
         }
         let st = read(&path).unwrap();
         assert_eq!(st.header, header);
+        assert!(
+            std::fs::read_to_string(&path)
+                .unwrap()
+                .contains("\nstart 0 1.5 0\n")
+        );
         assert_eq!((st.acked, st.sent_bound, st.end.clone()), (7, 32, None));
         // A new job must not overwrite an unfinished one.
         assert!(Journal::create(&path, &header).is_err());
@@ -351,5 +369,21 @@ mod tests {
         drop(j);
         let st = read(&path).unwrap();
         assert_eq!((st.acked, st.end.as_deref()), (8, Some("done")));
+    }
+
+    #[test]
+    fn a_rotary_start_position_round_trips() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("cam.journal");
+        let header = Header {
+            recipe: "cam.lase".into(),
+            link: "sim".into(),
+            dialect: "grblhal".into(),
+            lines: 3,
+            hash: 1,
+            start: [12.5, 0.0, 0.0, 0.0, -30.25, 720.0],
+        };
+        drop(Journal::create(&path, &header).unwrap());
+        assert_eq!(read(&path).unwrap().header, header);
     }
 }

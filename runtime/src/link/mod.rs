@@ -40,6 +40,53 @@ pub use url::{LinkUrl, SimUrlOptions};
 use lase_lang::Span;
 use std::time::Duration;
 
+/// Most axes a GRBL-family controller has: grblHAL builds with up to six, reported and
+/// addressed in this order (GRBL 1.1 has the first three).
+pub const MAX_AXES: usize = 6;
+
+/// The NC letters of those axes, in report order.
+pub const AXIS_LETTERS: [char; MAX_AXES] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
+
+/// A controller position: mm for X, Y, Z, degrees for rotary A, B, C; axes a controller
+/// lacks stay 0.
+pub type AxisPos = [f64; MAX_AXES];
+
+/// Where an axis letter is in a controller's position (`X` 0 … `C` 5).
+pub fn axis_index(letter: char) -> Option<usize> {
+    let l = letter.to_ascii_uppercase();
+    AXIS_LETTERS.iter().position(|&c| c == l)
+}
+
+/// How many axes a GRBL-family controller needs for a machine: 3 (GRBL 1.1) when its axes
+/// are linear X, Y, Z; else as many as its highest letter, at least 4 (a grblHAL build; a
+/// machine with C needs all six). Axis names outside X Y Z A B C count as six: the dialect
+/// check names them.
+pub fn controller_axes(machine: &crate::machine::Machine) -> usize {
+    let mut n = 3;
+    for a in &machine.axes {
+        let mut chars = a.name.chars();
+        let k = match (chars.next().and_then(axis_index), chars.next()) {
+            (Some(k), None) => k,
+            _ => MAX_AXES - 1,
+        };
+        let rotary = a.kind == crate::machine::AxisKind::Rotary;
+        if k >= 3 || rotary {
+            n = n.max((k + 1).max(4));
+        }
+    }
+    n
+}
+
+/// The NC dialect a job streamed to a machine takes: GRBL's when the machine's axes are X,
+/// Y, Z, grblHAL's otherwise.
+pub fn live_dialect(machine: &crate::machine::Machine) -> crate::emit::Dialect {
+    if controller_axes(machine) > 3 {
+        crate::emit::Dialect::GrblHal
+    } else {
+        crate::emit::Dialect::Grbl
+    }
+}
+
 /// What a controller said about a line sent with [`Link::send`] (send-response).
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {
@@ -139,7 +186,7 @@ impl Status {
         let pos = self.work_position(None).unwrap_or_default();
         let words: Vec<String> = pos
             .iter()
-            .zip(['X', 'Y', 'Z', 'A', 'B', 'C'])
+            .zip(AXIS_LETTERS)
             .map(|(v, l)| format!("{l}{}", lase_lang::units::format_number(*v)))
             .collect();
         format!("{} | {}", self.state.name(), words.join(" "))

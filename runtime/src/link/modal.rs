@@ -3,7 +3,7 @@
 //! what the controller reports to find the last line it executed, and the re-approach
 //! restores the predicted state.
 
-use super::{ModalState, MotionMode, Plane, Spindle};
+use super::{AxisPos, MAX_AXES, ModalState, MotionMode, Plane, Spindle, axis_index};
 
 /// What a line does, as far as resuming cares.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -59,15 +59,16 @@ pub fn words(line: &str) -> Result<Vec<(char, f64)>, String> {
     Ok(out)
 }
 
-/// The interpreter state of a controller and its position (work coordinates, mm, X Y Z).
+/// The interpreter state of a controller and its position (work coordinates: X Y Z in mm,
+/// A B C in degrees).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tracker {
     pub state: ModalState,
-    pub pos: [f64; 3],
+    pub pos: AxisPos,
 }
 
 impl Tracker {
-    pub fn new(pos: [f64; 3]) -> Tracker {
+    pub fn new(pos: AxisPos) -> Tracker {
         Tracker {
             state: ModalState::default(),
             pos,
@@ -90,7 +91,7 @@ impl Tracker {
         let ws = words(line)?;
         let before = self.clone();
         let mut dwell = false;
-        let mut target: [Option<f64>; 3] = [None; 3];
+        let mut target: [Option<f64>; MAX_AXES] = [None; MAX_AXES];
         let mut machine_coords = false;
         let scale = |inches: bool| if inches { 25.4 } else { 1.0 };
         // Modal words first, in GRBL's order of execution, then the motion.
@@ -124,9 +125,11 @@ impl Tracker {
                     self.state.mist = false;
                 }
                 ('S', _) => self.state.s = v,
-                ('X', _) => target[0] = Some(v),
-                ('Y', _) => target[1] = Some(v),
-                ('Z', _) => target[2] = Some(v),
+                (c @ ('X' | 'Y' | 'Z' | 'A' | 'B' | 'C'), _) => {
+                    if let Some(i) = axis_index(c) {
+                        target[i] = Some(v);
+                    }
+                }
                 _ => {}
             }
         }
@@ -140,7 +143,8 @@ impl Tracker {
         if has_axes && !dwell {
             for (i, t) in target.iter().enumerate() {
                 if let Some(v) = t {
-                    let v = v * k;
+                    // Inches scale the linear axes; rotary axes stay in degrees.
+                    let v = if i < 3 { v * k } else { *v };
                     self.pos[i] = if self.state.incremental && !machine_coords {
                         self.pos[i] + v
                     } else {
@@ -190,7 +194,7 @@ mod tests {
 
     #[test]
     fn tracks_position_units_and_laser() {
-        let mut t = Tracker::new([0.0; 3]);
+        let mut t = Tracker::new([0.0; MAX_AXES]);
         assert_eq!(t.apply("(comment)").unwrap(), LineKind::Nothing);
         assert_eq!(t.apply("G21 G90 G17 G94").unwrap(), LineKind::Nothing);
         assert_eq!(
@@ -202,7 +206,7 @@ mod tests {
             t.apply("G3 X0 Y-1.5 I1.5 J0 F1200").unwrap(),
             LineKind::Motion { lit: true }
         );
-        assert_eq!(t.pos, [0.0, -1.5, 0.0]);
+        assert_eq!(t.pos, [0.0, -1.5, 0.0, 0.0, 0.0, 0.0]);
         assert_eq!(t.state.feed, 1200.0);
         assert_eq!(t.apply("G91 X1").unwrap(), LineKind::Motion { lit: true });
         assert_eq!(t.pos[0], 1.0);
@@ -211,5 +215,20 @@ mod tests {
         assert_eq!(t.state.spindle, Spindle::Off);
         assert!(!t.state.incremental);
         assert!(t.apply("G1 X1.2.3").is_err());
+    }
+
+    #[test]
+    fn rotary_words_move_a_b_c_in_degrees_whatever_the_units() {
+        let mut t = Tracker::new([0.0; MAX_AXES]);
+        t.apply("G20 G93").unwrap();
+        assert_eq!(
+            t.apply("G1 X1 C90.5 B-12 F60").unwrap(),
+            LineKind::Motion { lit: false }
+        );
+        assert_eq!(t.pos, [25.4, 0.0, 0.0, 0.0, -12.0, 90.5]);
+        assert!(t.state.inverse_time);
+        assert_eq!(t.state.feed, 60.0);
+        t.apply("G91 A2").unwrap();
+        assert_eq!(t.pos[3], 2.0);
     }
 }

@@ -16,7 +16,10 @@
 
 use super::journal::State;
 use super::modal::{self, LineKind, Tracker};
-use super::{Link, LinkError, MachineState, ModalState, MotionMode, Reapproach};
+use super::{
+    AxisPos, Link, LinkError, MAX_AXES, MachineState, ModalState, MotionMode, Reapproach,
+    axis_index,
+};
 use std::time::{Duration, Instant};
 
 /// How a job continues.
@@ -50,7 +53,7 @@ fn same_motion(a: MotionMode, b: MotionMode) -> bool {
 fn fits(pred: &Tracker, pos: &[f64], m: &ModalState) -> bool {
     let s = &pred.state;
     let pos_ok =
-        (0..3).all(|i| (pred.pos[i] - pos.get(i).copied().unwrap_or(0.0)).abs() <= POS_TOL);
+        (0..MAX_AXES).all(|i| (pred.pos[i] - pos.get(i).copied().unwrap_or(0.0)).abs() <= POS_TOL);
     // GRBL prints F and S without decimals.
     let feed_ok = s.inverse_time || (s.feed - m.feed).abs() <= 0.5 + 1e-9 * s.feed.abs();
     pos_ok
@@ -173,12 +176,7 @@ pub fn plan(
     };
     let position: Vec<f64> = letters
         .iter()
-        .map(|l| match l {
-            'X' => after.pos[0],
-            'Y' => after.pos[1],
-            'Z' => after.pos[2],
-            _ => 0.0,
-        })
+        .map(|&l| axis_index(l).map_or(0.0, |i| after.pos[i]))
         .collect();
     let reapproach = if executed < lines.len() {
         link.reapproach(&after.state, letters, &position)
@@ -236,10 +234,16 @@ pub fn send_guards(start: &Tracker, lines: &[String]) -> Vec<Option<usize>> {
             s.s
         )
     };
-    type Cell = (String, [i64; 3]);
-    let mut buckets: HashMap<Cell, Vec<(usize, [f64; 3])>> = HashMap::new();
+    type Cell = (String, [i64; MAX_AXES]);
+    let mut buckets: HashMap<Cell, Vec<(usize, AxisPos)>> = HashMap::new();
     let mut guards = vec![None; lines.len()];
     let mut last_lit: Option<usize> = None;
+    // Neighbouring cells are searched along the axes the job moves only: 3^m cells for m
+    // moving axes (9 on an XY table, 27 on the cam machine, 81 on the arm).
+    let moving: Vec<usize> = (0..MAX_AXES)
+        .filter(|&i| predicted.iter().any(|(t, _)| t.pos[i] != start.pos[i]))
+        .collect();
+    let neighbours = 3usize.pow(moving.len() as u32);
     for (c, (t, kind)) in predicted.iter().enumerate() {
         if c > 0 && *kind != LineKind::Nothing {
             last_lit = Some(c - 1);
@@ -250,19 +254,20 @@ pub fn send_guards(start: &Tracker, lines: &[String]) -> Vec<Option<usize>> {
             && let Some(lit) = last_lit
         {
             let mut best: Option<usize> = None;
-            for dx in -1..=1 {
-                for dy in -1..=1 {
-                    for dz in -1..=1 {
-                        let b = [cellpos[0] + dx, cellpos[1] + dy, cellpos[2] + dz];
-                        if let Some(v) = buckets.get(&(k.clone(), b))
-                            && let Some(&(c1, _)) = v
-                                .iter()
-                                .rev()
-                                .find(|(_, p)| (0..3).all(|i| (p[i] - t.pos[i]).abs() <= tol))
-                        {
-                            best = best.max(Some(c1));
-                        }
-                    }
+            let mut cell_key = (k.clone(), cellpos);
+            for n in 0..neighbours {
+                let mut digits = n;
+                for &i in &moving {
+                    cell_key.1[i] = cellpos[i] + (digits % 3) as i64 - 1;
+                    digits /= 3;
+                }
+                if let Some(v) = buckets.get(&cell_key)
+                    && let Some(&(c1, _)) = v
+                        .iter()
+                        .rev()
+                        .find(|(_, p)| (0..MAX_AXES).all(|i| (p[i] - t.pos[i]).abs() <= tol))
+                {
+                    best = best.max(Some(c1));
                 }
             }
             // A line that by itself returns to the state before it (a dwell, a full circle)
@@ -317,7 +322,7 @@ mod tests {
             "G4 P1",
             "G0 X20",
         ]);
-        let g = send_guards(&Tracker::new([0.0; 3]), &job);
+        let g = send_guards(&Tracker::new([0.0; MAX_AXES]), &job);
         // `Y0` (index 6) closes the square: the state after it equals the state after
         // `M3 S400` (3 lines), so it waits until 4 lines are acknowledged. The dwell returns
         // to its own start state: not guardable, no guard.

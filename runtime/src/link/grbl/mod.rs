@@ -20,7 +20,7 @@ use super::{
     ConnectOptions, Continue, Event, Link, LinkError, ModalState, MotionMode, Realtime, Reapproach,
     Reply, Requirements, Spindle, Status,
 };
-use crate::emit::number;
+use crate::emit::{degrees, number};
 use response::Response;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -28,6 +28,10 @@ use std::time::{Duration, Instant};
 /// GRBL's line buffer: 80 bytes with the terminating zero, counted after it strips spaces
 /// and comments.
 pub const LINE_BUFFER: usize = 80;
+
+/// grblHAL's line buffer: 257 bytes with the terminating zero, counting spaces and comments
+/// (only leading blanks are dropped).
+pub const LINE_BUFFER_HAL: usize = 257;
 
 /// The GRBL decision behind [`Link::continue_line`].
 pub fn continuation(state: &ModalState, line: &str) -> Continue {
@@ -40,7 +44,7 @@ pub fn continuation(state: &ModalState, line: &str) -> Continue {
     if motion_word {
         return Continue::Settled;
     }
-    if !ws.iter().any(|(c, _)| matches!(c, 'X' | 'Y' | 'Z')) {
+    if !ws.iter().any(|&(c, _)| super::axis_index(c).is_some()) {
         return Continue::Pending;
     }
     match state.motion {
@@ -212,6 +216,14 @@ impl GrblLink {
     /// The controller's banner, when it printed one since the connection opened.
     pub fn banner(&self) -> Option<&str> {
         self.banner.as_deref()
+    }
+
+    /// Whether the controller greeted as grblHAL (a longer line buffer; unknown means GRBL's
+    /// limits, the stricter ones).
+    pub fn is_grblhal(&self) -> bool {
+        self.banner
+            .as_deref()
+            .is_some_and(|b| b.starts_with("GrblHAL "))
     }
 
     fn read_some(&mut self, timeout: Duration) -> Result<usize, LinkError> {
@@ -391,23 +403,33 @@ impl Link for GrblLink {
                 c => format!("byte {c:#04x} is not printable ASCII (GRBL reads bytes ≥ 0x80 as real-time commands)"),
             });
         }
-        // GRBL counts the characters it keeps: no spaces, no comments.
-        let mut kept = 0;
-        let mut depth = false;
-        for c in line.bytes() {
-            match c {
-                b'(' => depth = true,
-                b')' => depth = false,
-                b';' if !depth => break,
-                c if !depth && c > b' ' => kept += 1,
-                _ => {}
+        if self.is_grblhal() {
+            let kept = line.trim_start().len();
+            if kept >= LINE_BUFFER_HAL - 1 {
+                return Err(format!(
+                    "{kept} characters: grblHAL's line buffer holds {}",
+                    LINE_BUFFER_HAL - 2
+                ));
             }
-        }
-        if kept >= LINE_BUFFER {
-            return Err(format!(
-                "{kept} characters: GRBL's line buffer holds {}",
-                LINE_BUFFER - 1
-            ));
+        } else {
+            // GRBL counts the characters it keeps: no spaces, no comments.
+            let mut kept = 0;
+            let mut depth = false;
+            for c in line.bytes() {
+                match c {
+                    b'(' => depth = true,
+                    b')' => depth = false,
+                    b';' if !depth => break,
+                    c if !depth && c > b' ' => kept += 1,
+                    _ => {}
+                }
+            }
+            if kept >= LINE_BUFFER {
+                return Err(format!(
+                    "{kept} characters: GRBL's line buffer holds {}",
+                    LINE_BUFFER - 1
+                ));
+            }
         }
         if line.len() + 1 > self.rx_capacity - 1 {
             return Err(format!(
@@ -482,7 +504,7 @@ impl Link for GrblLink {
                 let pos = s.work_position(self.wco.as_deref()).unwrap_or_default();
                 let words: Vec<String> = pos
                     .iter()
-                    .zip(['X', 'Y', 'Z', 'A'])
+                    .zip(super::AXIS_LETTERS)
                     .map(|(v, l)| format!("{l}{}", lase_lang::units::format_number(*v)))
                     .collect();
                 format!("{} | {}", s.state.name(), words.join(" "))
@@ -545,7 +567,12 @@ impl Link for GrblLink {
         needs: &Requirements,
     ) -> Result<Vec<super::SettingMismatch>, LinkError> {
         let s = self.settings()?;
-        Ok(settings::compare(&s, needs))
+        let axes = self
+            .last_status
+            .as_ref()
+            .and_then(|st| st.mpos.as_ref().or(st.wpos.as_ref()))
+            .map(Vec::len);
+        Ok(settings::compare(&s, needs, axes))
     }
 
     fn set_check_mode(&mut self, on: bool) -> Result<(), LinkError> {
@@ -573,8 +600,13 @@ impl Link for GrblLink {
         let axes: Vec<String> = letters
             .iter()
             .zip(position)
-            .filter(|(l, _)| matches!(l, 'X' | 'Y' | 'Z'))
-            .map(|(l, v)| format!("{l}{}", number(*v)))
+            .filter(|(l, _)| super::axis_index(**l).is_some())
+            // A, B, C to the job's own precision (1e-6°), so the re-approach ends exactly
+            // where the job's next line starts from.
+            .map(|(l, v)| match l {
+                'A' | 'B' | 'C' => format!("{l}{}", degrees(*v)),
+                _ => format!("{l}{}", number(*v)),
+            })
             .collect();
         if !axes.is_empty() {
             out.push(format!("G0 {}", axes.join(" ")));
@@ -611,7 +643,10 @@ impl Link for GrblLink {
             // is sent with its motion word (`continue_line`).
             MotionMode::Linear | MotionMode::ArcCw | MotionMode::ArcCcw => {
                 if state.inverse_time {
-                    out.push("G1".into());
+                    // In G93 a block with a G1 word needs an F of its own, even when nothing
+                    // moves (GRBL's error 22). No move uses this one: each G93 move carries
+                    // its own.
+                    out.push("G1 F1".into());
                 } else if state.feed > 0.0 {
                     out.push(format!("G1 F{}", number(state.feed / units)));
                 }

@@ -12,7 +12,8 @@ pub enum Response {
     Error(u32),
     Alarm(u32),
     Status(Status),
-    /// `Grbl 1.1h ['$' for help]`: the controller (re)started.
+    /// `Grbl 1.1h ['$' for help]` (or grblHAL's `GrblHAL 1.1f ['$' or '$HELP' for help]`):
+    /// the controller (re)started.
     Banner {
         version: String,
         text: String,
@@ -107,7 +108,10 @@ pub fn parse(line: &[u8]) -> Result<Response, Malformed> {
             .map(Response::Status)
             .map_err(|r| bad(&r));
     }
-    if let Some(rest) = text.strip_prefix("Grbl ") {
+    if let Some(rest) = text
+        .strip_prefix("Grbl ")
+        .or_else(|| text.strip_prefix("GrblHAL "))
+    {
         let version = rest.split_whitespace().next().unwrap_or("").to_string();
         if version.is_empty() || !version.as_bytes()[0].is_ascii_digit() {
             return Err(bad("banner without a version"));
@@ -356,6 +360,16 @@ mod tests {
             parse(b"Grbl 1.1h ['$' for help]"),
             Ok(Response::Banner { version, .. }) if version == "1.1h"
         ));
+        assert!(matches!(
+            parse(b"GrblHAL 1.1f ['$' or '$HELP' for help]"),
+            Ok(Response::Banner { version, .. }) if version == "1.1f"
+        ));
+        let Ok(Response::Status(st)) =
+            parse(b"<Idle|MPos:1.000,0.000,0.000,0.000,-12.500,720.125|FS:0,0>")
+        else {
+            panic!("a six-axis status report parses");
+        };
+        assert_eq!(st.mpos, Some(vec![1.0, 0.0, 0.0, 0.0, -12.5, 720.125]));
         assert_eq!(
             parse(b"$110=15000.000"),
             Ok(Response::Setting {

@@ -1,8 +1,10 @@
 //! GRBL `$$` settings compared with what a job needs: laser mode (`$32`), the S value of full
-//! power (`$30`), mm reports (`$13`), and per axis the maximum rate (`$110`–`$112`, mm/min)
-//! and acceleration (`$120`–`$122`, mm/s²), which must not be below the plan's peaks.
+//! power (`$30`), mm reports (`$13`), the axes the controller has (from its status report:
+//! three on GRBL, up to six on grblHAL), and per axis the maximum rate (`$110`–`$115`, mm/min
+//! or deg/min) and acceleration (`$120`–`$125`, mm/s² or deg/s²), which must not be below
+//! the plan's peaks.
 
-use crate::link::{Requirements, SettingMismatch};
+use crate::link::{AXIS_LETTERS, Requirements, SettingMismatch, axis_index};
 use std::collections::BTreeMap;
 
 /// Settings as read from `$$`.
@@ -18,8 +20,41 @@ fn show(v: f64) -> String {
 }
 
 /// One diagnostic per setting that would make the job run differently from its plan.
-pub fn compare(settings: &Settings, needs: &Requirements) -> Vec<SettingMismatch> {
+/// `axes` is how many axes the controller reports positions for, when known.
+pub fn compare(
+    settings: &Settings,
+    needs: &Requirements,
+    axes: Option<usize>,
+) -> Vec<SettingMismatch> {
     let mut out = Vec::new();
+    if let Some(n) = axes
+        && let Some((axis, k)) = needs
+            .axes
+            .iter()
+            .filter_map(|a| axis_index(a.letter).map(|k| (a, k)))
+            .find(|(_, k)| *k >= n)
+    {
+        let has: String = AXIS_LETTERS[..n.min(AXIS_LETTERS.len())].iter().collect();
+        out.push(SettingMismatch {
+            setting: "axes".into(),
+            found: format!("{n} ({has})"),
+            needed: format!("{} (up to {})", k + 1, axis.letter),
+            span: axis.v_span,
+            label: format!("{} moves here", axis.letter),
+            help: if n <= 3 {
+                format!(
+                    "GRBL 1.1 drives X, Y and Z only: this job needs a grblHAL controller built with at least {} axes",
+                    k + 1
+                )
+            } else {
+                format!(
+                    "the controller's build has {n} axes: rebuild it with at least {} (grblHAL N_AXIS)",
+                    k + 1
+                )
+            },
+        });
+        return out;
+    }
     let get = |id: u32| settings.get(&id).copied();
     let found = |id: u32| get(id).map(show).unwrap_or_else(|| "missing".into());
     if let Some(span) = needs.laser
@@ -60,7 +95,7 @@ pub fn compare(settings: &Settings, needs: &Requirements) -> Vec<SettingMismatch
         });
     }
     for axis in &needs.axes {
-        let Some(k) = "XYZ".find(axis.letter) else {
+        let Some(k) = axis_index(axis.letter) else {
             continue;
         };
         let k = k as u32;
@@ -124,12 +159,34 @@ mod tests {
         let mut s: Settings = [(32, 1.0), (30, 1000.0), (111, 12000.0), (121, 2000.0)]
             .into_iter()
             .collect();
-        assert!(compare(&s, &needs).is_empty());
+        assert!(compare(&s, &needs, Some(3)).is_empty());
         s.insert(32, 0.0);
         s.insert(111, 6000.0);
-        let errs = compare(&s, &needs);
+        let errs = compare(&s, &needs, None);
         assert_eq!(errs.len(), 2, "{errs:?}");
         assert!(errs[0].to_string().contains("$32"));
         assert!(errs[1].to_string().contains("$111"));
+    }
+
+    #[test]
+    fn a_job_moving_c_needs_a_controller_with_six_axes() {
+        let needs = Requirements {
+            laser: None,
+            axes: vec![AxisNeed {
+                letter: 'C',
+                v_mm_min: 3600.0,
+                a_mm_s2: 100.0,
+                v_span: Span::new(7, 9),
+                a_span: Span::new(7, 9),
+            }],
+            s_max: None,
+        };
+        let s: Settings = [(115, 3600.0), (125, 100.0)].into_iter().collect();
+        let errs = compare(&s, &needs, Some(3));
+        assert_eq!(errs.len(), 1, "{errs:?}");
+        assert_eq!(errs[0].found, "3 (XYZ)");
+        assert!(errs[0].help.contains("grblHAL"), "{}", errs[0].help);
+        assert_eq!(errs[0].span, Span::new(7, 9));
+        assert!(compare(&s, &needs, Some(6)).is_empty());
     }
 }

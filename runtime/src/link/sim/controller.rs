@@ -15,15 +15,68 @@
 //!
 //! Everything observable is recorded in a [`Recording`]: each line received with its result
 //! and effect, each executed block with its laser power, laser switching, overflows.
+//!
+//! The firmware is GRBL 1.1 (X, Y, Z) or, for a machine with axes beyond X, Y, Z, a grblHAL
+//! build with up to six (X Y Z A B C, rotary axes in degrees): the same protocol, with more
+//! axis words, position fields and axis settings (`$110`–`$115`, …), its own banner, and the
+//! axis count in `$I`'s `[OPT:…]`, as grblHAL reports it.
 
 use super::gcode::{self, Gc, Step};
 use crate::link::grbl::codes::realtime_of;
-use crate::link::{MotionMode, OverrideStep, Plane, Realtime, Spindle};
-use crate::machine::Machine;
+use crate::link::{
+    AXIS_LETTERS, AxisPos, MAX_AXES, MotionMode, OverrideStep, Plane, Realtime, Spindle,
+};
+use crate::machine::{AxisKind, Machine};
 use std::collections::{BTreeMap, VecDeque};
 
 /// GRBL's version string.
 pub const BANNER: &str = "Grbl 1.1h ['$' for help]";
+
+/// grblHAL's version string.
+pub const BANNER_HAL: &str = "GrblHAL 1.1f ['$' or '$HELP' for help]";
+
+/// The firmware the simulator runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Firmware {
+    /// GRBL 1.1: X, Y, Z.
+    Grbl,
+    /// grblHAL with `axes` axes (4 to 6): X Y Z A B C, the first `axes` of them.
+    GrblHal { axes: usize },
+}
+
+impl Firmware {
+    /// The firmware a machine file needs: GRBL when its axes are X, Y, Z, else grblHAL with as
+    /// many axes as its highest letter (a machine with C has all six).
+    pub fn for_machine(machine: &Machine) -> Firmware {
+        match crate::link::controller_axes(machine) {
+            3 => Firmware::Grbl,
+            axes => Firmware::GrblHal { axes },
+        }
+    }
+
+    pub fn axes(self) -> usize {
+        match self {
+            Firmware::Grbl => 3,
+            Firmware::GrblHal { axes } => axes.clamp(3, MAX_AXES),
+        }
+    }
+
+    /// The line buffer with its terminating zero (the simulator counts the characters it
+    /// keeps, as GRBL does).
+    pub fn line_buffer(self) -> usize {
+        match self {
+            Firmware::Grbl => crate::link::grbl::LINE_BUFFER,
+            Firmware::GrblHal { .. } => crate::link::grbl::LINE_BUFFER_HAL,
+        }
+    }
+
+    pub fn banner(self) -> &'static str {
+        match self {
+            Firmware::Grbl => BANNER,
+            Firmware::GrblHal { .. } => BANNER_HAL,
+        }
+    }
+}
 
 /// A line the controller received, with what became of it.
 #[derive(Debug, Clone, PartialEq)]
@@ -71,8 +124,8 @@ impl Effect {
 #[derive(Debug, Clone, PartialEq)]
 pub struct MotionEffect {
     pub mode: MotionMode,
-    pub target: [f64; 3],
-    pub center: Option<[f64; 3]>,
+    pub target: AxisPos,
+    pub center: Option<AxisPos>,
     pub laser_s: f64,
 }
 
@@ -81,13 +134,15 @@ pub struct MotionEffect {
 pub struct ExecutedBlock {
     /// The line (`LineRecord::seq`) it came from.
     pub seq: u64,
-    pub from: [f64; 3],
-    pub to: [f64; 3],
+    pub from: AxisPos,
+    pub to: AxisPos,
     pub rapid: bool,
     /// Laser power (S) during the move, 0 when dark.
     pub laser_s: f64,
     /// Simulated time at its end, s.
     pub t_end: f64,
+    /// How long it moved, s (at the feed, or its share of a G93 block's time).
+    pub duration: f64,
 }
 
 /// The laser output changed.
@@ -95,7 +150,7 @@ pub struct ExecutedBlock {
 pub struct LaserEvent {
     pub t: f64,
     pub power_s: f64,
-    pub pos: [f64; 3],
+    pub pos: AxisPos,
 }
 
 /// What the simulated controller did.
@@ -125,15 +180,44 @@ pub struct ControllerConfig {
     pub rx_buffer: usize,
     /// Planner blocks (GRBL on an Uno: 15 usable).
     pub planner_blocks: usize,
-    /// Travel per axis X/Y/Z, mm; `None` for an axis the machine lacks (it cannot move).
-    pub travel: [Option<(f64, f64)>; 3],
+    pub firmware: Firmware,
+    /// Travel per axis X Y Z A B C, mm or degrees; `None` for an axis the machine lacks (it
+    /// cannot move).
+    pub travel: [Option<(f64, f64)>; MAX_AXES],
     pub settings: BTreeMap<u32, f64>,
     /// Answer `error:CODE` to line `K` (1-based count of lines received) instead of running it.
     pub error_at_line: Vec<(u64, u32)>,
 }
 
-/// GRBL settings matching a machine file: rates and accelerations from each axis's limits,
-/// travel, laser mode, S of full power from `[post.grbl]`.
+impl ControllerConfig {
+    /// A machine's controller: its firmware, travel and settings.
+    pub fn for_machine(machine: &Machine) -> ControllerConfig {
+        ControllerConfig {
+            rx_buffer: 128,
+            planner_blocks: 15,
+            firmware: Firmware::for_machine(machine),
+            travel: travel_for(machine),
+            settings: settings_for(machine),
+            error_at_line: Vec::new(),
+        }
+    }
+
+    /// Where the machine is after power-up or homing: the origin, clamped into the travel.
+    pub fn home(&self) -> AxisPos {
+        std::array::from_fn(|k| self.travel[k].map_or(0.0, |(lo, hi)| 0.0f64.clamp(lo, hi)))
+    }
+}
+
+/// An axis's limits in the controller's units: mm or degrees.
+fn controller_units(kind: AxisKind) -> f64 {
+    match kind {
+        AxisKind::Rotary => 180.0 / std::f64::consts::PI,
+        _ => 1.0,
+    }
+}
+
+/// GRBL settings matching a machine file: rates and accelerations from each axis's limits
+/// (in mm or degrees), travel, laser mode, S of full power from the post of its firmware.
 pub fn settings_for(machine: &Machine) -> BTreeMap<u32, f64> {
     let mut s: BTreeMap<u32, f64> = [
         (0, 10.0),
@@ -161,32 +245,36 @@ pub fn settings_for(machine: &Machine) -> BTreeMap<u32, f64> {
     ]
     .into_iter()
     .collect();
-    if let Some(p) = machine.post.get("grbl") {
+    let firmware = Firmware::for_machine(machine);
+    if let Some((_, p)) = crate::link::live_dialect(machine).lookup(&machine.post) {
         s.insert(30, p.s_max);
     }
-    for (k, letter) in ["X", "Y", "Z"].iter().enumerate() {
+    for (k, letter) in AXIS_LETTERS[..firmware.axes()].iter().enumerate() {
         let k = k as u32;
         let axis = machine
             .axes
             .iter()
-            .find(|a| a.name.eq_ignore_ascii_case(letter));
+            .find(|a| a.name.eq_ignore_ascii_case(&letter.to_string()));
+        let unit = axis.map_or(1.0, |a| controller_units(a.kind));
         s.insert(100 + k, 250.0);
-        s.insert(110 + k, axis.map_or(500.0, |a| a.v_max * 60.0));
-        s.insert(120 + k, axis.map_or(10.0, |a| a.a_max));
-        s.insert(130 + k, axis.map_or(0.0, |a| a.max - a.min));
+        s.insert(110 + k, axis.map_or(500.0, |a| a.v_max * 60.0 * unit));
+        s.insert(120 + k, axis.map_or(10.0, |a| a.a_max * unit));
+        s.insert(130 + k, axis.map_or(0.0, |a| (a.max - a.min) * unit));
     }
     s
 }
 
-/// Travel per X/Y/Z axis from a machine file.
-pub fn travel_for(machine: &Machine) -> [Option<(f64, f64)>; 3] {
+/// Travel per axis X Y Z A B C from a machine file, mm or degrees.
+pub fn travel_for(machine: &Machine) -> [Option<(f64, f64)>; MAX_AXES] {
     std::array::from_fn(|k| {
-        let letter = ["X", "Y", "Z"][k];
         machine
             .axes
             .iter()
-            .find(|a| a.name.eq_ignore_ascii_case(letter))
-            .map(|a| (a.min, a.max))
+            .find(|a| a.name.eq_ignore_ascii_case(&AXIS_LETTERS[k].to_string()))
+            .map(|a| {
+                let unit = controller_units(a.kind);
+                (a.min * unit, a.max * unit)
+            })
     })
 }
 
@@ -209,8 +297,8 @@ enum St {
 #[derive(Debug, Clone)]
 struct PBlock {
     seq: u64,
-    from: [f64; 3],
-    to: [f64; 3],
+    from: AxisPos,
+    to: AxisPos,
     duration: f64,
     feed_mm_min: f64,
     laser_s: f64,
@@ -254,7 +342,7 @@ pub struct Controller {
     gc: Gc,
     planner: VecDeque<PBlock>,
     exec_t: f64,
-    mpos: [f64; 3],
+    mpos: AxisPos,
     state: St,
     now: f64,
     out: Vec<u8>,
@@ -275,8 +363,8 @@ impl Controller {
     pub fn new(cfg: ControllerConfig) -> Controller {
         let settings = cfg.settings.clone();
         // The simulator starts homed at the origin (clamped into the travel).
-        let mpos: [f64; 3] =
-            std::array::from_fn(|k| cfg.travel[k].map_or(0.0, |(lo, hi)| 0.0f64.clamp(lo, hi)));
+        let mpos = cfg.home();
+        let axes = cfg.firmware.axes();
         Controller {
             cfg,
             settings,
@@ -289,7 +377,7 @@ impl Controller {
             in_semicolon: false,
             overflow: false,
             pending: None,
-            gc: Gc::new(mpos),
+            gc: Gc::new(mpos, axes),
             planner: VecDeque::new(),
             exec_t: 0.0,
             mpos,
@@ -318,8 +406,8 @@ impl Controller {
         self.now
     }
 
-    /// Position now, mm.
-    pub fn position(&self) -> [f64; 3] {
+    /// Position now, mm (degrees for rotary axes).
+    pub fn position(&self) -> AxisPos {
         match (self.state, self.planner.front()) {
             (_, Some(b)) if b.duration > 0.0 => {
                 let f = (self.exec_t / b.duration).clamp(0.0, 1.0);
@@ -346,7 +434,7 @@ impl Controller {
     pub fn connected(&mut self) {
         self.connection += 1;
         self.rec.connections += 1;
-        self.say(BANNER);
+        self.say(self.cfg.firmware.banner());
         if matches!(self.state, St::Alarm { .. }) {
             self.say("[MSG:'$H'|'$X' to unlock]");
         }
@@ -472,7 +560,7 @@ impl Controller {
         self.pending = None;
         self.planner.clear();
         self.exec_t = 0.0;
-        self.gc = Gc::new(self.mpos);
+        self.gc = Gc::new(self.mpos, self.cfg.firmware.axes());
         self.rest_laser = 0.0;
         self.overrides = [100, 100, 100];
         self.status_request = false;
@@ -487,7 +575,7 @@ impl Controller {
         } else {
             St::Idle
         };
-        self.say(BANNER);
+        self.say(self.cfg.firmware.banner());
         if alarm {
             self.say("[MSG:'$H'|'$X' to unlock]");
         }
@@ -568,6 +656,7 @@ impl Controller {
                             rapid: b.rapid,
                             laser_s: b.laser_s,
                             t_end: self.now,
+                            duration: b.duration,
                         });
                     }
                     if self.planner.is_empty() {
@@ -645,7 +734,7 @@ impl Controller {
             self.in_paren = true;
         } else if c == b';' {
             self.in_semicolon = true;
-        } else if self.line.len() >= crate::link::grbl::LINE_BUFFER - 1 {
+        } else if self.line.len() >= self.cfg.firmware.line_buffer() - 1 {
             self.overflow = true;
         } else {
             self.line.push(c.to_ascii_uppercase());
@@ -712,14 +801,15 @@ impl Controller {
     fn chords(&self, seq: u64, mv: &gcode::Move, rest_after: f64) -> VecDeque<PBlock> {
         let mut points = Vec::new();
         if let Some(arc) = mv.arc {
-            let (a0, a1, a2) = match arc.plane {
-                Plane::Xy => (0, 1, 2),
-                Plane::Zx => (2, 0, 1),
-                Plane::Yz => (1, 2, 0),
+            let (a0, a1) = match arc.plane {
+                Plane::Xy => (0, 1),
+                Plane::Zx => (2, 0),
+                Plane::Yz => (1, 2),
             };
             let c = arc.center;
             let r0 = [mv.from[a0] - c[a0], mv.from[a1] - c[a1]];
             let r1 = [mv.target[a0] - c[a0], mv.target[a1] - c[a1]];
+            let others: Vec<usize> = (0..MAX_AXES).filter(|&k| k != a0 && k != a1).collect();
             let radius = r0[0].hypot(r0[1]);
             // GRBL's mc_arc: the angular travel, a full circle when start and end coincide.
             let mut ang = (r0[0] * r1[1] - r0[1] * r1[0]).atan2(r0[0] * r1[0] + r0[1] * r1[1]);
@@ -737,10 +827,13 @@ impl Controller {
             for i in 1..n {
                 let f = i as f64 / n as f64;
                 let a = a_start + ang * f;
-                let mut p = [0.0; 3];
+                let mut p = [0.0; MAX_AXES];
                 p[a0] = c[a0] + radius * a.cos();
                 p[a1] = c[a1] + radius * a.sin();
-                p[a2] = mv.from[a2] + (mv.target[a2] - mv.from[a2]) * f;
+                // The other axes move linearly (a helix along the plane's normal).
+                for &k in &others {
+                    p[k] = mv.from[k] + (mv.target[k] - mv.from[k]) * f;
+                }
                 points.push(p);
             }
         }
@@ -764,9 +857,10 @@ impl Controller {
                 prev = p;
                 continue;
             }
-            let dir: [f64; 3] = std::array::from_fn(|i| (p[i] - prev[i]).abs() / len);
-            // The fastest the axes allow along this direction, mm/min.
-            let axis_cap = (0..3)
+            let dir: AxisPos = std::array::from_fn(|i| (p[i] - prev[i]).abs() / len);
+            // The fastest the axes allow along this direction, mm/min (degrees count as mm,
+            // as grblHAL counts them).
+            let axis_cap = (0..self.cfg.firmware.axes())
                 .filter(|&i| dir[i] > 1e-12)
                 .map(|i| self.setting(110 + i as u32) / dir[i])
                 .fold(f64::INFINITY, f64::min);
@@ -804,11 +898,11 @@ impl Controller {
         out
     }
 
-    fn outside_travel(&self, p: [f64; 3]) -> bool {
+    fn outside_travel(&self, p: AxisPos) -> bool {
         if self.setting(20) != 1.0 {
             return false;
         }
-        (0..3).any(|k| match self.cfg.travel[k] {
+        (0..MAX_AXES).any(|k| match self.cfg.travel[k] {
             Some((lo, hi)) => p[k] < lo - 1e-6 || p[k] > hi + 1e-6,
             None => p[k].abs() > 1e-6,
         })
@@ -964,7 +1058,7 @@ impl Controller {
                     .settings
                     .iter()
                     .map(|(id, v)| {
-                        if matches!(id, 11 | 12 | 24 | 25 | 27 | 100..=132) {
+                        if matches!(id, 11 | 12 | 24 | 25 | 27 | 100..=135) {
                             format!("${id}={v:.3}")
                         } else {
                             format!("${id}={}", *v as i64)
@@ -980,21 +1074,35 @@ impl Controller {
                 self.say(&r);
             }
             "#" => {
+                let zeros = vec!["0.000"; self.cfg.firmware.axes()].join(",");
                 for name in [
                     "G54", "G55", "G56", "G57", "G58", "G59", "G28", "G30", "G92",
                 ] {
-                    self.say(&format!("[{name}:0.000,0.000,0.000]"));
+                    self.say(&format!("[{name}:{zeros}]"));
                 }
                 self.say("[TLO:0.000]");
-                self.say("[PRB:0.000,0.000,0.000:0]");
+                self.say(&format!("[PRB:{zeros}:0]"));
             }
             "I" => {
-                self.say("[VER:1.1h.20190825:lase sim]");
-                let opt = format!(
-                    "[OPT:V,{},{}]",
-                    self.cfg.planner_blocks + 1,
-                    self.cfg.rx_buffer
-                );
+                let opt = match self.cfg.firmware {
+                    Firmware::Grbl => {
+                        self.say("[VER:1.1h.20190825:lase sim]");
+                        format!(
+                            "[OPT:V,{},{}]",
+                            self.cfg.planner_blocks + 1,
+                            self.cfg.rx_buffer
+                        )
+                    }
+                    // grblHAL adds the axis count to OPT.
+                    Firmware::GrblHal { axes } => {
+                        self.say("[VER:1.1f.20250101:lase sim]");
+                        format!(
+                            "[OPT:V,{},{},{axes}]",
+                            self.cfg.planner_blocks + 1,
+                            self.cfg.rx_buffer
+                        )
+                    }
+                };
                 self.say(&opt);
             }
             "N" => {
@@ -1026,9 +1134,7 @@ impl Controller {
                 if !matches!(self.state, St::Idle | St::Alarm { .. }) {
                     return Err(8);
                 }
-                self.mpos = std::array::from_fn(|k| {
-                    self.cfg.travel[k].map_or(0.0, |(lo, hi)| 0.0f64.clamp(lo, hi))
-                });
+                self.mpos = self.cfg.home();
                 self.gc.pos = self.mpos;
                 self.state = St::Idle;
             }
@@ -1080,7 +1186,7 @@ impl Controller {
                 .ok_or(2u32)?;
             match (c, v) {
                 (b'G', g) if [20.0, 21.0, 90.0, 91.0, 53.0].contains(&g) => {}
-                (b'X' | b'Y' | b'Z', _) => {}
+                (c, _) if AXIS_LETTERS[..self.cfg.firmware.axes()].contains(&(c as char)) => {}
                 (b'F', _) => has_f = true,
                 _ => return Err(16),
             }
@@ -1120,12 +1226,12 @@ impl Controller {
         };
         let p = self.position();
         let mask = self.setting(10) as u32;
+        let n = self.cfg.firmware.axes();
+        let pos: Vec<String> = p[..n].iter().map(|v| format!("{v:.3}")).collect();
         let mut s = format!(
-            "<{state}|{}:{:.3},{:.3},{:.3}",
+            "<{state}|{}:{}",
             if mask & 1 == 1 { "MPos" } else { "WPos" },
-            p[0],
-            p[1],
-            p[2]
+            pos.join(",")
         );
         if mask & 2 == 2 {
             s.push_str(&format!(
@@ -1145,7 +1251,8 @@ impl Controller {
         };
         s.push_str(&format!("|FS:{:.0},{:.0}", feed, spindle));
         if self.reports.is_multiple_of(10) {
-            s.push_str("|WCO:0.000,0.000,0.000");
+            s.push_str("|WCO:");
+            s.push_str(&vec!["0.000"; n].join(","));
         } else if self.reports % 10 == 1 {
             let [f, r, sp] = self.overrides;
             s.push_str(&format!("|Ov:{f},{r},{sp}"));
@@ -1182,8 +1289,12 @@ fn step_override(v: u32, s: OverrideStep, min: u32, max: u32) -> u32 {
     n.clamp(min, max)
 }
 
-fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+fn dist(a: AxisPos, b: AxisPos) -> f64 {
+    a.iter()
+        .zip(&b)
+        .map(|(x, y)| (x - y).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
 fn effect_of(before: &Gc, after: &Gc) -> Effect {

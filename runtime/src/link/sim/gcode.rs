@@ -6,8 +6,10 @@
 //! Supported: G0–G3 (offset and radius arcs in all three planes), G4, G17–G19, G20/G21, G40,
 //! G43.1/G49, G53, G54–G59, G61, G80, G90/G91, G91.1, G93/G94; M0–M2, M30, M3–M5, M8, M9;
 //! F, S, T, N. G10, G28, G30, G38.x and G92 are refused with error 20 (not simulated).
+//! Axis words are X, Y, Z and, on a grblHAL build with more axes, A, B, C (degrees when
+//! rotary); a letter for an axis the build lacks is error 20, as in GRBL.
 
-use crate::link::{ModalState, MotionMode, Plane, Spindle};
+use crate::link::{AXIS_LETTERS, AxisPos, ModalState, MotionMode, Plane, Spindle};
 
 /// GRBL's limits on numbers in a block.
 const MAX_LINE_NUMBER: f64 = 10_000_000.0;
@@ -17,17 +19,21 @@ const MAX_TOOL: f64 = 255.0;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Gc {
     pub modal: ModalState,
-    /// mm, machine coordinates (the simulator's work offsets are zero).
-    pub pos: [f64; 3],
+    /// mm (degrees for rotary axes), machine coordinates (the simulator's work offsets are
+    /// zero).
+    pub pos: AxisPos,
     pub tool: u32,
+    /// Axes of the build: 3 (X Y Z) to 6 (X Y Z A B C).
+    pub axes: usize,
 }
 
 impl Gc {
-    pub fn new(pos: [f64; 3]) -> Gc {
+    pub fn new(pos: AxisPos, axes: usize) -> Gc {
         Gc {
             modal: ModalState::default(),
             pos,
             tool: 0,
+            axes: axes.clamp(3, AXIS_LETTERS.len()),
         }
     }
 
@@ -63,7 +69,7 @@ impl Gc {
 /// An arc of a move.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Arc {
-    pub center: [f64; 3],
+    pub center: AxisPos,
     pub ccw: bool,
     pub plane: Plane,
 }
@@ -71,8 +77,8 @@ pub struct Arc {
 /// A move a block asks for.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Move {
-    pub from: [f64; 3],
-    pub target: [f64; 3],
+    pub from: AxisPos,
+    pub target: AxisPos,
     pub rapid: bool,
     /// mm/min; for inverse time, the whole move's duration instead.
     pub feed_mm_min: f64,
@@ -293,6 +299,13 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
                 }
                 *slot = Some(value);
             }
+            b'A' | b'B' | b'C' if AXIS_LETTERS[..gc.axes].iter().any(|&a| a as u8 == letter) => {
+                let slot = &mut w.vals[idx(letter)];
+                if slot.is_some() {
+                    return Err(25);
+                }
+                *slot = Some(value);
+            }
             _ => return Err(20),
         }
     }
@@ -325,7 +338,7 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
         m.plane = p;
     }
     let k = if m.inches { 25.4 } else { 1.0 };
-    let axis_letters = [b'X', b'Y', b'Z'];
+    let axis_letters: Vec<u8> = AXIS_LETTERS[..gc.axes].iter().map(|&c| c as u8).collect();
     let axis_words = axis_letters.iter().any(|&c| v(c).is_some());
     // An axis word without a motion word runs the modal motion.
     let explicit_motion = motion.is_some();
@@ -367,7 +380,8 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
     let mut target = gc.pos;
     for (a, &c) in axis_letters.iter().enumerate() {
         if let Some(x) = v(c) {
-            let x = x * k;
+            // Inches scale the linear axes; rotary A, B, C stay in degrees.
+            let x = if a < 3 { x * k } else { x };
             target[a] = if m.incremental && non_modal != Some(53) {
                 gc.pos[a] + x
             } else {
@@ -424,10 +438,10 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
                 if !axis_words {
                     return Err(26);
                 }
-                let (a0, a1, a2) = match m.plane {
-                    Plane::Xy => (0, 1, 2),
-                    Plane::Zx => (2, 0, 1),
-                    Plane::Yz => (1, 2, 0),
+                let (a0, a1) = match m.plane {
+                    Plane::Xy => (0, 1),
+                    Plane::Zx => (2, 0),
+                    Plane::Yz => (1, 2),
                 };
                 let offs = [b'I', b'J', b'K'];
                 if v(axis_letters[a0]).is_none() && v(axis_letters[a1]).is_none() {
@@ -475,10 +489,9 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
                     }
                     (gc.pos[a0] + i, gc.pos[a1] + j)
                 };
-                let mut center = [0.0; 3];
+                let mut center = gc.pos;
                 center[a0] = c0;
                 center[a1] = c1;
-                center[a2] = gc.pos[a2];
                 mv = Some(Move {
                     from: gc.pos,
                     target,
@@ -496,7 +509,10 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
         }
     }
     // Offset words of another plane, or I/J/K on a line, are unused.
-    for c in [b'I', b'J', b'K', b'L', b'P', b'R', b'X', b'Y', b'Z'] {
+    for c in [b'I', b'J', b'K', b'L', b'P', b'R']
+        .into_iter()
+        .chain(axis_letters.iter().copied())
+    {
         if v(c).is_some() && used & (1 << idx(c)) == 0 {
             return Err(36);
         }
@@ -583,7 +599,7 @@ mod tests {
     use super::*;
 
     fn run(lines: &[&str]) -> Result<Gc, (usize, u32)> {
-        let mut gc = Gc::new([0.0; 3]);
+        let mut gc = Gc::new([0.0; 6], 3);
         for (i, l) in lines.iter().enumerate() {
             gc = execute(l.as_bytes(), &gc, true).map_err(|e| (i, e))?.next;
         }
@@ -616,7 +632,7 @@ mod tests {
             ("E5", 20),
             ("G92X0", 20),
         ] {
-            let got = execute(line.as_bytes(), &Gc::new([0.0; 3]), true).map(|_| ());
+            let got = execute(line.as_bytes(), &Gc::new([0.0; 6], 3), true).map(|_| ());
             assert_eq!(got, Err(code), "{line}");
         }
     }
@@ -631,7 +647,7 @@ mod tests {
             "G1G91X1",
         ])
         .unwrap();
-        assert_eq!(gc.pos, [1.0, -1.5, 0.0]);
+        assert_eq!(gc.pos, [1.0, -1.5, 0.0, 0.0, 0.0, 0.0]);
         assert_eq!(gc.modal.motion, MotionMode::Linear);
         // A modal arc needs its offsets.
         assert_eq!(execute(b"G3X1", &gc, true).map(|_| ()), Ok(()).and(Err(35)));
@@ -647,6 +663,35 @@ mod tests {
     }
 
     #[test]
+    fn a_grblhal_build_moves_rotary_axes_in_inverse_time() {
+        let gc = Gc::new([0.0; 6], 6);
+        let b = execute(b"G93G1X10B-5.5C90F120", &gc, true).unwrap();
+        let [Step::Move(mv)] = &b.steps[..] else {
+            panic!("one move: {:?}", b.steps);
+        };
+        assert_eq!(mv.target, [10.0, 0.0, 0.0, 0.0, -5.5, 90.0]);
+        assert_eq!(mv.inverse_time_s, Some(0.5));
+        // Inches scale X, Y, Z only.
+        let b = execute(b"G20G94G1C45X1F10", &gc, true).unwrap();
+        assert_eq!(b.next.pos, [25.4, 0.0, 0.0, 0.0, 0.0, 45.0]);
+        // G93 needs F in every feed block.
+        assert_eq!(execute(b"C10", &b.next.clone(), true).map(|_| ()), Ok(()));
+        let g93 = execute(b"G93", &gc, true).unwrap().next;
+        assert_eq!(execute(b"G1C10", &g93, true).map(|_| ()), Err(22));
+        // A four-axis build has A but no B or C; GRBL has none of them.
+        let four = Gc::new([0.0; 6], 4);
+        assert!(execute(b"G0A10", &four, true).is_ok());
+        assert_eq!(execute(b"G0B10", &four, true).map(|_| ()), Err(20));
+        assert_eq!(
+            execute(b"G0A10", &Gc::new([0.0; 6], 3), true).map(|_| ()),
+            Err(20)
+        );
+        // A rotary word with an arc moves linearly along it (a helix): unused offsets still
+        // count, A is used.
+        assert!(execute(b"G2X1Y1I1J0A30F100", &four, true).is_ok());
+    }
+
+    #[test]
     fn laser_mode_lights_feed_moves_only() {
         let gc = run(&["M3S250"]).unwrap();
         let b = execute(b"G0X1", &gc, true).unwrap();
@@ -654,7 +699,7 @@ mod tests {
         let b = execute(b"G1X1F100", &gc, true).unwrap();
         assert!(matches!(&b.steps[..], [Step::Move(m)] if m.laser_s == 250.0));
         // Switching on synchronizes.
-        let b = execute(b"M3S250", &Gc::new([0.0; 3]), true).unwrap();
+        let b = execute(b"M3S250", &Gc::new([0.0; 6], 3), true).unwrap();
         assert_eq!(b.steps[0], Step::Sync);
     }
 }

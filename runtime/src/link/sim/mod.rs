@@ -1,4 +1,4 @@
-//! The simulated GRBL 1.1 controller: a [`Controller`] (the firmware, no IO) served over a
+//! The simulated GRBL 1.1 (or, for machines with rotary axes, grblHAL) controller: a [`Controller`] (the firmware, no IO) served over a
 //! byte transport — a TCP listener (`lase sim --listen`) or an in-memory pipe (the `sim`
 //! link) — on its own thread, with a simulated serial line and fault injection.
 //!
@@ -18,8 +18,8 @@ pub mod controller;
 pub mod gcode;
 
 pub use controller::{
-    Controller, ControllerConfig, Effect, ExecutedBlock, LaserEvent, LineRecord, LineResult,
-    MotionEffect, Recording,
+    Controller, ControllerConfig, Effect, ExecutedBlock, Firmware, LaserEvent, LineRecord,
+    LineResult, MotionEffect, Recording,
 };
 
 use super::transport::{self, PipeEnd, TcpTransport, Transport};
@@ -195,17 +195,12 @@ impl SimHandle {
 }
 
 fn controller_for(machine: &Machine, opts: &SimOptions) -> Controller {
-    let mut settings = controller::settings_for(machine);
-    for (id, v) in &opts.settings {
-        settings.insert(*id, *v);
-    }
-    Controller::new(ControllerConfig {
-        rx_buffer: opts.rx_buffer.max(16),
-        planner_blocks: opts.planner_blocks.max(1),
-        travel: controller::travel_for(machine),
-        settings,
-        error_at_line: opts.faults.error_at_line.clone(),
-    })
+    let mut cfg = ControllerConfig::for_machine(machine);
+    cfg.settings.extend(opts.settings.iter().copied());
+    cfg.rx_buffer = opts.rx_buffer.max(16);
+    cfg.planner_blocks = opts.planner_blocks.max(1);
+    cfg.error_at_line = opts.faults.error_at_line.clone();
+    Controller::new(cfg)
 }
 
 /// Serves the simulator on a TCP address (port 0 picks a free one).
