@@ -74,3 +74,29 @@ fn scripted_session_matches_its_golden() {
         &format!("--- stdout\n{out}--- stderr\n{err}"),
     );
 }
+
+/// At a rotary machine: `:jog` turns C by an angle and B at an angular speed (sent in
+/// degrees), refuses a length for a rotary axis, and `:run` streams the cam recipe to the
+/// simulated grblHAL.
+#[test]
+fn rotary_axes_jog_by_angles_and_the_cam_job_runs() {
+    let input = "\
+machine cam_xwb
+:jog c 90 deg
+:jog b -0.5 rad at 30 deg/s
+:jog c 5 mm
+:status
+:run examples/cam_hardening.lase
+";
+    let (code, out, err) = session(input);
+    assert_eq!(code, 0, "{err}");
+    let all = format!("{out}{err}");
+    assert!(
+        all.contains("axis c is rotary: the distance is an angle"),
+        "{all}"
+    );
+    // -0.5 rad = -28.648 deg, and C at 90 deg (status rounds to the controller's 3 decimals).
+    assert!(all.contains("B-28.648") && all.contains("C90"), "{all}");
+    assert!(all.contains("GrblHAL"), "{all}");
+    assert!(all.contains("cam_hardening.lase: done"), "{all}");
+}
