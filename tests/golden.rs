@@ -12,11 +12,7 @@ fn examples_match_their_goldens() {
     let examples = lase_files(&root().join("examples"));
     assert!(examples.len() >= 3, "examples/ holds the example recipes");
     for ex in examples {
-        let rel = ex
-            .strip_prefix(root())
-            .unwrap()
-            .to_string_lossy()
-            .into_owned();
+        let rel = relative(&ex);
         let stem = ex.file_stem().unwrap().to_string_lossy().into_owned();
         for dialect in ["linuxcnc", "grbl", "grblhal", "iso"] {
             let (code, out, err) = lase(&["emit", &rel, "--dialect", dialect]);
@@ -66,11 +62,7 @@ fn linuxcnc_interpreter_accepts_every_example() {
         return;
     }
     for ex in lase_files(&root().join("examples")) {
-        let rel = ex
-            .strip_prefix(root())
-            .unwrap()
-            .to_string_lossy()
-            .into_owned();
+        let rel = relative(&ex);
         let dir = tempfile::tempdir().unwrap();
         let ngc = dir.path().join("job.ngc");
         let (code, _, err) = lase(&["emit", &rel, "-o", ngc.to_str().unwrap()]);
@@ -113,11 +105,7 @@ fn grblhal_programs_use_only_words_grblhal_knows() {
 fn check_grbl_family(dialect: &str, max_line: usize, axes: &str) -> usize {
     let mut checked = 0;
     for ex in lase_files(&root().join("examples")) {
-        let rel = ex
-            .strip_prefix(root())
-            .unwrap()
-            .to_string_lossy()
-            .into_owned();
+        let rel = relative(&ex);
         let (code, out, err) = lase(&["emit", &rel, "--dialect", dialect]);
         if dialect == "grbl" && code != 0 && err.contains("rotary") {
             // A machine with rotary axes: refused, and pinned as such by the golden test.
@@ -160,11 +148,7 @@ fn check_grbl_family(dialect: &str, max_line: usize, axes: &str) -> usize {
 fn grblhal_programs_are_grbl_programs_where_grbl_can_run_them() {
     let mut compared = 0;
     for ex in lase_files(&root().join("examples")) {
-        let rel = ex
-            .strip_prefix(root())
-            .unwrap()
-            .to_string_lossy()
-            .into_owned();
+        let rel = relative(&ex);
         let (code, grbl, _) = lase(&["emit", &rel, "--dialect", "grbl"]);
         if code != 0 {
             continue;

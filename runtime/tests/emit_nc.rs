@@ -473,19 +473,24 @@ fn grbl_lines_fit_the_buffer_and_use_grbl_words_only() {
     assert!(nc.trim_end().ends_with("M5\nM2"), "{nc}");
 }
 
-#[test]
-fn grbl_refuses_axes_other_than_xyz() {
-    let mut j = xy_demo();
-    j.program.machine.axes.push(Axis {
-        name: "A".into(),
-        kind: AxisKind::Rotary,
+/// An axis of ±10 units with unit limits.
+fn axis(name: &str, kind: AxisKind) -> Axis {
+    Axis {
+        name: name.into(),
+        kind,
         part_axis: None,
         min: -10.0,
         max: 10.0,
         v_max: 1.0,
         a_max: 1.0,
         j_max: 1.0,
-    });
+    }
+}
+
+#[test]
+fn grbl_refuses_axes_other_than_xyz() {
+    let mut j = xy_demo();
+    j.program.machine.axes.push(axis("A", AxisKind::Rotary));
     let err = emit_to_string(&j, Dialect::Grbl).unwrap_err();
     assert!(matches!(err, EmitError::Dialect { .. }), "{err:?}");
     assert!(err.to_string().contains("rotary axis A"), "{err}");
@@ -951,16 +956,6 @@ fn grblhal_writes_rotary_words_in_inverse_time_for_oriented_machines() {
 
 #[test]
 fn grblhal_drives_linear_xyz_and_abc_only() {
-    let axis = |name: &str, kind| Axis {
-        name: name.into(),
-        kind,
-        part_axis: None,
-        min: -10.0,
-        max: 10.0,
-        v_max: 1.0,
-        a_max: 1.0,
-        j_max: 1.0,
-    };
     // A linear A is a grblHAL axis (GRBL 1.1 still refuses it).
     let mut j = xy_demo();
     j.program.machine.axes.push(axis("A", AxisKind::Linear));

@@ -55,6 +55,14 @@ pub fn lase(args: &[&str]) -> (i32, String, String) {
 }
 
 /// The `.lase` files of a folder, sorted.
+/// A path below the repository root, relative to it (as `lase` is run from the root).
+pub fn relative(p: &Path) -> String {
+    p.strip_prefix(root())
+        .unwrap_or(p)
+        .to_string_lossy()
+        .into_owned()
+}
+
 pub fn lase_files(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .unwrap()
