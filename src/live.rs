@@ -325,36 +325,14 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             );
             Ok(())
         }
-        Outcome::Rejected {
-            index,
-            code,
-            message,
-        } => Err((
+        outcome @ (Outcome::Rejected { .. } | Outcome::Alarm { .. }) => Err((
             map.clone(),
-            Failure::one(output::ControllerRejected {
-                line_no: index + 1,
-                line: lines[index].clone(),
-                code,
-                message,
-                span: span_of(index),
-                stop: report.stop_note.unwrap_or_default(),
-            }),
-        )),
-        Outcome::Alarm {
-            index,
-            code,
-            message,
-        } => Err((
-            map.clone(),
-            Failure::one(output::ControllerAlarm {
-                line: index
-                    .map(|i| format!(" at line {} `{}`", i + 1, lines[i]))
-                    .unwrap_or_default(),
-                code,
-                message,
-                span: index.map(span_of),
-                stop: report.stop_note.unwrap_or_default(),
-            }),
+            controller_stop(
+                outcome,
+                &lines,
+                &span_of,
+                report.stop_note.unwrap_or_default(),
+            ),
         )),
         Outcome::Aborted => Err((
             map.clone(),
@@ -387,6 +365,46 @@ fn st_start(st: &Option<journal::State>) -> AxisPos {
     st.as_ref().map_or([0.0; MAX_AXES], |s| s.header.start)
 }
 
+/// The diagnostic of a job the controller refused a line of or stopped with an alarm: the
+/// line, the recipe statement it came from, and what stopping the machine did.
+fn controller_stop(
+    outcome: Outcome,
+    lines: &[String],
+    span_of: &dyn Fn(usize) -> Span,
+    stop: String,
+) -> Failure {
+    match outcome {
+        Outcome::Rejected {
+            index,
+            code,
+            message,
+        } => Failure::one(output::ControllerRejected {
+            line_no: index + 1,
+            line: lines[index].clone(),
+            code,
+            message,
+            span: span_of(index),
+            stop,
+        }),
+        Outcome::Alarm {
+            index,
+            code,
+            message,
+        } => Failure::one(output::ControllerAlarm {
+            line: index
+                .map(|i| format!(" at line {} `{}`", i + 1, lines[i]))
+                .unwrap_or_default(),
+            code,
+            message,
+            span: index.map(span_of),
+            stop,
+        }),
+        _ => Failure::one(IoError {
+            message: format!("the controller ended the job: {outcome:?}"),
+        }),
+    }
+}
+
 /// `--check`: GRBL check mode parses every line and moves nothing.
 fn run_check(
     name: &str,
@@ -413,36 +431,9 @@ fn run_check(
             );
             Ok(())
         }
-        Outcome::Rejected {
-            index,
-            code,
-            message,
-        } => Err((
+        outcome @ (Outcome::Rejected { .. } | Outcome::Alarm { .. }) => Err((
             map.clone(),
-            Failure::one(output::ControllerRejected {
-                line_no: index + 1,
-                line: lines[index].clone(),
-                code,
-                message,
-                span: span_of(index),
-                stop: "check mode: nothing moved".into(),
-            }),
-        )),
-        Outcome::Alarm {
-            code,
-            message,
-            index,
-        } => Err((
-            map.clone(),
-            Failure::one(output::ControllerAlarm {
-                line: index
-                    .map(|i| format!(" at line {} `{}`", i + 1, lines[i]))
-                    .unwrap_or_default(),
-                code,
-                message,
-                span: index.map(span_of),
-                stop: "check mode: nothing moved".into(),
-            }),
+            controller_stop(outcome, lines, span_of, "check mode: nothing moved".into()),
         )),
         Outcome::Aborted => Err(io_fail("check aborted".into())),
         Outcome::Lost(e) | Outcome::Failed(e) => Err(fail(e)),
