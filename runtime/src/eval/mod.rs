@@ -109,6 +109,8 @@ pub struct Evaluator {
     scopes: Vec<HashMap<String, Value>>,
     fns: HashMap<String, Rc<FnDef>>,
     machine: Option<Machine>,
+    /// Whether that machine orients the beam (from its kinematics, once per `machine`).
+    orients_beam: bool,
     limits: Vec<AxisLimit>,
     path_limits: PathLimits,
     planner: Option<PlannerSettings>,
@@ -146,6 +148,7 @@ impl Evaluator {
             scopes: vec![globals],
             fns: HashMap::new(),
             machine: None,
+            orients_beam: false,
             limits: Vec::new(),
             path_limits: PathLimits::default(),
             planner: None,
@@ -542,6 +545,7 @@ impl Evaluator {
                 j: a.j_max,
             })
             .collect();
+        self.orients_beam = crate::kinematics::for_machine(&machine).oriented();
         self.machine = Some(machine);
         Ok(())
     }
@@ -972,9 +976,7 @@ impl Evaluator {
 
     /// Whether the selected machine orients the beam (cam X-ω-B, arm).
     fn oriented(&self) -> bool {
-        self.machine
-            .as_ref()
-            .is_some_and(|m| crate::kinematics::for_machine(m).oriented())
+        self.machine.is_some() && self.orients_beam
     }
 
     /// The orientation a `move` keeps: the last one on an oriented machine (a move there
