@@ -12,6 +12,9 @@ use lase_runtime::program::{
 };
 use std::collections::BTreeMap;
 
+#[path = "../../tests/common/rs274.rs"]
+mod rs274;
+
 // ------------------------------------------------------------------ helpers
 
 fn program(machine: &str, ops: Vec<Op>) -> ProcessProgram {
@@ -700,24 +703,7 @@ fn stats_count_what_was_written() {
 fn rs274(name: &str, nc: &str) -> Option<(bool, String)> {
     let path = std::env::temp_dir().join(format!("lase-emit-{}-{name}.ngc", std::process::id()));
     std::fs::write(&path, nc).unwrap();
-    let run = || {
-        std::process::Command::new("rs274")
-            .arg("-g")
-            .arg(&path)
-            .stdin(std::process::Stdio::null())
-            .output()
-    };
-    let mut out = run();
-    // rs274 always prints what it executes; a failure with no output at all is the
-    // interpreter dying (seen once under a loaded CI machine), not a verdict: ask again.
-    for _ in 0..2 {
-        match &out {
-            Ok(o) if !o.status.success() && o.stdout.is_empty() && o.stderr.is_empty() => {
-                out = run()
-            }
-            _ => break,
-        }
-    }
+    let out = rs274::rs274_g(&path);
     let _ = std::fs::remove_file(&path);
     match out {
         Ok(o) => {

@@ -2,6 +2,9 @@
 
 #![allow(dead_code)]
 
+#[path = "rs274.rs"]
+mod rs274;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -107,24 +110,4 @@ pub fn nc_words(line: &str) -> Vec<(char, f64)> {
     out
 }
 
-/// Runs LinuxCNC's `rs274 -g FILE`. The interpreter always prints what it executes, so a
-/// failure with no output at all is the process dying (seen once on a loaded CI machine), not
-/// a verdict on the program: it is asked again, up to twice.
-#[allow(dead_code)]
-pub fn rs274_g(file: &Path) -> std::io::Result<std::process::Output> {
-    let run = || {
-        Command::new("rs274")
-            .arg("-g")
-            .arg(file)
-            .stdin(std::process::Stdio::null())
-            .output()
-    };
-    let mut out = run()?;
-    for _ in 0..2 {
-        if out.status.success() || !out.stdout.is_empty() || !out.stderr.is_empty() {
-            break;
-        }
-        out = run()?;
-    }
-    Ok(out)
-}
+pub use rs274::rs274_g;

@@ -1,0 +1,26 @@
+//! LinuxCNC's own interpreter as a checker, shared by the binary's tests (`tests/common`) and
+//! the runtime's (`runtime/tests/emit_nc.rs` includes this file by path).
+
+use std::path::Path;
+use std::process::Command;
+
+/// Runs LinuxCNC's `rs274 -g FILE`. The interpreter always prints what it executes, so a
+/// failure with no output at all is the process dying (seen once on a loaded CI machine), not
+/// a verdict on the program: it is asked again, up to twice.
+pub fn rs274_g(file: &Path) -> std::io::Result<std::process::Output> {
+    let run = || {
+        Command::new("rs274")
+            .arg("-g")
+            .arg(file)
+            .stdin(std::process::Stdio::null())
+            .output()
+    };
+    let mut out = run()?;
+    for _ in 0..2 {
+        if out.status.success() || !out.stdout.is_empty() || !out.stderr.is_empty() {
+            break;
+        }
+        out = run()?;
+    }
+    Ok(out)
+}
