@@ -100,3 +100,23 @@ machine cam_xwb
     assert!(all.contains("GrblHAL"), "{all}");
     assert!(all.contains("cam_hardening.lase: done"), "{all}");
 }
+
+/// After a jog the machine is not where the session left it: the pending moves are planned
+/// from where it is (a first cut would otherwise be planned from the old position).
+#[test]
+fn moves_after_a_jog_start_from_where_the_machine_is() {
+    let input = "\
+machine xy_table
+:jog x 3 mm
+move to (10 mm, 0 mm) at 5 mm/s
+:run
+:status
+";
+    let (code, out, err) = session(input);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("the machine is at (3, 0, 0), not at (0, 0, 0)"),
+        "{out}"
+    );
+    assert!(out.contains("Idle | X10 Y0 Z0"), "{out}");
+}

@@ -225,7 +225,7 @@ impl Session {
             ":set" => self.set(rest),
             ":clear" => {
                 let n = self.eval.ops().len();
-                let _ = self.eval.take_program("repl", Span::default());
+                self.eval.discard();
                 println!("dropped {n} ops");
             }
             _ => {}
@@ -766,14 +766,14 @@ impl Session {
                     return;
                 }
                 if !self.input(&format!("{name}()\n"), &format!("<run {name}>")) {
-                    let _ = self.eval.take_program("repl", Span::default());
+                    self.eval.discard();
                     return;
                 }
                 let ran = self.run_pending(name);
                 // The process's moves are not the operator's to keep: drop them if they
                 // never ran.
                 if ran == Ran::NotStarted {
-                    let _ = self.eval.take_program("repl", Span::default());
+                    self.eval.discard();
                 }
             }
             None => {
@@ -788,8 +788,70 @@ impl Session {
         }
     }
 
+    /// Before the session's moves run on a flat-bed machine: if the machine is not where the
+    /// session left it (after a `:jog`, an aborted job, a move from the controller's own
+    /// console), the pending moves start from where it is, so the first one is planned (and
+    /// lit, if it is a cut) from the real position. Oriented machines start every job from
+    /// their home pose with a rapid, whatever the position.
+    fn sync_start(&mut self) -> Result<(), Trouble> {
+        let Some(m) = self.eval.machine() else {
+            return Ok(());
+        };
+        let kin = lase_runtime::kinematics::for_machine(m);
+        if kin.oriented() {
+            return Ok(());
+        }
+        let m = m.clone();
+        let reported = self.station.position(Some(&m))?;
+        let mut q = [0.0; lase_runtime::planner::MAX_AXES];
+        for (k, a) in m.axes.iter().enumerate().take(q.len()) {
+            let Some(i) = a.name.chars().next().and_then(link::axis_index) else {
+                continue;
+            };
+            let v = reported.get(i).copied().unwrap_or(0.0);
+            q[k] = match a.kind {
+                AxisKind::Rotary => v.to_radians(),
+                AxisKind::Linear => v,
+            };
+        }
+        let spot = kin.forward(&q).spot;
+        let here = [spot.x, spot.y, spot.z];
+        let was = self.eval.start();
+        let off = (0..3)
+            .map(|i| (here[i] - was[i]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        // The controller reports 3 decimals.
+        if off > 2e-3 {
+            let show = |p: [f64; 3]| {
+                p.iter()
+                    .map(|v| units::format_number((v * 1e3).round() / 1e3))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            println!(
+                "the machine is at ({}), not at ({}) where the session left it: the moves start from there",
+                show(here),
+                show(was)
+            );
+            self.eval.rebase(here);
+        }
+        Ok(())
+    }
+
     /// Streams the session's pending ops; they are consumed once lines went out.
     fn run_pending(&mut self, name: &str) -> Ran {
+        match self.sync_start() {
+            Ok(()) => {}
+            Err(Trouble::Say(m)) => {
+                self.say_error(&m);
+                return Ran::NotStarted;
+            }
+            Err(Trouble::Diag(f)) => {
+                self.report(&f);
+                return Ran::NotStarted;
+            }
+        }
         let Some(job) = self.job() else {
             return Ran::NotStarted;
         };

@@ -227,6 +227,15 @@ impl Station {
         Ok(link.describe())
     }
 
+    /// The controller's work position, one value per axis letter it reports (X Y Z A B C;
+    /// mm and degrees), connecting first if needed.
+    pub fn position(&mut self, machine: Option<&Machine>) -> R<Vec<f64>> {
+        let link = self.link(machine)?;
+        let s = link.query_status(Duration::from_secs(2))?;
+        s.work_position(s.wco.as_deref())
+            .ok_or_else(|| Trouble::Say("the controller's status report has no position".into()))
+    }
+
     /// `:status`: the controller's live state.
     pub fn status(&mut self, machine: Option<&Machine>) -> R<String> {
         let link = self.link(machine)?;

@@ -110,4 +110,5 @@ pub fn nc_words(line: &str) -> Vec<(char, f64)> {
     out
 }
 
+#[allow(unused_imports)]
 pub use rs274::rs274_g;

@@ -240,6 +240,27 @@ impl Evaluator {
         &self.ops
     }
 
+    /// Where the ops produced so far start from: the machine's actual position, when it is
+    /// not where the session left it (a jog, an aborted job). With no ops yet, the spot is
+    /// there too.
+    pub fn rebase(&mut self, p: P3) {
+        self.start = p;
+        if self.ops.is_empty() {
+            self.pos = p;
+        }
+    }
+
+    /// Drops the ops produced so far: they never ran, so the spot is back where they began.
+    pub fn discard(&mut self) {
+        self.ops.clear();
+        self.pos = self.start;
+    }
+
+    /// Where the ops produced so far start from.
+    pub fn start(&self) -> P3 {
+        self.start
+    }
+
     /// Takes the ops produced so far (the REPL runs them), continuing from where they end.
     pub fn take_program(&mut self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let p = self.program(recipe, span)?;
