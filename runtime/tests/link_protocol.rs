@@ -113,6 +113,7 @@ fn a_rotary_machine_gets_a_six_axis_grblhal_that_times_g93_blocks() {
     let needs = |letter: char, v: f64, a: f64| Requirements {
         axes: vec![lase_runtime::link::AxisNeed {
             letter,
+            rotary: true,
             v_mm_min: v,
             a_mm_s2: a,
             v_span: Default::default(),
@@ -166,6 +167,7 @@ fn a_grbl_controller_is_refused_for_a_job_that_moves_c() {
     let needs = Requirements {
         axes: vec![lase_runtime::link::AxisNeed {
             letter: 'C',
+            rotary: true,
             v_mm_min: 600.0,
             a_mm_s2: 100.0,
             v_span: Default::default(),
@@ -175,7 +177,7 @@ fn a_grbl_controller_is_refused_for_a_job_that_moves_c() {
     };
     let errs = link.check_settings(&needs).unwrap();
     assert_eq!(errs.len(), 1, "{errs:?}");
-    assert_eq!(errs[0].setting, "axes");
+    assert_eq!(errs[0].setting, "axis count");
     assert!(errs[0].help.contains("grblHAL"), "{}", errs[0].help);
     drop(link);
     h.stop();

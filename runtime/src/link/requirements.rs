@@ -27,6 +27,8 @@ pub struct SettingMismatch {
 pub struct AxisNeed {
     /// The NC address letter.
     pub letter: char,
+    /// A rotary axis: its rate and acceleration are in degrees.
+    pub rotary: bool,
     /// Peak speed, mm/min or deg/min for a rotary axis (the unit of controller rate settings).
     pub v_mm_min: f64,
     /// Peak acceleration, mm/s² (deg/s² for a rotary axis).
@@ -85,6 +87,7 @@ impl Requirements {
             }
             axes.push(AxisNeed {
                 letter: axis.name.chars().next().unwrap_or('X').to_ascii_uppercase(),
+                rotary: axis.kind == crate::machine::AxisKind::Rotary,
                 v_mm_min: peaks.v_max * 60.0,
                 a_mm_s2: peaks.a_max,
                 v_span: best_v.1,

@@ -36,7 +36,7 @@ pub fn compare(
     {
         let has: String = AXIS_LETTERS[..n.min(AXIS_LETTERS.len())].iter().collect();
         out.push(SettingMismatch {
-            setting: "axes".into(),
+            setting: "axis count".into(),
             found: format!("{n} ({has})"),
             needed: format!("{} (up to {})", k + 1, axis.letter),
             span: axis.v_span,
@@ -99,15 +99,20 @@ pub fn compare(
             continue;
         };
         let k = k as u32;
+        let (per_min, per_s2) = if axis.rotary {
+            ("deg/min", "deg/s²")
+        } else {
+            ("mm/min", "mm/s²")
+        };
         let rate = 110 + k;
         if !get(rate).is_some_and(|v| at_least(v, axis.v_mm_min)) {
             out.push(SettingMismatch {
-                setting: format!("${rate} ({} max rate, mm/min)", axis.letter),
+                setting: format!("${rate} ({} max rate, {per_min})", axis.letter),
                 found: found(rate),
                 needed: format!("at least {}", show(axis.v_mm_min)),
                 span: axis.v_span,
                 label: format!(
-                    "{} reaches {} mm/min here",
+                    "{} reaches {} {per_min} here",
                     axis.letter,
                     show(axis.v_mm_min)
                 ),
@@ -119,12 +124,12 @@ pub fn compare(
         let acc = 120 + k;
         if !get(acc).is_some_and(|v| at_least(v, axis.a_mm_s2)) {
             out.push(SettingMismatch {
-                setting: format!("${acc} ({} acceleration, mm/s²)", axis.letter),
+                setting: format!("${acc} ({} acceleration, {per_s2})", axis.letter),
                 found: found(acc),
                 needed: format!("at least {}", show(axis.a_mm_s2)),
                 span: axis.a_span,
                 label: format!(
-                    "{} accelerates at {} mm/s² here",
+                    "{} accelerates at {} {per_s2} here",
                     axis.letter,
                     show(axis.a_mm_s2)
                 ),
@@ -149,6 +154,7 @@ mod tests {
             laser: Some(Span::new(1, 2)),
             axes: vec![AxisNeed {
                 letter: 'Y',
+                rotary: false,
                 v_mm_min: 12000.0,
                 a_mm_s2: 2000.0,
                 v_span: Span::new(3, 4),
@@ -174,6 +180,7 @@ mod tests {
             laser: None,
             axes: vec![AxisNeed {
                 letter: 'C',
+                rotary: true,
                 v_mm_min: 3600.0,
                 a_mm_s2: 100.0,
                 v_span: Span::new(7, 9),
