@@ -11,9 +11,10 @@ use std::io::{self, Write};
 ///
 /// Rows at t = k·period from 0, and a last row exactly at the cycle time when that is not on
 /// the grid. Axis values in mm (deg for rotary axes), px/py/pz the spot in part coordinates,
-/// v and a the path speed and acceleration, laser 0/1, power in W (0 when off; `P_set · v / F`
-/// when the laser is coupled to speed, PROCESS.md §1 eq. 1), pulses the
-/// number of pulses fired at or before t (within 1 ns). At most 6 decimals.
+/// v and a the path speed and acceleration, laser 0/1 (the beam of lit moves), power in W (0
+/// when off; `P_set · v / F` when the laser is coupled to speed, PROCESS.md §1 eq. 1), pulses
+/// the number of pulses fired at or before t (within 1 ns) — single pulses of dot mode, fired
+/// at rest, show there and not in `laser`. At most 6 decimals.
 ///
 /// Rows are written one at a time; wrap `out` in a `BufWriter` for files.
 pub fn write_trace(job: &Job, period_s: f64, out: &mut dyn Write) -> io::Result<()> {
