@@ -38,7 +38,7 @@ pub struct RunArgs {
     pub resume_at: Option<usize>,
     pub check: bool,
     pub send_response: bool,
-    pub rx_buffer: usize,
+    pub rx_buffer: Option<usize>,
 }
 
 /// The journal of a new job: `--journal`, else beside the recipe (`frame.lase.journal`),

@@ -94,9 +94,10 @@ enum Command {
         /// Send-response flow control (one line in flight) instead of character counting.
         #[arg(long)]
         send_response: bool,
-        /// The controller's serial RX buffer, bytes.
-        #[arg(long, default_value_t = 128)]
-        rx_buffer: usize,
+        /// The controller's serial RX buffer, bytes (default: what the controller reports in
+        /// `$I`, else 128).
+        #[arg(long)]
+        rx_buffer: Option<usize>,
     },
     /// Run the simulated controller as a TCP server: GRBL 1.1, or grblHAL with up to six axes
     /// for a machine with axes beyond X, Y, Z.

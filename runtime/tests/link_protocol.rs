@@ -301,7 +301,7 @@ fn lines_wait_in_the_rx_buffer_while_the_planner_is_full_and_it_never_overflows(
     let mut link = connect(
         &h,
         &ConnectOptions {
-            rx_buffer: 64,
+            rx_buffer: Some(64),
             ..ConnectOptions::default()
         },
     );
@@ -315,6 +315,36 @@ fn lines_wait_in_the_rx_buffer_while_the_planner_is_full_and_it_never_overflows(
     assert!(
         rec.max_rx_fill > 30 && rec.max_rx_fill <= 63,
         "several lines waited in the buffer: {}",
+        rec.max_rx_fill
+    );
+}
+
+/// Without a configured size the client asks `$I` and fills the buffer the controller has (a
+/// grblHAL's is 1024 bytes), never more.
+#[test]
+fn the_rx_buffer_the_controller_reports_is_used_and_never_overrun() {
+    let h = start(SimOptions {
+        time_scale: TimeScale::Factor(50.0),
+        rx_buffer: 1024,
+        planner_blocks: 4,
+        ..SimOptions::default()
+    });
+    let mut link = connect(
+        &h,
+        &ConnectOptions {
+            rx_buffer: None,
+            ..ConnectOptions::default()
+        },
+    );
+    assert_eq!(link.rx_buffer(), 1024);
+    let r = run(&mut link, &raster(200));
+    assert_eq!(r.outcome, Outcome::Done);
+    drop(link);
+    let rec = h.stop();
+    assert_eq!(rec.rx_overflows, 0, "{:?}", rec.overflow_log);
+    assert!(
+        rec.max_rx_fill > 127 && rec.max_rx_fill <= 1023,
+        "more than GRBL's 128 bytes waited in the buffer: {}",
         rec.max_rx_fill
     );
 }

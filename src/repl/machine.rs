@@ -187,6 +187,8 @@ impl Station {
     fn open(&self, machine: Option<&Machine>) -> R<Conn> {
         let options = ConnectOptions {
             busy_wait: Duration::from_secs(30),
+            // As much of the controller's input buffer as its `$I` reports.
+            rx_buffer: None,
             ..ConnectOptions::default()
         };
         match &self.url {

@@ -508,8 +508,9 @@ pub fn reply_error(line: &str, reply: Reply) -> Result<(), LinkError> {
 /// Options of a connection, whatever the transport.
 #[derive(Debug, Clone)]
 pub struct ConnectOptions {
-    /// The controller's serial input buffer, bytes (GRBL: 128).
-    pub rx_buffer: usize,
+    /// The controller's serial input buffer, bytes (GRBL: 128); `None` asks the controller
+    /// (GRBL's and grblHAL's `$I` report it), and takes 128 if it does not say.
+    pub rx_buffer: Option<usize>,
     /// Send-response instead of character counting: one line in flight at a time.
     pub send_response: bool,
     /// How long to wait for the controller to answer at all when connecting.
@@ -522,7 +523,7 @@ pub struct ConnectOptions {
 impl Default for ConnectOptions {
     fn default() -> Self {
         ConnectOptions {
-            rx_buffer: 128,
+            rx_buffer: Some(128),
             send_response: false,
             connect_timeout: Duration::from_secs(5),
             busy_wait: Duration::from_secs(600),

@@ -29,6 +29,9 @@ use std::time::{Duration, Instant};
 /// and comments.
 pub const LINE_BUFFER: usize = 80;
 
+/// GRBL 1.1's serial RX buffer, bytes: the assumption when the controller does not say.
+pub const DEFAULT_RX_BUFFER: usize = 128;
+
 /// grblHAL's line buffer: 257 bytes with the terminating zero, counting spaces and comments
 /// (only leading blanks are dropped).
 pub const LINE_BUFFER_HAL: usize = 257;
@@ -107,7 +110,7 @@ impl GrblLink {
         let mut link = GrblLink {
             t,
             url,
-            rx_capacity: options.rx_buffer.max(16),
+            rx_capacity: options.rx_buffer.unwrap_or(DEFAULT_RX_BUFFER).max(16),
             send_response: options.send_response,
             inflight: VecDeque::new(),
             inflight_bytes: 0,
@@ -136,9 +139,38 @@ impl GrblLink {
                 other => other,
             })?;
         link.barrier(options.busy_wait)?;
+        if options.rx_buffer.is_none()
+            && let Some(rx) = link.reported_rx_buffer()?
+        {
+            link.rx_capacity = rx;
+        }
         // What came before (banner, unlock reminders, stale answers) is history.
         link.events.clear();
         Ok(link)
+    }
+
+    /// The RX buffer the controller reports in `$I` (`[OPT:codes,blocks,rx…]`, GRBL 1.1 and
+    /// grblHAL alike), when it answers with a plausible one. A controller that refuses `$I`
+    /// or leaves the field out keeps GRBL's 128.
+    fn reported_rx_buffer(&mut self) -> Result<Option<usize>, LinkError> {
+        let got = match self.command_collect("$I", Duration::from_secs(3)) {
+            Ok((Reply::Ok, got)) => got,
+            Ok((Reply::Error { .. }, _)) | Err(LinkError::Timeout { .. }) => return Ok(None),
+            Err(e) => return Err(e),
+        };
+        Ok(got.iter().find_map(|r| match r {
+            Response::Feedback { kind, body } if kind == "OPT" => body
+                .split(',')
+                .nth(2)
+                .and_then(|v| v.trim().parse::<usize>().ok())
+                .filter(|rx| (16..=1 << 16).contains(rx)),
+            _ => None,
+        }))
+    }
+
+    /// The input buffer lines are counted against, bytes.
+    pub fn rx_buffer(&self) -> usize {
+        self.rx_capacity
     }
 
     /// Waits until the controller has answered every line sent before this connection: a
