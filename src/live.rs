@@ -147,7 +147,19 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         send_response: args.send_response,
         ..ConnectOptions::default()
     };
-    let mut link = link::connect(&url, &job.program.machine, &options).map_err(fail)?;
+    // Until the journal exists nothing of the job has been sent: a lost link is a job that
+    // never started, not one to resume.
+    let fresh = resumed.is_none();
+    let setup_fail = |e: LinkError| match e {
+        LinkError::Lost { reason } if fresh => fail(LinkError::NotReady {
+            reason: format!(
+                "the link was lost while connecting, before the job started ({reason}): no program line was sent"
+            ),
+            help: "check the cable or network and run the job again".into(),
+        }),
+        e => fail(e),
+    };
+    let mut link = link::connect(&url, &job.program.machine, &options).map_err(setup_fail)?;
     // Nothing moves unless every line can go over this link.
     for (i, l) in nc.iter().enumerate() {
         if let Err(reason) = link.validate_line(&l.text) {
@@ -184,7 +196,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         ),
         None => None,
     };
-    let mismatches = link.check_settings(&needs).map_err(fail)?;
+    let mismatches = link.check_settings(&needs).map_err(setup_fail)?;
     if !mismatches.is_empty() {
         return Err((
             map.clone(),
@@ -235,7 +247,9 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         }
         _ => {
             let path = journal_path(&args, &file, &url);
-            let st = link.query_status(Duration::from_secs(2)).map_err(fail)?;
+            let st = link
+                .query_status(Duration::from_secs(2))
+                .map_err(setup_fail)?;
             let pos = st.work_position(st.wco.as_deref()).unwrap_or_default();
             let start: AxisPos = std::array::from_fn(|i| pos.get(i).copied().unwrap_or(0.0));
             let j = match path {

@@ -50,8 +50,9 @@ fn twenty_random_disconnects_each_resume_to_the_full_job_exactly_once() {
         let which = (trial as usize) % jobs.len();
         let (path, c) = (&jobs[which], &compiled[which]);
         let n = c.lines.len() as u64;
-        // Line 1 the controller receives is `$$`; drop somewhere in the job.
-        let first = rng.range(3, n);
+        // Lines 1–3 the controller receives are `$G`, `$I` and `$$`; drop somewhere in the
+        // job.
+        let first = rng.range(4, n);
         // Every third trial drops a second time, during the resumed stream (after `$$`,
         // `$G` and about seven re-approach lines).
         let mut drops = vec![first];

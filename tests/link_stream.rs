@@ -153,9 +153,9 @@ fn an_injected_error_stops_the_job_and_names_the_recipe_line() {
         .map(|(i, _)| i)
         .nth(1)
         .unwrap();
-    // The controller counts every line it receives: `$G` (the connection's barrier) and `$$`
-    // (the settings check) come first.
-    let k = index as u64 + 3;
+    // The controller counts every line it receives: `$G` (the connection's barrier), `$I`
+    // (its buffer size) and `$$` (the settings check) come first.
+    let k = index as u64 + 4;
     let sim = sim_for(
         &c.job,
         SimOptions {
@@ -313,6 +313,40 @@ fn a_silent_or_truncated_controller_fails_cleanly() {
     ]);
     assert_eq!(code, 1);
     assert!(err.contains("lase::link::connect"), "{err}");
+}
+
+/// A link lost while connecting (here right after `$$`) is a job that never started: no
+/// journal to resume, and the message says nothing was sent.
+#[test]
+fn a_link_lost_before_the_job_starts_says_nothing_was_sent() {
+    let c = compile(&root().join("examples/frame_marking.lase"));
+    let sim = sim_for(
+        &c.job,
+        SimOptions {
+            time_scale: TimeScale::Max,
+            faults: Faults {
+                drop_after_lines: vec![3],
+                ..Faults::default()
+            },
+            ..SimOptions::default()
+        },
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("j");
+    let (code, _out, err) = lase(&[
+        "run",
+        "examples/frame_marking.lase",
+        "--link",
+        &url(&sim),
+        "--journal",
+        journal.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("no program line was sent"), "{err}");
+    assert!(!err.contains("--resume"), "{err}");
+    assert!(!journal.exists());
+    let rec = sim.stop();
+    assert!(gcode_lines(&rec).is_empty(), "{:?}", gcode_lines(&rec));
 }
 
 #[test]
