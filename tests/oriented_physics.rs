@@ -518,3 +518,50 @@ fn cam_track_is_lit_only_at_the_programmed_speed() {
     // 218 mm of track at 8 mm/s: about 27 300 samples.
     assert!(lit > 27_000, "{lit}");
 }
+
+/// The planned arm sections are lit only at the programmed 10 mm/s, measured from
+/// `lase plan --trace` (every 1 ms sample with the beam on). The joints reverse on the way (C
+/// near x ≈ −36 mm at tiny rates): the planner judges corners per axis against the joints' own
+/// accelerations, so that costs no speed, and the 758 mm of lit track take exactly 75.83 s.
+#[test]
+fn arm_sections_are_lit_only_at_the_programmed_speed() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("t.csv");
+    let (code, out, err) = lase(&[
+        "plan",
+        "examples/surface_hardening_arm.lase",
+        "--trace",
+        trace.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(trace).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+    let (v, laser) = (col("v"), col("laser"));
+    let mut lit = 0;
+    for l in lines {
+        let f: Vec<&str> = l.split(',').collect();
+        if f[laser] == "1" {
+            lit += 1;
+            let speed: f64 = f[v].parse().unwrap();
+            assert!(
+                (speed / 10.0 - 1.0).abs() <= 1e-3,
+                "lit at {speed} mm/s: {l}"
+            );
+        }
+    }
+    // 758.27 mm of lit track at 10 mm/s: about 75 800 samples, and the summary's laser-on
+    // time is the lit length over the feed ("laser on  758.2678 mm, 75.8268 s").
+    assert!(lit > 75_000, "{lit}");
+    let on = out
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("laser on"))
+        .unwrap_or_else(|| panic!("{out}"));
+    let nums: Vec<f64> = on
+        .split([',', ' '])
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    let (length, time) = (nums[0], nums[1]);
+    assert!((time - length / 10.0).abs() <= 1e-3, "{on}");
+}

@@ -9,10 +9,12 @@
 //! 1. `prepare` validates it, merges a zero-length move into its predecessor, and derives its
 //!    limits from its direction `u = Δq / length`: `v ≤ min_i v_i / |u_i|` (likewise `a`, `j`),
 //!    the path limits and the feed; it caps its entry speed with the corner model
-//!    (`junction`: GRBL's junction deviation and Klipper's centripetal cap), and a move that
-//!    lies wholly on the rounding circles of its two corners (a chord of a curve) gets a speed
-//!    and acceleration budget shared between centripetal and tangential acceleration
-//!    (`curve_limits`).
+//!    (`junction`: GRBL's junction deviation and Klipper's centripetal cap where the length is
+//!    the axis-space arc length, as on Cartesian machines; otherwise, as for the part-space
+//!    chords of oriented machines, each axis's velocity jump against that axis's own
+//!    acceleration), and a move that lies wholly on the rounding curves of its two corners (a
+//!    chord of a curve) gets a speed and acceleration budget shared between centripetal and
+//!    tangential acceleration (`curve_limits`).
 //! 2. `lookahead` chooses entry and exit speeds with a backward and a forward pass, over the
 //!    whole program or through a bounded streaming window.
 //! 3. As the forward pass commits each move's end speeds, `profile` turns (length, entry, exit,
@@ -71,8 +73,10 @@ pub struct AxisLimits {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PlannerConfig {
     pub profile: ProfileKind,
-    /// Corner deviation δ of the GRBL/Klipper junction model, in axis units (mm). 0 stops at
-    /// every corner; `f64::INFINITY` takes corners at the moves' full speed.
+    /// Corner deviation δ of the GRBL/Klipper junction model, in path units (mm); the per-axis
+    /// rule of oriented moves turns it into a blend time with the path acceleration
+    /// (`junction`). 0 stops at every corner; `f64::INFINITY` takes corners at the moves' full
+    /// speed.
     pub junction_deviation: f64,
     /// Path speed limit (`f64::INFINITY` = none).
     pub path_v: f64,
@@ -227,6 +231,11 @@ pub fn lead_distance(v: f64, w_max: f64, a: f64, j: f64) -> f64 {
 /// arc have equal lengths up to rounding.
 const CURVED_TOL: f64 = 1e-9;
 
+/// Relative slack on "the move's length is its Euclidean length in axis space" (`junction`:
+/// which corner rule applies). Cartesian lowering gives equal numbers; a part-space chord of an
+/// oriented machine differs by orders of magnitude.
+const EUCLIDEAN_TOL: f64 = 1e-9;
+
 /// Plans `moves` from `start` (at rest) to the last target (at rest).
 ///
 /// Validates everything first and fails without a partial plan. Allocates the output (segments
@@ -364,6 +373,7 @@ fn prepare(
     // The previous move ends at a stop point (or there is none yet).
     let mut prev_stop = true;
     let mut prev_dir: Axes = [0.0; MAX_AXES];
+    let mut prev_euclidean = true;
     // Centripetal cap (v²) and rounding-circle reach of the previous move's entry corner.
     let mut prev_corner = junction::Corner::AT_REST;
     let mut prev_d_in = 0.0;
@@ -468,18 +478,36 @@ fn prepare(
             ));
         }
         let norm = norm2.sqrt();
+        // The length is the axis-space arc length (every Cartesian move): `dir` is the unit
+        // direction and the Euclidean corner rule holds. Otherwise (a multi-axis chord measured
+        // in part space) `dir` is `Δq / length` and corners are judged per axis (`junction`).
+        let euclidean = (norm - mv.length).abs() <= EUCLIDEAN_TOL * mv.length;
+        let scale = if euclidean { norm } else { mv.length };
         // Only the axes in use move (checked above): the others stay 0.
         let mut dir = [0.0; MAX_AXES];
         for axis in 0..n_axes {
-            dir[axis] = dq[axis] / norm;
+            dir[axis] = dq[axis] / scale;
         }
         let (entry_cap, corner, d_in) = match kin.last_mut() {
             Some(prev) if !prev_stop => {
-                let c = corners.corner(&prev_dir, &dir, prev.a, a, prev.len, mv.length);
-                let d = if c.centripetal_v2 < f64::INFINITY {
-                    0.5 * prev.len.min(mv.length)
+                let c = if euclidean && prev_euclidean {
+                    corners.corner(&prev_dir, &dir, prev.a, a, prev.len, mv.length)
                 } else {
+                    // A unit direction is `Δq / length` to within the tolerance: either kind
+                    // of move enters the per-axis rule as it is.
+                    corners.corner_per_axis(&prev_dir, &dir, prev.a, a, prev.len, mv.length)
+                };
+                let d = if c.centripetal_v2 == f64::INFINITY {
                     0.0
+                } else if c.per_axis {
+                    // The blend reaches `v²·W/2` into each move at the speed `v` it is taken
+                    // at, `½·min(L)` only at the curve cap (`junction`): a corner that barely
+                    // turns, or one taken far below its curve cap, does not make a short move
+                    // next to it a chord of a curve.
+                    let cap2 = c.v2.min(v * v).min(prev.v * prev.v);
+                    0.5 * prev.len.min(mv.length) * (cap2 / c.centripetal_v2).min(1.0)
+                } else {
+                    0.5 * prev.len.min(mv.length)
                 };
                 if prev_d_in > 0.0 && d > 0.0 && prev_d_in + d >= prev.len * (1.0 - CURVED_TOL) {
                     curve_limits(prev, &prev_corner, &c);
@@ -501,6 +529,7 @@ fn prepare(
         });
         prev_stop = stop;
         prev_dir = dir;
+        prev_euclidean = euclidean;
         q = mv.target;
     }
     Ok(Prepared {
@@ -523,7 +552,7 @@ struct Prepared {
 }
 
 /// Share of the acceleration limit a chord of a curve gives to the centripetal acceleration;
-/// the rest, `√(1 − share²)`, is left for speed changes along it.
+/// the rest, `√(1 − share²)` (per axis `1 − share`), is left for speed changes along it.
 const CURVE_SHARE: f64 = 0.95;
 
 /// Limits of a move that lies wholly on the rounding circles of its two corners `c_in` and
@@ -533,6 +562,10 @@ const CURVE_SHARE: f64 = 0.95;
 /// can reach, `a_t = a · √(1 − (v_max² / (a_n r))²)`, so that tangential and centripetal
 /// acceleration together (`√(a_t² + (v²/r)²)`) stay within it. Without this a chord could speed
 /// up between two capped corners, or change speed at full rate while turning at full rate.
+/// When a corner was judged per axis (`junction`) the same holds with the per-axis curve cap
+/// for `a_n r`, but the two accelerations of one axis are not perpendicular: axis k's is
+/// `u_k·s̈ + q_k''·v²`, at most `|u_k|·a_t + share·a_k`, so the tangential budget is the
+/// remainder `a_t = a · (1 − v_max² / (a_n r))`.
 ///
 /// `v_max` is the move's speed limit, or less when its corners are slow: entered at most at
 /// its entry cap `e_in`, left at most at the exit corner's cap `e_out`, it peaks at most at
@@ -550,7 +583,12 @@ fn curve_limits(k: &mut Kin, c_in: &junction::Corner, c_out: &junction::Corner) 
     let v_max2 = (0.5 * (k.cap * k.cap + c_out.v2) + k.a * k.len).min(k.v * k.v);
     let share = v_max2 / centripetal_v2;
     if share > 0.0 && share < 1.0 {
-        k.a *= (1.0 - share * share).sqrt();
+        k.a *= if c_in.per_axis || c_out.per_axis {
+            // Per axis the two add up, |u_k|·a + share·a_k ≤ a_k (`junction`, per-axis rule).
+            1.0 - share
+        } else {
+            (1.0 - share * share).sqrt()
+        };
     }
 }
 
