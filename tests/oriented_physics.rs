@@ -484,19 +484,12 @@ fn seed1_chord_normals_are_measurably_worse_than_exact_ones() {
     assert!(chord.1 > 1.0, "midpoints {} µm off the surface", chord.1);
 }
 
-/// The planned cam track is lit only at the programmed surface speed: the lead-in and lead-out
-/// continue the lit chords' axis-space direction, so there is no corner at the lit ends
-/// (measured from `lase plan --trace`, every 1 ms sample with the beam on).
-#[test]
-fn cam_track_is_lit_only_at_the_programmed_speed() {
+/// Runs `lase plan --trace` on `example`, checks that every 1 ms sample with the beam on is at
+/// `feed` mm/s (within 0.1 %), and returns how many there were and the plan's output.
+fn lit_only_at(example: &str, feed: f64) -> (usize, String) {
     let dir = tempfile::tempdir().unwrap();
     let trace = dir.path().join("t.csv");
-    let (code, _, err) = lase(&[
-        "plan",
-        "examples/cam_hardening.lase",
-        "--trace",
-        trace.to_str().unwrap(),
-    ]);
+    let (code, out, err) = lase(&["plan", example, "--trace", trace.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
     let text = std::fs::read_to_string(trace).unwrap();
     let mut lines = text.lines();
@@ -510,11 +503,20 @@ fn cam_track_is_lit_only_at_the_programmed_speed() {
             lit += 1;
             let speed: f64 = f[v].parse().unwrap();
             assert!(
-                (speed / 8.0 - 1.0).abs() <= 1e-3,
-                "lit at {speed} mm/s: {l}"
+                (speed / feed - 1.0).abs() <= 1e-3,
+                "{example}: lit at {speed} mm/s: {l}"
             );
         }
     }
+    (lit, out)
+}
+
+/// The planned cam track is lit only at the programmed surface speed: the lead-in and lead-out
+/// continue the lit chords' axis-space direction, so there is no corner at the lit ends
+/// (measured from `lase plan --trace`, every 1 ms sample with the beam on).
+#[test]
+fn cam_track_is_lit_only_at_the_programmed_speed() {
+    let (lit, _) = lit_only_at("examples/cam_hardening.lase", 8.0);
     // 218 mm of track at 8 mm/s: about 27 300 samples.
     assert!(lit > 27_000, "{lit}");
 }
@@ -525,32 +527,7 @@ fn cam_track_is_lit_only_at_the_programmed_speed() {
 /// accelerations, so that costs no speed, and the 758 mm of lit track take exactly 75.83 s.
 #[test]
 fn arm_sections_are_lit_only_at_the_programmed_speed() {
-    let dir = tempfile::tempdir().unwrap();
-    let trace = dir.path().join("t.csv");
-    let (code, out, err) = lase(&[
-        "plan",
-        "examples/surface_hardening_arm.lase",
-        "--trace",
-        trace.to_str().unwrap(),
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let text = std::fs::read_to_string(trace).unwrap();
-    let mut lines = text.lines();
-    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
-    let (v, laser) = (col("v"), col("laser"));
-    let mut lit = 0;
-    for l in lines {
-        let f: Vec<&str> = l.split(',').collect();
-        if f[laser] == "1" {
-            lit += 1;
-            let speed: f64 = f[v].parse().unwrap();
-            assert!(
-                (speed / 10.0 - 1.0).abs() <= 1e-3,
-                "lit at {speed} mm/s: {l}"
-            );
-        }
-    }
+    let (lit, out) = lit_only_at("examples/surface_hardening_arm.lase", 10.0);
     // 758.27 mm of lit track at 10 mm/s: about 75 800 samples, and the summary's laser-on
     // time is the lit length over the feed ("laser on  758.2678 mm, 75.8268 s").
     assert!(lit > 75_000, "{lit}");
