@@ -135,8 +135,12 @@ impl Tracker {
         }
         // Units apply to the whole block, whatever the order of its words.
         let k = scale(self.state.inches);
+        // GRBL's feed: the block's F; without one, the last feed only in G94 after G94 (in
+        // G93 every feed move carries its own, and leaving G93 leaves the feed undefined).
         if let Some(&(_, f)) = ws.iter().find(|(c, _)| *c == 'F') {
             self.state.feed = if self.state.inverse_time { f } else { f * k };
+        } else if self.state.inverse_time || before.state.inverse_time {
+            self.state.feed = 0.0;
         }
         let has_axes = target.iter().any(Option::is_some);
         let mut kind = LineKind::Nothing;

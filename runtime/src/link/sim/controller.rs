@@ -127,6 +127,8 @@ pub struct MotionEffect {
     pub target: AxisPos,
     pub center: Option<AxisPos>,
     pub laser_s: f64,
+    /// The move's own time in inverse-time mode (G93's F is the block's, not modal state).
+    pub inverse_time_s: Option<f64>,
 }
 
 /// A block the machine finished moving.
@@ -946,6 +948,7 @@ impl Controller {
                             target: mv.target,
                             center: mv.arc.map(|a| a.center),
                             laser_s: mv.laser_s,
+                            inverse_time_s: mv.inverse_time_s,
                         });
                     }
                     Work::Blocks(chords)
@@ -1324,7 +1327,10 @@ fn effect_of(before: &Gc, after: &Gc) -> Effect {
     );
     diff("flood", format!("{}", b.flood), format!("{}", a.flood));
     diff("mist", format!("{}", b.mist), format!("{}", a.mist));
-    diff("F", format!("{}", b.feed), format!("{}", a.feed));
+    // In G93 the F word is the block's own (its move's time, in the motion effect).
+    if !a.inverse_time {
+        diff("F", format!("{}", b.feed), format!("{}", a.feed));
+    }
     diff("S", format!("{}", b.s), format!("{}", a.s));
     Effect {
         changes,

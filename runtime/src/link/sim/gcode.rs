@@ -346,15 +346,18 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
         m.motion = mm;
     }
     let axis_command = axis_words || (explicit_motion && m.motion != MotionMode::None);
-    // Feed: in G93 a feed move needs F in its own block; in G94 F is modal.
+    // Feed, as GRBL keeps it: the block's F when it has one; without, the last feed only in
+    // G94 after G94 (in G93 a feed move needs F in its own block, and switching from G93 to
+    // G94 leaves the feed undefined).
     let mut block_feed = None;
     if let Some(f) = v(b'F') {
         if m.inverse_time {
             block_feed = Some(f);
+            m.feed = f;
         } else {
             m.feed = f * k;
         }
-    } else if m.inverse_time {
+    } else if m.inverse_time || gc.modal.inverse_time {
         m.feed = 0.0;
     }
     if let Some(s) = v(b'S') {
@@ -689,6 +692,17 @@ mod tests {
         // A rotary word with an arc moves linearly along it (a helix): unused offsets still
         // count, A is used.
         assert!(execute(b"G2X1Y1I1J0A30F100", &four, true).is_ok());
+    }
+
+    #[test]
+    fn the_feed_is_undefined_after_inverse_time_as_in_grbl() {
+        let gc = run(&["G94G1X1F600", "G93", "G1X2F30"]).unwrap();
+        assert_eq!(gc.modal.feed, 30.0);
+        // Back in G94 without an F: GRBL's error 22, not the feed from before G93.
+        let g94 = execute(b"G94", &gc, true).unwrap().next;
+        assert_eq!(g94.modal.feed, 0.0);
+        assert_eq!(execute(b"G1X3", &g94, true).map(|_| ()), Err(22));
+        assert!(execute(b"G1X3F100", &g94, true).is_ok());
     }
 
     #[test]
