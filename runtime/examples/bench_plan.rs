@@ -8,8 +8,9 @@
 //! ```
 //!
 //! The first form (`--profile` picks one profile) generates an N-segment cornered 2-axis path (chords of 0.2–2 mm turning by
-//! 0–150° at every junction, kept inside a 200 × 200 mm field, a stop every 10 000 moves),
-//! plans it offline with the trapezoid and the S-curve profile, and prints segments/s (best of
+//! 0–150° at every junction, kept inside a 200 × 200 mm field, a stop every 10 000 moves) and
+//! an N-segment path of an oriented machine (X and three joints, part-space chords, corners
+//! judged per axis), plans each offline with the trapezoid and the S-curve profile, and prints segments/s (best of
 //! three runs, one core; by the wall clock and by the planning thread's own CPU time, which
 //! other processes on a shared machine do not inflate), the memory planning takes per segment (peak resident memory during
 //! `plan` above the resident memory before it, over N: the output segments plus the look-ahead
@@ -168,6 +169,39 @@ fn cornered_path(n: usize) -> Vec<Move> {
     moves
 }
 
+/// A deterministic path of an oriented machine, like the arm's: X (mm) and three joints (rad)
+/// along a smooth curve, each move a part-space chord of 0.2–2 mm whose length is not its
+/// axis-space length (so corners are judged per axis), the joints' rates drifting and
+/// reversing, feed 10 mm/s, a stop every 10 000 moves.
+fn oriented_path(n: usize) -> Vec<Move> {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut rnd = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut moves = Vec::with_capacity(n);
+    let mut q = [0.0; MAX_AXES];
+    let mut s = 0.0f64;
+    for k in 0..n {
+        let len = 0.2 + 1.8 * rnd();
+        s += len;
+        let mut t = q;
+        // Slide X steps 2 mm every 2 000 moves; the joints follow slow waves of the arc length.
+        t[0] = 2.0 * (k / 2_000) as f64;
+        t[1] = 0.6 * (s / 37.0).sin();
+        t[2] = 0.9 * (s / 23.0).cos();
+        t[3] = 0.3 * (s / 11.0).sin();
+        let mut m = Move::new(t, len, 10.0);
+        m.stop_after = k % 10_000 == 9_999;
+        m.tag = k as u32;
+        moves.push(m);
+        q = t;
+    }
+    moves
+}
+
 /// FNV-1a over the bits of every number of the plan: equal fingerprints mean bit-identical
 /// plans (a refactoring of the planner must keep it).
 fn fingerprint(p: &Plan) -> u64 {
@@ -194,7 +228,8 @@ fn fingerprint(p: &Plan) -> u64 {
 }
 
 fn throughput(n: usize, o: &Options) {
-    let moves = cornered_path(n);
+    let cornered = cornered_path(n);
+    let oriented = oriented_path(n);
     let lim = limits(o);
     println!(
         "{n} segments, input {} bytes/segment (Move), axis v {} mm/s, a {} mm/s², j {} mm/s³, \
@@ -205,14 +240,20 @@ fn throughput(n: usize, o: &Options) {
         o.j,
         o.jd
     );
-    for (name, profile) in [
-        ("trapezoid", ProfileKind::Trapezoid),
-        ("s-curve", ProfileKind::SCurve),
+    for (name, profile, moves, n_axes) in [
+        ("trapezoid", ProfileKind::Trapezoid, &cornered, 2),
+        ("s-curve", ProfileKind::SCurve, &cornered, 2),
+        // Part-space chords of an X + 3 joints machine: the per-axis corner rule.
+        ("trapezoid, oriented", ProfileKind::Trapezoid, &oriented, 4),
+        ("s-curve, oriented", ProfileKind::SCurve, &oriented, 4),
     ] {
         if o.profile.is_some_and(|p| p != profile) {
             continue;
         }
-        let cfg = config(profile, o.jd);
+        let cfg = PlannerConfig {
+            n_axes,
+            ..config(profile, o.jd)
+        };
         let mut best = f64::INFINITY;
         let mut best_cpu = f64::INFINITY;
         let mut bytes = None;
@@ -222,7 +263,7 @@ fn throughput(n: usize, o: &Options) {
             let base = if reset_peak() { rss() } else { None };
             let t0 = Instant::now();
             let c0 = cpu_time();
-            let p = plan([0.0; MAX_AXES], &moves, &lim, &cfg)
+            let p = plan([0.0; MAX_AXES], moves, &lim, &cfg)
                 .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
             best = best.min(t0.elapsed().as_secs_f64());
             if let (Some(c0), Some(c1)) = (c0, cpu_time()) {
@@ -244,7 +285,7 @@ fn throughput(n: usize, o: &Options) {
         let streamed = plan([0.0; MAX_AXES], &moves[..n.min(100_000)], &lim, &window)
             .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
         println!(
-            "{name:>9}: {:6.2} M segments/s wall, {:6.2} M/s CPU time, {per} bytes/segment (peak \
+            "{name:>19}: {:6.2} M segments/s wall, {:6.2} M/s CPU time, {per} bytes/segment (peak \
              RSS of plan; Segment is {} bytes), cycle time {:.3} s, fingerprint {print:016x} \
              (window 64: {:016x})",
             n as f64 / best / 1e6,
