@@ -238,7 +238,8 @@ pub fn parse_status(text: &str) -> Result<Status, String> {
             complete: s.unwrap_or(0) == 0,
         },
         ("Jog", None) => MachineState::Jog,
-        ("Alarm", None) => MachineState::Alarm,
+        // grblHAL may add the alarm's code as a sub-state.
+        ("Alarm", _) => MachineState::Alarm,
         ("Door", s) => MachineState::Door(s.unwrap_or(0)),
         ("Check", None) => MachineState::Check,
         ("Home", None) => MachineState::Home,
@@ -370,6 +371,13 @@ mod tests {
             panic!("a six-axis status report parses");
         };
         assert_eq!(st.mpos, Some(vec![1.0, 0.0, 0.0, 0.0, -12.5, 720.125]));
+        // grblHAL's extra fields and an alarm with its code.
+        let Ok(Response::Status(st)) =
+            parse(b"<Alarm:11|MPos:0.000,0.000,0.000,0.000|Bf:35,1023|FS:0,0|H:0|MPG:0>")
+        else {
+            panic!("a grblHAL alarm report parses");
+        };
+        assert_eq!(st.state, MachineState::Alarm);
         assert_eq!(
             parse(b"$110=15000.000"),
             Ok(Response::Setting {
