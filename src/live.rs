@@ -319,8 +319,8 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     let rate = report.program_bytes as f64 / elapsed.max(1e-9);
     let resume_hint = journal_name
         .clone()
-        .map(|j| format!("lase run --resume {j}"))
-        .unwrap_or_else(|| "stream to a controller with a journal (tcp:// or serial://, or --journal FILE) to be able to resume".into());
+        .map(|j| format!("the controller goes on with what it had received; reconnect it and continue with `lase run --resume {j}`"))
+        .unwrap_or_else(|| "this run kept no journal and cannot be resumed: check the part; stream to a controller with a journal (tcp:// or serial://, or --journal FILE) to be able to resume".into());
     match report.outcome {
         Outcome::Done => {
             println!(

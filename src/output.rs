@@ -68,16 +68,13 @@ pub struct ControllerAlarm {
 /// The link dropped in the middle of a job.
 #[derive(Debug, thiserror::Error, miette::Diagnostic)]
 #[error("the link to the controller was lost after {acked} of {total} lines: {reason}")]
-#[diagnostic(
-    code(lase::link::lost),
-    help(
-        "the controller goes on with what it had received; reconnect it and continue with `{resume}`"
-    )
-)]
+#[diagnostic(code(lase::link::lost))]
 pub struct LinkLost {
     pub reason: String,
     pub acked: usize,
     pub total: usize,
+    /// How to go on: the controller goes on with what it had received.
+    #[help]
     pub resume: String,
 }
 

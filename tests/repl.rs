@@ -120,3 +120,72 @@ move to (10 mm, 0 mm) at 5 mm/s
     );
     assert!(out.contains("Idle | X10 Y0 Z0"), "{out}");
 }
+
+/// A job the REPL streams keeps a journal: when the link drops mid-job, a new job is refused
+/// until the operator decides, and `:resume` reconnects, finds where the controller stopped
+/// and cuts the rest — every lit millimetre exactly once.
+#[test]
+fn a_job_interrupted_by_a_lost_link_continues_with_resume() {
+    use lase_runtime::link::sim::{self, Faults, SimOptions, TimeScale};
+    let m =
+        lase_runtime::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
+    let h = sim::serve(
+        &m,
+        "127.0.0.1:0".parse().unwrap(),
+        SimOptions {
+            time_scale: TimeScale::Factor(20.0),
+            // `$G`, `$I`, `$$` and then the job's first lines.
+            faults: Faults {
+                drop_after_lines: vec![14],
+                ..Faults::default()
+            },
+            ..SimOptions::default()
+        },
+    )
+    .unwrap();
+    let input = format!(
+        "\
+:connect tcp://{}
+machine xy_table
+laser {{ power 20 W }}
+follow profile rect((10 mm, 10 mm), 10 mm, 10 mm) at 10 mm/s
+follow profile circle(center: (40 mm, 20 mm), radius: 5 mm) at 10 mm/s
+:run
+move to (0 mm, 0 mm) at 20 mm/s
+:run
+:resume
+:run
+:status
+",
+        h.addr().unwrap()
+    );
+    let (code, out, err) = session(&input);
+    assert_eq!(code, 0, "{err}");
+    let all = format!("{out}{err}");
+    assert!(all.contains("the link to the controller was lost"), "{all}");
+    assert!(
+        all.contains("`repl` was interrupted by a lost link: `:resume` continues it"),
+        "{all}"
+    );
+    assert!(all.contains("lines had run; re-approach"), "{all}");
+    assert!(all.contains("repl: done — 24 lines"), "{all}");
+    // The refused job ran after the resumed one.
+    assert!(all.contains("Idle | X0 Y0 Z0"), "{all}");
+    assert!(h.wait_quiet(std::time::Duration::from_secs(10)));
+    let rec = h.stop();
+    assert_eq!(rec.rx_overflows, 0);
+    // The square's 40 mm and the circle's 31.416 mm, lit once (the resume re-approaches dark).
+    let lit: f64 = rec
+        .blocks
+        .iter()
+        .filter(|b| b.laser_s > 0.0)
+        .map(|b| {
+            (0..3)
+                .map(|i| (b.to[i] - b.from[i]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .sum();
+    let want = 40.0 + std::f64::consts::TAU * 5.0;
+    assert!((lit - want).abs() < 0.01, "lit {lit} mm, planned {want} mm");
+}

@@ -69,7 +69,11 @@ pub const COMMANDS: &[Command] = &[
         "stream what the session produced since the last run, a process `fn NAME()`, or a recipe file",
     ),
     cmd(":hold", "", "feed hold now (the laser goes off while held)"),
-    cmd(":resume", "", "resume after a hold"),
+    cmd(
+        ":resume",
+        "",
+        "resume after a hold, or continue a job a lost link interrupted",
+    ),
     cmd(
         ":abort",
         "",

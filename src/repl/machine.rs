@@ -14,11 +14,13 @@ use crate::output;
 use lase_lang::Span;
 use lase_runtime::emit::NcLine;
 use lase_runtime::link::grbl::GrblLink;
+use lase_runtime::link::journal::{self, Header, Journal};
+use lase_runtime::link::modal::Tracker;
 use lase_runtime::link::sim::{self, SimHandle};
 use lase_runtime::link::stream::{self, Control, Outcome, Progress, StreamJob, StreamOptions};
 use lase_runtime::link::{
-    self, ConnectOptions, Event, Link, LinkError, LinkUrl, MachineState, Realtime, Requirements,
-    Status,
+    self, AxisPos, ConnectOptions, Event, Link, LinkError, LinkUrl, MachineState, ModalState,
+    Realtime, Requirements, Status, resume,
 };
 use lase_runtime::machine::Machine;
 use lase_runtime::motion::Job;
@@ -38,6 +40,27 @@ pub struct Station {
     url: LinkUrl,
     conn: Option<Conn>,
     interactive: bool,
+    /// A job whose link was lost: `:resume` continues it.
+    lost: Option<LostJob>,
+}
+
+/// What continuing a job after a lost link needs: its lines, how to point back at the recipe,
+/// and its journal (a temporary file: what was sent and acknowledged).
+struct LostJob {
+    name: String,
+    machine: Machine,
+    job: Job,
+    nc: Vec<NcLine>,
+    journal: tempfile::TempPath,
+}
+
+/// Where a job starts streaming: from its first line with a new journal, or after a resume.
+struct Start<'a> {
+    journal: Journal,
+    from: usize,
+    lead: &'a [String],
+    restored: Option<ModalState>,
+    start: AxisPos,
 }
 
 impl std::fmt::Debug for Station {
@@ -147,6 +170,7 @@ impl Station {
             url,
             conn: None,
             interactive,
+            lost: None,
         }
     }
 
@@ -342,18 +366,27 @@ impl Station {
         ))
     }
 
-    /// `:resume`: cycle start after a hold.
+    /// `:resume`: continues a job whose link was lost, else cycle start after a hold.
     pub fn resume(&mut self, machine: Option<&Machine>) -> R<String> {
+        if let Some(lost) = self.lost.take() {
+            return self.resume_job(lost);
+        }
         let link = self.link(machine)?;
         link.realtime(Realtime::CycleStart)?;
         let s = link.query_status(Duration::from_secs(2))?;
         Ok(s.summary())
     }
 
-    /// `:abort`: feed hold, wait for rest, soft reset (buffers emptied, laser off).
+    /// `:abort`: feed hold, wait for rest, soft reset (buffers emptied, laser off); a job
+    /// interrupted by a lost link is dropped.
     pub fn abort(&mut self, machine: Option<&Machine>) -> R<String> {
+        let dropped = self.lost.take().map(|j| j.name);
         let link = self.link(machine)?;
-        Ok(stream::stop_safely(&mut **link))
+        let stop = stream::stop_safely(&mut **link);
+        Ok(match dropped {
+            Some(name) => format!("dropped the interrupted job `{name}` (check the part); {stop}"),
+            None => stop,
+        })
     }
 
     /// Before leaving: waits while the controller still moves. `Err` with a reason when it is
@@ -384,9 +417,17 @@ impl Station {
     }
 
     /// Streams a planned job: nothing is sent unless every line can go over the link and the
-    /// controller's settings fit the plan.
+    /// controller's settings fit the plan, and no job interrupted by a lost link waits.
     pub fn run(&mut self, machine: &Machine, job: &Stream<'_>, name: &str) -> (Ran, R<String>) {
-        let interactive = self.interactive;
+        if let Some(old) = &self.lost {
+            return (
+                Ran::NotStarted,
+                Err(Trouble::Say(format!(
+                    "`{}` was interrupted by a lost link: `:resume` continues it, `:abort` drops it",
+                    old.name
+                ))),
+            );
+        }
         let link = match self.link(Some(machine)) {
             Ok(l) => l,
             Err(t) => return (Ran::NotStarted, Err(t)),
@@ -441,15 +482,148 @@ impl Station {
             }
             Err(e) => return (Ran::NotStarted, Err(e.into())),
         }
+        // The journal: what was sent and acknowledged, so that a lost link can be resumed.
+        let header_start = match link.query_status(Duration::from_secs(2)) {
+            Ok(s) => {
+                let pos = s.work_position(s.wco.as_deref()).unwrap_or_default();
+                std::array::from_fn(|i| pos.get(i).copied().unwrap_or(0.0))
+            }
+            Err(e) => return (Ran::NotStarted, Err(e.into())),
+        };
+        let path = match tempfile::Builder::new()
+            .prefix("lase-repl-")
+            .suffix(".journal")
+            .tempfile()
+        {
+            Ok(f) => f.into_temp_path(),
+            Err(e) => {
+                return (
+                    Ran::NotStarted,
+                    Err(Trouble::Say(format!("cannot create the job journal: {e}"))),
+                );
+            }
+        };
+        let header = Header {
+            recipe: name.to_string(),
+            link: self.url.to_string(),
+            dialect: link::live_dialect(machine).to_string(),
+            lines: lines.len(),
+            hash: journal::program_hash(lines.iter().map(String::as_str)),
+            start: header_start,
+        };
+        let jour = match Journal::create(&path, &header) {
+            Ok(j) => j,
+            Err(e) => return (Ran::NotStarted, Err(e.into())),
+        };
+        let lost = LostJob {
+            name: name.to_string(),
+            machine: machine.clone(),
+            job: job.job.clone(),
+            nc: job.nc.to_vec(),
+            journal: path,
+        };
+        self.stream_job(
+            lost,
+            &lines,
+            Start {
+                journal: jour,
+                from: 0,
+                lead: &[],
+                restored: None,
+                start: header_start,
+            },
+        )
+    }
+
+    /// Continues a job after a lost link: reconnects, finds from the controller's state where
+    /// the job stands, re-approaches and streams the rest.
+    fn resume_job(&mut self, lost: LostJob) -> R<String> {
+        let lines: Vec<String> = lost.nc.iter().map(|l| l.text.clone()).collect();
+        let letters: Vec<char> = lost
+            .machine
+            .axes
+            .iter()
+            .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
+            .collect();
+        let path = lost.journal.to_path_buf();
+        let machine = lost.machine.clone();
+        // Until it is streamed again, the job stays resumable.
+        self.lost = Some(lost);
+        let link = self.link(Some(&machine))?;
+        let st = journal::read(&path)?;
+        let plan = resume::plan(
+            &mut **link,
+            &lines,
+            &st,
+            &letters,
+            None,
+            Duration::from_secs(600),
+        )?;
+        let (mut jour, _) = Journal::append(&path)?;
+        let all = plan.reapproach.all();
+        jour.resumed(plan.executed, &all)?;
+        let note = format!(
+            "{} of {} lines had run; re-approach: {}",
+            plan.executed,
+            lines.len(),
+            all.join(" | ")
+        );
+        for p in &plan.reapproach.setup {
+            let reply = link.send(p)?;
+            link::reply_error(p, reply)?;
+        }
+        let Some(lost) = self.lost.take() else {
+            return Err(Trouble::Say("no job to resume".into()));
+        };
+        if self.interactive {
+            eprintln!("{}: {note}", lost.name);
+        } else {
+            println!("{}: {note}", lost.name);
+        }
+        let (_, r) = self.stream_job(
+            lost,
+            &lines,
+            Start {
+                journal: jour,
+                from: plan.executed,
+                lead: &plan.reapproach.lead,
+                restored: Some(plan.restored),
+                start: st.header.start,
+            },
+        );
+        r
+    }
+
+    /// Streams a checked job's lines from `at`, with the progress bar and Ctrl-C as a feed
+    /// hold. A lost link keeps the job for `:resume`.
+    fn stream_job(&mut self, lost: LostJob, lines: &[String], at: Start<'_>) -> (Ran, R<String>) {
+        let interactive = self.interactive;
+        let Some(conn) = self.conn.as_mut() else {
+            return (Ran::NotStarted, Err(Trouble::Say("not connected".into())));
+        };
+        let link = &mut conn.link;
+        let job = Stream {
+            job: &lost.job,
+            nc: &lost.nc,
+        };
+        let name = lost.name.as_str();
+        let Start {
+            journal: mut jour,
+            from,
+            lead,
+            restored,
+            start,
+        } = at;
+        let guards = resume::send_guards(&Tracker::new(start), lines);
         let summary = lase_runtime::report::summarize(job.job);
         let eta = lase_runtime::link::eta::Eta::new(job.job, job.nc);
         // Ctrl-C is ours from here until the job has ended.
         let sig = SigGuard::new();
         let keys = interactive.then(Keys::start);
-        let mut display = Display::new(lines.len(), 0, eta);
+        let mut display = Display::new(lines.len(), from, eta);
         let header = format!(
             "{name}: {} lines to {}, planned cycle time {:.3} s",
-            lines.len(),
+            lines.len() - from,
             link.describe(),
             summary.cycle_time_s
         );
@@ -457,14 +631,20 @@ impl Station {
             display.println(&header);
             display.println("Ctrl-C = feed hold, laser off");
         } else {
-            println!("{}: {} lines", name, lines.len());
+            println!("{}: {} lines", name, lines.len() - from);
         }
         let mut asking = false;
         let mut announced = false;
         let report = stream::stream(
             &mut **link,
-            &StreamJob::new(&lines),
-            None,
+            &StreamJob {
+                lines,
+                from,
+                lead,
+                restored,
+                guards: &guards,
+            },
+            Some(&mut jour),
             &StreamOptions::default(),
             &mut |p: &Progress, e: Option<&Event>| {
                 display.update(p, e);
@@ -554,12 +734,29 @@ impl Station {
             }))),
             Outcome::Lost(e) => {
                 self.conn = None;
-                Err(Trouble::Diag(Failure::one(output::LinkLost {
-                    reason: e.to_string(),
-                    acked: report.acked,
-                    total,
-                    resume: "`:connect` again and check the part; the REPL keeps no journal".into(),
-                })))
+                let resume = match &self.url {
+                    // The in-process simulator ends with its link: there is nothing to resume.
+                    LinkUrl::Sim(_) => {
+                        "the simulator ended with the link: check the part, `:connect` again"
+                            .to_string()
+                    }
+                    _ => format!(
+                        "the controller goes on with what it had received; reconnect it and `:resume`: the job continues where the controller stopped (its journal: {})",
+                        lost.journal.display()
+                    ),
+                };
+                if !matches!(self.url, LinkUrl::Sim(_)) {
+                    self.lost = Some(lost);
+                }
+                return (
+                    Ran::Started,
+                    Err(Trouble::Diag(Failure::one(output::LinkLost {
+                        reason: e.to_string(),
+                        acked: report.acked,
+                        total,
+                        resume,
+                    }))),
+                );
             }
             Outcome::Failed(e) => Err(e.into()),
         };
