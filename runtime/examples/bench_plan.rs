@@ -130,16 +130,20 @@ fn config(profile: ProfileKind, jd: f64) -> PlannerConfig {
     }
 }
 
-/// A deterministic cornered path: xorshift-driven turns and lengths, reflected at the field's
-/// edges, feed 100 mm/s, a stop every 10 000 moves.
-fn cornered_path(n: usize) -> Vec<Move> {
-    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-    let mut rnd = move || {
+/// Deterministic uniform numbers in [0, 1) (xorshift64).
+fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
         seed ^= seed << 13;
         seed ^= seed >> 7;
         seed ^= seed << 17;
         (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    }
+}
+
+/// A deterministic cornered path: xorshift-driven turns and lengths, reflected at the field's
+/// edges, feed 100 mm/s, a stop every 10 000 moves.
+fn cornered_path(n: usize) -> Vec<Move> {
+    let mut rnd = uniform(0x9e37_79b9_7f4a_7c15);
     let mut moves = Vec::with_capacity(n);
     let mut q = [0.0; MAX_AXES];
     let mut heading: f64 = 0.0;
@@ -174,13 +178,7 @@ fn cornered_path(n: usize) -> Vec<Move> {
 /// axis-space length (so corners are judged per axis), the joints' rates drifting and
 /// reversing, feed 10 mm/s, a stop every 10 000 moves.
 fn oriented_path(n: usize) -> Vec<Move> {
-    let mut seed = 0x2545_f491_4f6c_dd1du64;
-    let mut rnd = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rnd = uniform(0x2545_f491_4f6c_dd1d);
     let mut moves = Vec::with_capacity(n);
     let mut q = [0.0; MAX_AXES];
     let mut s = 0.0f64;
