@@ -87,6 +87,33 @@ fn the_unmutated_corpus_runs_all_the_way() {
     }
 }
 
+/// A function that calls itself without end, and expressions nested a hundred deep, end in a
+/// diagnostic (or a result) on a small thread stack too: the evaluator's depth limit is reached
+/// long before the stack, however large a debug build's frames are. (Found by the mutation
+/// test below: a mutated recipe overflowed the test thread's stack.)
+#[test]
+fn deep_recursion_is_a_diagnostic_on_a_small_stack() {
+    let recursive = "machine xy_table\nfn f(x: length) {\n  f(x)\n}\nf(1 mm)\n".to_string();
+    let nested = |n: usize| {
+        format!(
+            "machine xy_table\nlet y = {}1 mm{}\nmove to (y, y) at 5 mm/s\n",
+            "(".repeat(n),
+            ")".repeat(n)
+        )
+    };
+    // 120 levels parse, check, evaluate and plan; 300 are refused by the parser's nesting
+    // limit (a diagnostic, not pest running out of stack).
+    for (src, want) in [(recursive, 2), (nested(120), 4), (nested(300), 0)] {
+        let got = std::thread::Builder::new()
+            .stack_size(512 * 1024)
+            .spawn(move || pipeline(&src))
+            .unwrap()
+            .join()
+            .expect("no stack overflow, no panic");
+        assert_eq!(got, want);
+    }
+}
+
 const TOKENS: &[&str] = &[
     "(", ")", "[", "]", "{", "}", ",", ";", ":", "..", "=", "==", "+", "-", "*", "/", "%", "mm",
     "mm/s", "deg", "0", "1", "-1", "1e308", "\"", "let", "fn", "for", "in", "if", "else", "follow",

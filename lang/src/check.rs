@@ -275,6 +275,12 @@ impl Checker {
     }
 
     fn stmt(&mut self, s: &Stmt, place: Place) {
+        stacker::maybe_grow(crate::STACK_RED_ZONE, crate::STACK_SEGMENT, || {
+            self.stmt_here(s, place)
+        })
+    }
+
+    fn stmt_here(&mut self, s: &Stmt, place: Place) {
         let in_import = place == Place::Import;
         let process_stmt = !matches!(
             s.kind,
@@ -754,6 +760,12 @@ impl Checker {
     // ------------------------------------------------------------ expressions
 
     fn expr(&mut self, e: &Expr) -> Ty {
+        stacker::maybe_grow(crate::STACK_RED_ZONE, crate::STACK_SEGMENT, || {
+            self.expr_here(e)
+        })
+    }
+
+    fn expr_here(&mut self, e: &Expr) -> Ty {
         match &e.kind {
             ExprKind::Number { value, unit } => {
                 if !value.is_finite() {

@@ -13,6 +13,13 @@ pub mod span;
 pub mod units;
 
 pub use check::{Checker, Ty, check_program};
+
+/// Recursive walks over the syntax (building it, checking it, evaluating it) continue on a new
+/// stack segment of `STACK_SEGMENT` bytes when less than `STACK_RED_ZONE` is left: a recipe
+/// nests as deep as its author likes (or a function calls itself up to the evaluator's depth
+/// limit) without overflowing a thread's stack, whatever a build's frame sizes.
+pub const STACK_RED_ZONE: usize = 256 * 1024;
+pub const STACK_SEGMENT: usize = 4 * 1024 * 1024;
 pub use diag::{CheckError, ParseError};
 pub use span::{FileId, LineCol, SourceMap, Span};
 

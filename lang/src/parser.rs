@@ -16,8 +16,9 @@ type P<'a> = Pair<'a, Rule>;
 
 /// Parses one file. `base` is the file's global offset in the source map.
 pub fn parse_recipe(text: &str, file: crate::FileId, base: usize) -> Result<Module, ParseError> {
-    let mut pairs =
-        RecipeParser::parse(Rule::recipe, text).map_err(|e| syntax_error(e, text, base))?;
+    check_nesting(text, base)?;
+    let mut pairs = on_parse_stack(|| RecipeParser::parse(Rule::recipe, text))
+        .map_err(|e| syntax_error(e, text, base))?;
     let b = Builder { base };
     let recipe = pairs.next().expect("recipe rule always produces one pair");
     let stmts = recipe
@@ -37,8 +38,9 @@ pub enum ReplInput {
 
 /// Parses REPL input: statements, or one expression whose value is to be shown.
 pub fn parse_repl(text: &str, base: usize) -> Result<ReplInput, ParseError> {
-    let mut pairs =
-        RecipeParser::parse(Rule::repl_input, text).map_err(|e| syntax_error(e, text, base))?;
+    check_nesting(text, base)?;
+    let mut pairs = on_parse_stack(|| RecipeParser::parse(Rule::repl_input, text))
+        .map_err(|e| syntax_error(e, text, base))?;
     let b = Builder { base };
     let input = pairs.next().expect("repl_input always produces one pair");
     let mut stmts = Vec::new();
@@ -55,25 +57,72 @@ pub fn parse_repl(text: &str, base: usize) -> Result<ReplInput, ParseError> {
 /// True when `text` ends inside an open bracket, brace or string, so the REPL should read
 /// another line before parsing.
 pub fn is_incomplete(text: &str) -> bool {
-    let mut depth = 0i32;
-    let mut in_str = false;
-    let mut chars = text.chars().peekable();
-    while let Some(c) = chars.next() {
+    let b = brackets(text);
+    b.depth > 0 || b.in_str
+}
+
+/// How deep brackets, parentheses and braces may nest. Far beyond any recipe a person writes;
+/// deeper input is refused with a diagnostic before pest sees it (pest would stop with an
+/// unreadable error when its stack runs low).
+pub const MAX_NESTING: i32 = 128;
+
+/// Brackets in `text` outside strings and comments.
+struct Brackets {
+    /// Open brackets at the end.
+    depth: i32,
+    in_str: bool,
+    /// Byte offset of the first bracket that opens level `MAX_NESTING + 1`.
+    too_deep: Option<usize>,
+}
+
+fn brackets(text: &str) -> Brackets {
+    let mut b = Brackets {
+        depth: 0,
+        in_str: false,
+        too_deep: None,
+    };
+    let mut chars = text.char_indices().peekable();
+    while let Some((i, c)) = chars.next() {
         match c {
-            '"' => in_str = !in_str,
-            '/' if !in_str && chars.peek() == Some(&'/') => {
-                for c in chars.by_ref() {
+            '"' => b.in_str = !b.in_str,
+            '/' if !b.in_str && chars.peek().map(|p| p.1) == Some('/') => {
+                for (_, c) in chars.by_ref() {
                     if c == '\n' {
                         break;
                     }
                 }
             }
-            '(' | '[' | '{' if !in_str => depth += 1,
-            ')' | ']' | '}' if !in_str => depth -= 1,
+            '(' | '[' | '{' if !b.in_str => {
+                b.depth += 1;
+                if b.depth > MAX_NESTING && b.too_deep.is_none() {
+                    b.too_deep = Some(i);
+                }
+            }
+            ')' | ']' | '}' if !b.in_str => b.depth -= 1,
             _ => {}
         }
     }
-    depth > 0 || in_str
+    b
+}
+
+/// Runs pest with room for [`MAX_NESTING`] levels whatever the thread's stack: pest recurses
+/// through every precedence level per bracket (large frames in a debug build) and stops with
+/// an unreadable error when its stack runs low.
+fn on_parse_stack<T>(parse: impl FnOnce() -> T) -> T {
+    stacker::maybe_grow(8 * 1024 * 1024, 16 * 1024 * 1024, parse)
+}
+
+/// Refuses brackets nested deeper than [`MAX_NESTING`], at the first one too deep.
+fn check_nesting(text: &str, base: usize) -> Result<(), ParseError> {
+    match brackets(text).too_deep {
+        None => Ok(()),
+        Some(at) => Err(ParseError::Syntax {
+            message: format!("brackets nest more than {MAX_NESTING} deep"),
+            span: Span::new(base + at, base + at + 1),
+            label: format!("level {}", MAX_NESTING + 1),
+            help: Some("name intermediate values with `let` instead of nesting them".into()),
+        }),
+    }
 }
 
 struct Builder {
@@ -123,6 +172,12 @@ impl Builder {
     }
 
     fn stmt(&self, p: P) -> Stmt {
+        stacker::maybe_grow(crate::STACK_RED_ZONE, crate::STACK_SEGMENT, || {
+            self.stmt_here(p)
+        })
+    }
+
+    fn stmt_here(&self, p: P) -> Stmt {
         let span = self.span(&p);
         let rule = p.as_rule();
         let mut it = p.into_inner().filter(|p| !is_keyword(p.as_rule()));
@@ -306,7 +361,16 @@ impl Builder {
         self.ident(p.into_inner().next().expect("type_name holds an ident"))
     }
 
+    /// Expressions and blocks nest as deep as the source does: near the end of the stack the
+    /// builder continues on a new segment instead of overflowing it (a debug build's frames
+    /// are large; pest's own parse stops with an error before it runs out).
     fn expr(&self, p: P) -> Expr {
+        stacker::maybe_grow(crate::STACK_RED_ZONE, crate::STACK_SEGMENT, || {
+            self.expr_here(p)
+        })
+    }
+
+    fn expr_here(&self, p: P) -> Expr {
         let span = self.span(&p);
         match p.as_rule() {
             Rule::expr => self.expr(p.into_inner().next().expect("expr has one child")),
@@ -779,6 +843,23 @@ mod tests {
         };
         assert_eq!(*op, BinOp::Add);
         assert_eq!((rhs.span.start, rhs.span.end), (15, 23));
+    }
+
+    #[test]
+    fn brackets_nested_too_deep_are_refused_at_the_first_one() {
+        let n = MAX_NESTING as usize;
+        let ok = format!("let y = {}1{}", "(".repeat(n), ")".repeat(n));
+        assert!(parse_recipe(&ok, crate::FileId(0), 0).is_ok());
+        let deep = format!("let y = {}1{}", "(".repeat(n + 5), ")".repeat(n + 5));
+        let e = parse_recipe(&deep, crate::FileId(0), 10).unwrap_err();
+        let ParseError::Syntax { message, span, .. } = e else {
+            panic!()
+        };
+        assert!(message.contains("nest more than 128"), "{message}");
+        assert_eq!(span.start as usize, 10 + 8 + n);
+        // Brackets in strings and comments do not count.
+        let quoted = format!("let s = \"{}\" // {}", "(".repeat(n + 1), "[".repeat(n + 1));
+        assert!(brackets(&quoted).too_deep.is_none());
     }
 
     #[test]

@@ -65,6 +65,8 @@ const MAX_OPS: usize = 10_000_000;
 /// Nested function calls before the recipe is stopped as runaway recursion.
 const MAX_DEPTH: usize = 200;
 
+use lase_lang::{STACK_RED_ZONE, STACK_SEGMENT};
+
 enum Flow {
     Normal,
     Return(Value),
@@ -352,7 +354,15 @@ impl Evaluator {
         self.machine.as_ref().ok_or_else(|| no_machine(span))
     }
 
+    /// Statements and expressions recurse (a function calling itself up to `MAX_DEPTH`,
+    /// nested blocks and expressions): near the end of the stack, it continues on a new
+    /// segment, so no recipe overflows it, however its frames are sized (a debug build's are
+    /// large).
     fn stmt(&mut self, s: &Stmt, cx: &mut Cx) -> R<Flow> {
+        stacker::maybe_grow(STACK_RED_ZONE, STACK_SEGMENT, || self.stmt_here(s, cx))
+    }
+
+    fn stmt_here(&mut self, s: &Stmt, cx: &mut Cx) -> R<Flow> {
         self.tick(s.span)?;
         match &s.kind {
             StmtKind::Machine(m) => self.select_machine(m, s.span, cx)?,
@@ -1403,6 +1413,10 @@ impl Evaluator {
     // ------------------------------------------------------------------ expressions
 
     fn expr(&mut self, e: &Expr, cx: &mut Cx) -> R<Value> {
+        stacker::maybe_grow(STACK_RED_ZONE, STACK_SEGMENT, || self.expr_here(e, cx))
+    }
+
+    fn expr_here(&mut self, e: &Expr, cx: &mut Cx) -> R<Value> {
         match &e.kind {
             ExprKind::Number { value, unit } => match unit {
                 None if *value == 0.0 => Ok(Value::Zero),
