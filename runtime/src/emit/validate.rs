@@ -262,38 +262,27 @@ fn check_post(
     dialect: Dialect,
     span: Span,
 ) -> Result<(), EmitError> {
-    // The longest value a placeholder can take is at full power.
-    let full = LaserWords {
-        power_w: machine.laser.max_power_w,
-        max_power_w: machine.laser.max_power_w,
-        s_max: post.s_max,
-    };
-    for (what, lines) in [
+    let lines = [
         ("laser_on", &post.laser_on),
         ("laser_off", &post.laser_off),
         ("power", &post.power),
-    ] {
-        for t in lines {
-            if let Some(message) = format::template_problem(t) {
-                return Err(EmitError::Template {
-                    template: t.clone(),
-                    machine: machine.name.clone(),
-                    message,
-                    span,
-                    help: format!(
-                        "templates in [post.{key}] {what} may use {{power}} (W), {{s}} \
-                         (power scaled to s_max) and {{pct}} (percent of max power)"
-                    ),
-                });
-            }
-            for code in format::m_words(t) {
-                let origin = Origin::Post { key, what };
-                check_mcode(dialect, code, span, origin, &machine.name)?;
-            }
-            too_long(dialect, &format::fill(t, full), span, what)?;
-        }
-    }
-    Ok(())
+    ];
+    let help = |what: &str| {
+        format!(
+            "templates in [post.{key}] {what} may use {{power}} (W), {{s}} (power scaled to \
+             s_max) and {{pct}} (percent of max power)"
+        )
+    };
+    check_templates(
+        post,
+        key,
+        machine,
+        dialect,
+        span,
+        &lines,
+        &|t| t.to_string(),
+        &help,
+    )
 }
 
 /// The trigger and PSO lines of pulses by distance and dot mode (`writer::pulse`).
@@ -304,28 +293,50 @@ fn check_pulse_post(
     dialect: Dialect,
     span: Span,
 ) -> Result<(), EmitError> {
+    let lines = [
+        ("pulse_on", &post.pulse_on),
+        ("pulse_off", &post.pulse_off),
+        ("pso", &post.pso),
+    ];
+    let help = |what: &str| {
+        format!(
+            "templates in [post.{key}] {what} may use {{power}}, {{s}}, {{pct}}, and in pso \
+             {{pitch}} (mm) and {{ppi}} (pulses per inch)"
+        )
+    };
+    let pitch = |t: &str| format::fill_pitch(t, 0.001);
+    check_templates(post, key, machine, dialect, span, &lines, &pitch, &help)
+}
+
+/// Each template of a post section: its placeholders, its M-codes in this dialect, and its
+/// length at full power (the longest value a placeholder can take). `prepare` fills what is
+/// known only per job (a pulse pitch) with a stand-in.
+#[allow(clippy::too_many_arguments)]
+fn check_templates(
+    post: &DialectPost,
+    key: &str,
+    machine: &Machine,
+    dialect: Dialect,
+    span: Span,
+    lines: &[(&'static str, &Vec<String>)],
+    prepare: &dyn Fn(&str) -> String,
+    help: &dyn Fn(&str) -> String,
+) -> Result<(), EmitError> {
     let full = LaserWords {
         power_w: machine.laser.max_power_w,
         max_power_w: machine.laser.max_power_w,
         s_max: post.s_max,
     };
-    for (what, lines) in [
-        ("pulse_on", &post.pulse_on),
-        ("pulse_off", &post.pulse_off),
-        ("pso", &post.pso),
-    ] {
-        for t in lines {
-            let t = format::fill_pitch(t, 0.001);
+    for &(what, templates) in lines {
+        for t in templates {
+            let t = prepare(t);
             if let Some(message) = format::template_problem(&t) {
                 return Err(EmitError::Template {
                     template: t.clone(),
                     machine: machine.name.clone(),
                     message,
                     span,
-                    help: format!(
-                        "templates in [post.{key}] {what} may use {{power}}, {{s}}, {{pct}}, \
-                         and in pso {{pitch}} (mm) and {{ppi}} (pulses per inch)"
-                    ),
+                    help: help(what),
                 });
             }
             for code in format::m_words(&t) {
