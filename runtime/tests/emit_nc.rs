@@ -1,49 +1,22 @@
 //! NC emitters: content checks on hand-built programs, and LinuxCNC's own interpreter
 //! (`rs274 -g`) on the emitted LinuxCNC programs.
 
+mod common;
+
+use common::program;
 use lase_lang::Span;
 use lase_runtime::emit::{
     self, Dialect, EmitError, EmitOptions, EmitWarning, NcLine, emit_to_string, emit_to_string_with,
 };
 use lase_runtime::machine::{Axis, AxisKind, parse_machine};
 use lase_runtime::motion::{Job, plan_program};
-use lase_runtime::program::{
-    AxisLimit, Coupling, Laser, LeadIn, Op, OpKind, P3, PathLimits, PlannerSettings, ProcessProgram,
-};
+use lase_runtime::program::{Coupling, Laser, Op, OpKind, P3};
 use std::collections::BTreeMap;
 
 #[path = "../../tests/common/rs274.rs"]
 mod rs274;
 
 // ------------------------------------------------------------------ helpers
-
-fn program(machine: &str, ops: Vec<Op>) -> ProcessProgram {
-    let m = parse_machine(lase_stdlib::machine(machine).unwrap(), 0).unwrap();
-    ProcessProgram {
-        recipe: "test.lase".into(),
-        limits: m
-            .axes
-            .iter()
-            .map(|a| AxisLimit {
-                v: a.v_max,
-                a: a.a_max,
-                j: a.j_max,
-            })
-            .collect(),
-        path_limits: PathLimits::default(),
-        planner: PlannerSettings {
-            ramp: m.ramp,
-            junction_deviation_mm: m.junction_deviation_mm,
-            arc_tolerance_mm: m.arc_tolerance_mm,
-            lookahead: None,
-            // These tests pin the emitter on hand-built programs; leads have their own tests.
-            leadin: LeadIn::Off,
-        },
-        start: [0.0; 3],
-        ops,
-        machine: m,
-    }
-}
 
 /// An op whose span encodes its recipe line: line n is bytes 100n..100n+7.
 fn op(line: usize, kind: OpKind) -> Op {

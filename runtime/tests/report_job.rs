@@ -1,45 +1,17 @@
 //! Reports: summary numbers recomputed from closed forms, exact pulses, the trace's grid and
 //! columns, and the plot's structure.
 
+mod common;
+
+use common::program;
 use lase_lang::Span;
-use lase_runtime::machine::parse_machine;
 use lase_runtime::motion::{Job, plan_program};
 use lase_runtime::program::{
-    AxisLimit, Coupling, Laser, LeadIn, Op, OpKind, P3, PathLimits, PlannerSettings,
-    ProcessProgram, Pulse, PulseMode, Ramp,
+    Coupling, Laser, Op, OpKind, P3, ProcessProgram, Pulse, PulseMode, Ramp,
 };
 use lase_runtime::report::{plot_svg, pulse_events, summarize, write_trace};
 
 // ------------------------------------------------------------------ helpers
-
-fn program(machine: &str, ops: Vec<Op>) -> ProcessProgram {
-    let m = parse_machine(lase_stdlib::machine(machine).unwrap(), 0).unwrap();
-    ProcessProgram {
-        recipe: "test.lase".into(),
-        limits: m
-            .axes
-            .iter()
-            .map(|a| AxisLimit {
-                v: a.v_max,
-                a: a.a_max,
-                j: a.j_max,
-            })
-            .collect(),
-        path_limits: PathLimits::default(),
-        planner: PlannerSettings {
-            ramp: m.ramp,
-            junction_deviation_mm: m.junction_deviation_mm,
-            arc_tolerance_mm: m.arc_tolerance_mm,
-            lookahead: None,
-            // Closed forms and pulse counts of hand-built moves from rest; leads have their
-            // own tests (leadin.rs).
-            leadin: LeadIn::Off,
-        },
-        start: [0.0; 3],
-        ops,
-        machine: m,
-    }
-}
 
 fn op(kind: OpKind) -> Op {
     Op {

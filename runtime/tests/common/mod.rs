@@ -32,3 +32,38 @@ pub fn compile(src: &str) -> Result<Job, MotionError> {
 pub fn job(src: &str) -> Job {
     compile(src).unwrap_or_else(|e| panic!("{e:?}"))
 }
+
+/// A hand-built program on a stock machine, with the machine's own limits and planner
+/// settings and no lead-ins (the tests of hand-built moves pin closed forms from rest; leads
+/// have their own tests in leadin.rs).
+pub fn program(
+    machine: &str,
+    ops: Vec<lase_runtime::program::Op>,
+) -> lase_runtime::program::ProcessProgram {
+    use lase_runtime::program::{AxisLimit, LeadIn, PathLimits, PlannerSettings};
+    let m =
+        lase_runtime::machine::parse_machine(lase_stdlib::machine(machine).unwrap(), 0).unwrap();
+    lase_runtime::program::ProcessProgram {
+        recipe: "test.lase".into(),
+        limits: m
+            .axes
+            .iter()
+            .map(|a| AxisLimit {
+                v: a.v_max,
+                a: a.a_max,
+                j: a.j_max,
+            })
+            .collect(),
+        path_limits: PathLimits::default(),
+        planner: PlannerSettings {
+            ramp: m.ramp,
+            junction_deviation_mm: m.junction_deviation_mm,
+            arc_tolerance_mm: m.arc_tolerance_mm,
+            lookahead: None,
+            leadin: LeadIn::Off,
+        },
+        start: [0.0; 3],
+        ops,
+        machine: m,
+    }
+}
