@@ -328,7 +328,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
                 recipe.name(),
                 report.acked,
                 rate,
-                link.status()
+                link.status(&letters)
             );
             println!(
                 "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",

@@ -118,7 +118,7 @@ move to (10 mm, 0 mm) at 5 mm/s
         out.contains("the machine is at (3, 0, 0), not at (0, 0, 0)"),
         "{out}"
     );
-    assert!(out.contains("Idle | X10 Y0 Z0"), "{out}");
+    assert!(out.contains("Idle | X10 Y0"), "{out}");
 }
 
 /// A job the REPL streams keeps a journal: when the link drops mid-job, a new job is refused
@@ -170,7 +170,7 @@ move to (0 mm, 0 mm) at 20 mm/s
     assert!(all.contains("lines had run; re-approach"), "{all}");
     assert!(all.contains("repl: done — 24 lines"), "{all}");
     // The refused job ran after the resumed one.
-    assert!(all.contains("Idle | X0 Y0 Z0"), "{all}");
+    assert!(all.contains("Idle | X0 Y0"), "{all}");
     assert!(h.wait_quiet(std::time::Duration::from_secs(10)));
     let rec = h.stop();
     assert_eq!(rec.rx_overflows, 0);

@@ -792,12 +792,12 @@ impl Session {
         }
     }
 
-    /// Before the session's moves run on a flat-bed machine: if the machine is not where the
-    /// session left it (after a `:jog`, an aborted job, a move from the controller's own
+    /// Before the session's moves run on a flat-bed machine (and, quietly, after a job
+    /// finished): if the machine is not where the session left it (after a `:jog`, an aborted job, a move from the controller's own
     /// console), the pending moves start from where it is, so the first one is planned (and
     /// lit, if it is a cut) from the real position. Oriented machines start every job from
     /// their home pose with a rapid, whatever the position.
-    fn sync_start(&mut self) -> Result<(), Trouble> {
+    fn sync_start(&mut self, announce: bool) -> Result<(), Trouble> {
         let Some(m) = self.eval.machine() else {
             return Ok(());
         };
@@ -827,17 +827,19 @@ impl Session {
             .sqrt();
         // The controller reports 3 decimals.
         if off > 2e-3 {
-            let show = |p: [f64; 3]| {
-                p.iter()
-                    .map(|v| units::format_number((v * 1e3).round() / 1e3))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            println!(
-                "the machine is at ({}), not at ({}) where the session left it: the moves start from there",
-                show(here),
-                show(was)
-            );
+            if announce {
+                let show = |p: [f64; 3]| {
+                    p.iter()
+                        .map(|v| units::format_number((v * 1e3).round() / 1e3))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                };
+                println!(
+                    "the machine is at ({}), not at ({}) where the session left it: the moves start from there",
+                    show(here),
+                    show(was)
+                );
+            }
             self.eval.rebase(here);
         }
         Ok(())
@@ -845,7 +847,7 @@ impl Session {
 
     /// Streams the session's pending ops; they are consumed once lines went out.
     fn run_pending(&mut self, name: &str) -> Ran {
-        match self.sync_start() {
+        match self.sync_start(true) {
             Ok(()) => {}
             Err(Trouble::Say(m)) => {
                 self.say_error(&m);
@@ -864,9 +866,14 @@ impl Session {
             return Ran::NotStarted;
         };
         let map = self.map.clone();
-        let ran = self.stream(&map, &job, &nc, name);
+        let (ran, done) = self.stream(&map, &job, &nc, name);
         if ran == Ran::Started {
             let _ = self.eval.take_program("repl", Span::default());
+        }
+        if done {
+            // Where the job left the machine (its lead-out included) is where the session
+            // goes on from; only a move the session did not make is announced.
+            let _ = self.sync_start(false);
         }
         ran
     }
@@ -895,22 +902,24 @@ impl Session {
             return;
         };
         let name = recipe.name();
-        self.stream(&recipe.map, &job, &nc, &name);
+        let _ = self.stream(&recipe.map, &job, &nc, &name);
     }
 
-    fn stream(&mut self, map: &SourceMap, job: &Job, nc: &[NcLine], name: &str) -> Ran {
+    /// Streams a job; whether lines went out, and whether it finished.
+    fn stream(&mut self, map: &SourceMap, job: &Job, nc: &[NcLine], name: &str) -> (Ran, bool) {
         let note = self.overrides_note();
         if !note.is_empty() {
             println!("{name}: {note}");
         }
         let machine = job.program.machine.clone();
         let (ran, r) = self.station.run(&machine, &Stream { job, nc }, name);
+        let done = r.is_ok();
         match r {
             Ok(msg) => println!("{msg}"),
             Err(Trouble::Say(m)) => self.say_error(&m),
             Err(Trouble::Diag(f)) => self.report_in(map, &f),
         }
-        ran
+        (ran, done)
     }
 }
 

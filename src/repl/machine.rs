@@ -42,6 +42,9 @@ pub struct Station {
     interactive: bool,
     /// A job whose link was lost: `:resume` continues it.
     lost: Option<LostJob>,
+    /// The session machine's axis letters: what status lines show (every reported axis
+    /// until a machine is chosen).
+    letters: Vec<char>,
 }
 
 /// What continuing a job after a lost link needs: its lines, how to point back at the recipe,
@@ -171,6 +174,7 @@ impl Station {
             conn: None,
             interactive,
             lost: None,
+            letters: Vec::new(),
         }
     }
 
@@ -187,6 +191,9 @@ impl Station {
     /// The open link, connecting first if needed. A simulator link follows the session's
     /// machine: a new `machine` statement gets a freshly powered-up simulator for it.
     fn link(&mut self, machine: Option<&Machine>) -> R<&mut Box<dyn Link>> {
+        if let Some(m) = machine {
+            self.letters = machine_letters(m);
+        }
         let stale = match (&self.conn, &self.url, machine) {
             (Some(c), LinkUrl::Sim(_), Some(m)) => {
                 c.sim.as_ref().is_some_and(|(_, n)| *n != m.name)
@@ -266,7 +273,11 @@ impl Station {
     pub fn status(&mut self, machine: Option<&Machine>) -> R<String> {
         let link = self.link(machine)?;
         let s = link.query_status(Duration::from_secs(2))?;
-        let mut out = format!("{} — {}", link.describe(), s.summary());
+        let mut out = format!(
+            "{} — {}",
+            link.describe(),
+            s.summary_for(None, &self.letters)
+        );
         let laser = match s.spindle {
             Some(v) if v > 0.0 && !matches!(s.state, MachineState::Hold { .. }) => {
                 format!("laser S{}", lase_lang::units::format_number(v))
@@ -340,6 +351,7 @@ impl Station {
             return Err(Trouble::Say("not connected".into()));
         };
         let link = &mut conn.link;
+        let letters = &self.letters;
         let mut note = String::new();
         loop {
             if sig.take() {
@@ -348,7 +360,7 @@ impl Station {
             }
             let s = link.query_status(Duration::from_secs(2))?;
             if !moving(&s) {
-                return Ok(format!("{}{note}", s.summary()));
+                return Ok(format!("{}{note}", s.summary_for(None, letters)));
             }
             // Status reports pace the loop; nothing else to wait for.
             let _ = link.poll(Duration::from_millis(50));
@@ -362,7 +374,7 @@ impl Station {
         let s = settle(link)?;
         Ok(format!(
             "{} (laser off while held; `:resume` continues)",
-            s.summary()
+            s.summary_for(None, &self.letters)
         ))
     }
 
@@ -374,7 +386,7 @@ impl Station {
         let link = self.link(machine)?;
         link.realtime(Realtime::CycleStart)?;
         let s = link.query_status(Duration::from_secs(2))?;
-        Ok(s.summary())
+        Ok(s.summary_for(None, &self.letters))
     }
 
     /// `:abort`: feed hold, wait for rest, soft reset (buffers emptied, laser off); a job
@@ -403,13 +415,13 @@ impl Station {
         if let MachineState::Hold { .. } | MachineState::Door(_) = s.state {
             return Err(Trouble::Say(format!(
                 "the controller is held ({}): `:resume` or `:abort` first",
-                s.summary()
+                s.summary_for(None, &self.letters)
             )));
         }
         if moving(&s) {
             eprintln!(
                 "waiting for the controller to come to rest ({}); Ctrl-C = feed hold",
-                s.summary()
+                s.summary_for(None, &self.letters)
             );
             self.wait_idle(Realtime::FeedHold, "held")?;
         }
@@ -471,7 +483,7 @@ impl Station {
                     Ran::NotStarted,
                     Err(Trouble::Say(format!(
                         "the controller is not idle ({}): {}",
-                        s.summary(),
+                        s.summary_for(None, &machine_letters(machine)),
                         match s.state {
                             MachineState::Alarm => "`:home` it first",
                             MachineState::Hold { .. } => "`:resume` or `:abort` first",
@@ -539,12 +551,7 @@ impl Station {
     /// the job stands, re-approaches and streams the rest.
     fn resume_job(&mut self, lost: LostJob) -> R<String> {
         let lines: Vec<String> = lost.nc.iter().map(|l| l.text.clone()).collect();
-        let letters: Vec<char> = lost
-            .machine
-            .axes
-            .iter()
-            .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
-            .collect();
+        let letters = machine_letters(&lost.machine);
         let path = lost.journal.to_path_buf();
         let machine = lost.machine.clone();
         // Until it is streamed again, the job stays resumable.
@@ -615,6 +622,7 @@ impl Station {
             start,
         } = at;
         let guards = resume::send_guards(&Tracker::new(start), lines);
+        let letters = machine_letters(&lost.machine);
         let summary = lase_runtime::report::summarize(job.job);
         let eta = lase_runtime::link::eta::Eta::new(job.job, job.nc);
         // Ctrl-C is ours from here until the job has ended.
@@ -659,7 +667,11 @@ impl Station {
                         .is_some_and(|s| s.state == (MachineState::Hold { complete: true }))
                 {
                     announced = true;
-                    let at = p.status.as_ref().map(|s| s.summary()).unwrap_or_default();
+                    let at = p
+                        .status
+                        .as_ref()
+                        .map(|s| s.summary_for(None, &letters))
+                        .unwrap_or_default();
                     display.println(&format!(
                         "held: {at}, laser off, {} of {} lines done — r = resume, a = abort",
                         p.acked,
@@ -695,7 +707,7 @@ impl Station {
                 let mut msg = format!(
                     "{name}: done — {} lines, controller {}",
                     report.acked,
-                    link.status()
+                    link.status(&letters)
                 );
                 if interactive {
                     msg.push_str(&format!(" ({:.1} s)", report.elapsed.as_secs_f64()));
@@ -767,6 +779,14 @@ impl Station {
         };
         (ran, result)
     }
+}
+
+/// A machine's axis letters, as its controller names them.
+fn machine_letters(m: &Machine) -> Vec<char> {
+    m.axes
+        .iter()
+        .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
+        .collect()
 }
 
 /// After a feed hold: waits (a little) until motion has stopped.

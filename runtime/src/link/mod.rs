@@ -183,12 +183,29 @@ impl Status {
 
     /// One line for people: `Idle | X10 Y0 Z0`.
     pub fn summary(&self) -> String {
-        let pos = self.work_position(None).unwrap_or_default();
-        let words: Vec<String> = pos
-            .iter()
-            .zip(AXIS_LETTERS)
-            .map(|(v, l)| format!("{l}{}", lase_lang::units::format_number(*v)))
-            .collect();
+        self.summary_for(None, &[])
+    }
+
+    /// [`Status::summary`] with the last known work offset, showing only the axes `letters`
+    /// names (a machine's own: `Idle | X158 C-360 B0` on a six-axis grblHAL), or every axis
+    /// reported when `letters` is empty.
+    pub fn summary_for(&self, last_wco: Option<&[f64]>, letters: &[char]) -> String {
+        let pos = self.work_position(last_wco).unwrap_or_default();
+        let word = |l: char, v: f64| format!("{l}{}", lase_lang::units::format_number(v));
+        let words: Vec<String> = if letters.is_empty() {
+            pos.iter()
+                .zip(AXIS_LETTERS)
+                .map(|(v, l)| word(l, *v))
+                .collect()
+        } else {
+            letters
+                .iter()
+                .filter_map(|&l| {
+                    let i = axis_index(l)?;
+                    pos.get(i).map(|v| word(l.to_ascii_uppercase(), *v))
+                })
+                .collect()
+        };
         format!("{} | {}", self.state.name(), words.join(" "))
     }
 }
@@ -352,8 +369,9 @@ pub trait Link: Send {
     fn realtime(&mut self, cmd: Realtime) -> Result<(), LinkError>;
     /// Sends one line and waits for its answer. Only when no streamed line is in flight.
     fn send(&mut self, line: &str) -> Result<Reply, LinkError>;
-    /// The last known state, one line for people.
-    fn status(&self) -> String;
+    /// The last known state, one line for people, with the axes `letters` names (every axis
+    /// the controller reports when empty).
+    fn status(&self, letters: &[char]) -> String;
     /// The last status report received.
     fn last_status(&self) -> Option<&Status>;
     /// Asks for a status report and waits for it.

@@ -530,17 +530,9 @@ impl Link for GrblLink {
             .map(|(r, _)| r)
     }
 
-    fn status(&self) -> String {
+    fn status(&self, letters: &[char]) -> String {
         match &self.last_status {
-            Some(s) => {
-                let pos = s.work_position(self.wco.as_deref()).unwrap_or_default();
-                let words: Vec<String> = pos
-                    .iter()
-                    .zip(super::AXIS_LETTERS)
-                    .map(|(v, l)| format!("{l}{}", lase_lang::units::format_number(*v)))
-                    .collect();
-                format!("{} | {}", s.state.name(), words.join(" "))
-            }
+            Some(s) => s.summary_for(self.wco.as_deref(), letters),
             None => "no status yet".into(),
         }
     }
