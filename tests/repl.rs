@@ -189,3 +189,30 @@ move to (0 mm, 0 mm) at 20 mm/s
     let want = 40.0 + std::f64::consts::TAU * 5.0;
     assert!((lit - want).abs() < 0.01, "lit {lit} mm, planned {want} mm");
 }
+
+/// `use` works line by line: an extension module's functions and a preset's values come into
+/// the session, a cam profile generated in Rhai is hardened on the cam machine, and a `use`
+/// of a missing file is a diagnostic the session survives.
+#[test]
+fn use_loads_extensions_and_presets_into_the_session() {
+    let input = "\
+machine cam_xwb
+use stdlib::cams
+law_lift(\"cycloidal\", 0.5)
+use stdlib::presets::cam_hardening
+standoff
+use \"no_such_extension.rhai\"
+laser { power 1 kW, spot spot, standoff standoff }
+follow disc_cam(30 mm, 10 mm, 120 deg, 40 deg, 120 deg, \"cycloidal\") at speed { step 0.5 mm }
+:run
+";
+    let (code, out, err) = session(input);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("0.5\n"), "{out}");
+    assert!(out.contains("12 mm"), "{out}");
+    assert!(err.contains("lase::ext::load"), "{err}");
+    assert!(err.contains("no_such_extension.rhai"), "{err}");
+    assert!(out.contains("repl: done"), "{out}");
+    // One turn of the cam, back at C = −360° after the lead-out.
+    assert!(out.contains("C-360.315"), "{out}");
+}

@@ -140,6 +140,28 @@ impl Session {
                     self.report(&driver::parse_failure(errors));
                     return false;
                 }
+                // `use` lines load their extension module or preset into the session before
+                // checking, as `lase` does for a recipe.
+                let mut with_input = self.program.clone();
+                with_input.modules.push(lase_lang::ast::Module {
+                    file: id,
+                    stmts: stmts.clone(),
+                });
+                let ext_errors = self.eval.extensions_mut().load_uses(
+                    &mut with_input,
+                    &mut self.map,
+                    &mut FsLoader,
+                );
+                if !ext_errors.is_empty() {
+                    self.report(&Failure {
+                        diagnostics: ext_errors
+                            .into_iter()
+                            .map(|e| Box::new(e) as Box<dyn miette::Diagnostic + Send + Sync>)
+                            .collect(),
+                    });
+                    return false;
+                }
+                self.program.uses = with_input.uses;
                 self.checker.set_program(self.program.clone());
                 self.checker.check_stmts(&stmts);
                 let errs = self.checker.take_errors();
