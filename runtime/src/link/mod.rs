@@ -7,12 +7,13 @@
 //!   in-process simulator).
 //! - [`Link`]: one controller protocol over a transport: program lines under the protocol's
 //!   flow control, their answers in order, real-time commands, status, settings, check mode
-//!   and the lines that restore a modal state. [`grbl::GrblLink`] speaks GRBL 1.1; a LinuxCNC
+//!   and the lines that restore a modal state. [`grbl::GrblLink`] speaks GRBL 1.1 (and so
+//!   drives grblHAL, its six-axis successor); a LinuxCNC
 //!   or Marlin link is another implementation of the same trait.
 //! - [`stream`]: a job over any `Link`, nothing lost and nothing repeated: a write-ahead
 //!   [`journal`] on disk, the stop sequence on an error, and the resume logic that finds the
 //!   last executed line from the controller's state ([`modal`] predicts it line by line).
-//! - [`sim`]: a simulated GRBL 1.1 controller, a real implementation of the protocol that the
+//! - [`sim`]: a simulated GRBL 1.1 (or grblHAL) controller, a real implementation of the protocol that the
 //!   tests talk to over real sockets, with fault injection and a record of what it executed.
 //! - [`dry`]: the protocol-less line checker behind the REPL's `:run`.
 //!
@@ -468,7 +469,7 @@ pub enum LinkError {
     #[diagnostic(
         code(lase::link::protocol),
         help(
-            "lase speaks GRBL 1.1; check the baud rate (garbage usually means a wrong one) and that the device is a GRBL 1.1 compatible controller"
+            "lase speaks GRBL 1.1; check the baud rate (garbage usually means a wrong one) and that the device is a GRBL 1.1 compatible controller (GRBL, grblHAL)"
         )
     )]
     Protocol { text: String, reason: String },

@@ -1,10 +1,13 @@
-//! The GRBL 1.1 serial protocol over any [`Transport`]: the client side.
+//! The GRBL 1.1 serial protocol over any [`Transport`]: the client side, for GRBL and for
+//! grblHAL (the same protocol with up to six axes, a longer line buffer and a larger RX
+//! buffer).
 //!
 //! Flow control is character counting, as grbl's `stream.py` does it: the controller's serial
-//! RX buffer (128 bytes, one slot kept free by its ring buffer) holds whole lines waiting to
-//! be parsed; every line sent and not yet answered with `ok`/`error:N` counts against it, so
-//! the buffer can never overflow and the controller never waits for the host. Send-response
-//! (one line in flight) is the fallback for links that lose bytes under load.
+//! RX buffer (as `$I` reports it, else GRBL's 128 bytes; one slot kept free by its ring
+//! buffer) holds whole lines waiting to be parsed; every line sent and not yet answered with
+//! `ok`/`error:N` counts against it, so the buffer can never overflow and the controller never
+//! waits for the host. Send-response (one line in flight) is the fallback for links that lose
+//! bytes under load.
 //!
 //! Answers come in the order lines were sent; everything else (status reports, alarms,
 //! feedback) is pushed by the controller at any time and passed on as [`Event`]s. Any line
