@@ -511,9 +511,17 @@ impl Display {
             .and_then(|s| s.work_position(s.wco.as_deref()));
         let done = self.eta.done(p.acked, pos.as_deref());
         let left = (self.eta.total() - done).max(0.0);
-        let state = p.status.as_ref().map(|s| s.summary()).unwrap_or_default();
+        let state = p
+            .status
+            .as_ref()
+            .map(|s| s.summary_for(s.wco.as_deref(), self.eta.letters()))
+            .unwrap_or_default();
+        let pulses = match self.eta.pulses() {
+            0 => String::new(),
+            n => format!(" | ≈{} of {n} pulses", self.eta.pulses_done(done)),
+        };
         bar.set_message(format!(
-            "ETA {left:.1} s of {:.1} s{} | {state}",
+            "ETA {left:.1} s of {:.1} s{}{pulses} | {state}",
             self.eta.total(),
             if p.held { " (held)" } else { "" }
         ));

@@ -382,3 +382,57 @@ fn plot_sampling_is_capped_for_long_jobs() {
     assert!(points <= 60_000, "{points} coordinate pairs");
     assert!(svg.contains("<polyline"));
 }
+
+/// The live progress counts pulses from the plan: all of them by the end, none before the
+/// start, never decreasing, and within one segment's pulses of the exact count at any time.
+#[test]
+fn live_progress_counts_the_pulses_fired_by_a_time() {
+    let job = ten_mm(Ramp::Scurve, Some(PulseMode::Distance { pitch_mm: 1.0 }));
+    let eta = lase_runtime::link::eta::Eta::new(&job, &[]);
+    let times: Vec<f64> = pulse_events(&job).map(|p| p.t).collect();
+    assert_eq!(eta.pulses(), times.len() as u64);
+    assert_eq!(eta.pulses_done(-1.0), 0);
+    assert_eq!(eta.pulses_done(job.cycle_time()), 11);
+    let mut last = 0;
+    for k in 0..=100 {
+        let t = job.cycle_time() * k as f64 / 100.0;
+        let got = eta.pulses_done(t);
+        let exact = times.iter().filter(|&&p| p <= t).count() as u64;
+        assert!(got >= last, "{got} after {last} at t = {t}");
+        assert!(got.abs_diff(exact) <= 11, "{got} vs {exact} at t = {t}");
+        last = got;
+    }
+    assert_eq!(eta.letters(), ['X', 'Y']);
+    // A dotted arc split into many chords: the count stays within a chord's pulses.
+    let job = common::compile(
+        "machine xy_table\nlaser { power 25 W, spot 30 um }\npulse interval 0.5 mm\n\
+         follow profile arc(center: (0, 0), radius: 33 mm, start: 30 deg, end: 150 deg) at 25 mm/s\n",
+    )
+    .unwrap();
+    let eta = lase_runtime::link::eta::Eta::new(&job, &[]);
+    let times: Vec<f64> = pulse_events(&job).map(|p| p.t).collect();
+    assert!(times.len() > 50, "{}", times.len());
+    let per_chord = job
+        .plan
+        .segments()
+        .iter()
+        // The lit chords (the rapid to the arc fires nothing).
+        .filter(|s| s.feed.is_finite())
+        .map(|s| (s.length / 0.5).ceil() as u64 + 1)
+        .max()
+        .unwrap();
+    assert!(per_chord * 10 < times.len() as u64, "{per_chord}");
+    let mut last = 0;
+    for k in 0..=400 {
+        let t = job.cycle_time() * k as f64 / 400.0;
+        let got = eta.pulses_done(t);
+        let exact = times.iter().filter(|&&p| p <= t).count() as u64;
+        assert!(got >= last);
+        assert!(
+            got.abs_diff(exact) <= per_chord,
+            "{got} vs {exact} at t = {t}"
+        );
+        last = got;
+    }
+    assert_eq!(last, times.len() as u64);
+}

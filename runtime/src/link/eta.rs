@@ -23,6 +23,12 @@ pub struct Eta {
     /// controller's X Y Z A B C (machine axes mapped by letter), mm and degrees.
     segs: Vec<(f64, f64, AxisPos, AxisPos)>,
     total: f64,
+    /// Pulses fired by the end of each planned segment (pulses at rest after a segment count
+    /// toward the next one), and in the whole job.
+    pulses_by: Vec<u64>,
+    pulses: u64,
+    /// The machine's axis letters, as status lines show them.
+    letters: Vec<char>,
 }
 
 impl Eta {
@@ -80,11 +86,65 @@ impl Eta {
             }
             line_end.push(t);
         }
+        // Pulses by segment, in one pass over the (lazy, time-ordered) pulse events.
+        let mut pulses_by = vec![0u64; segs.len()];
+        let mut pulses = 0u64;
+        let mut k = 0;
+        for p in crate::report::pulse_events(job) {
+            while k + 1 < segs.len() && p.t > segs[k].1 + 1e-9 {
+                k += 1;
+            }
+            if let Some(n) = pulses_by.get_mut(k) {
+                *n += 1;
+            }
+            pulses += 1;
+        }
+        let mut sum = 0;
+        for n in &mut pulses_by {
+            sum += *n;
+            *n = sum;
+        }
         Eta {
             line_end,
             segs,
             total: job.cycle_time(),
+            pulses_by,
+            pulses,
+            letters: job
+                .program
+                .machine
+                .axes
+                .iter()
+                .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
+                .collect(),
         }
+    }
+
+    /// Pulses the job fires in all.
+    pub fn pulses(&self) -> u64 {
+        self.pulses
+    }
+
+    /// Pulses fired by job time `t` (planned), within the segment then running counted in
+    /// proportion to its time.
+    pub fn pulses_done(&self, t: f64) -> u64 {
+        let k = self.segs.partition_point(|s| s.1 < t);
+        let Some(&(ta, tb, _, _)) = self.segs.get(k) else {
+            return self.pulses;
+        };
+        let before = k.checked_sub(1).map_or(0, |j| self.pulses_by[j]);
+        let within = self.pulses_by[k] - before;
+        let f = if tb > ta {
+            ((t - ta) / (tb - ta)).clamp(0.0, 1.0)
+        } else {
+            1.0
+        };
+        before + (within as f64 * f).floor() as u64
+    }
+
+    /// The machine's axis letters (what a status line shows).
+    pub fn letters(&self) -> &[char] {
+        &self.letters
     }
 
     /// The planned cycle time, s.
