@@ -175,13 +175,9 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     let needs = Requirements::of_job(&job, dialect);
     // A resumed job first waits for the controller to finish what it had received (`$$` is
     // refused while it moves) and finds where the job stands.
-    let letters: Vec<char> = job
-        .program
-        .machine
-        .axes
-        .iter()
-        .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
-        .collect();
+    let letters = link::ControllerAxes::of(&job.program.machine)
+        .letters()
+        .to_vec();
     let resume_plan = match &resumed {
         Some(st) => Some(
             resume::plan(

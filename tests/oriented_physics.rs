@@ -273,17 +273,8 @@ fn executed_blocks(example: &str, m: &Machine) -> Vec<Block> {
     assert!(out.contains("done"), "{out}");
     assert!(sim.wait_quiet(std::time::Duration::from_secs(10)));
     let rec = sim.stop();
-    let q_of = |p: &[f64; 6]| {
-        let mut q = [0.0; MAX_AXES];
-        for (k, a) in m.axes.iter().enumerate() {
-            let i = lase_runtime::link::axis_index(a.name.chars().next().unwrap()).unwrap();
-            q[k] = match a.kind {
-                AxisKind::Linear => p[i],
-                AxisKind::Rotary => p[i].to_radians(),
-            };
-        }
-        q
-    };
+    let axes = lase_runtime::link::ControllerAxes::of(m);
+    let q_of = |p: &[f64; 6]| axes.from_controller(p);
     rec.blocks
         .iter()
         .map(|b| Block {

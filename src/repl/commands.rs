@@ -807,17 +807,7 @@ impl Session {
         }
         let m = m.clone();
         let reported = self.station.position(Some(&m))?;
-        let mut q = [0.0; lase_runtime::planner::MAX_AXES];
-        for (k, a) in m.axes.iter().enumerate().take(q.len()) {
-            let Some(i) = a.name.chars().next().and_then(link::axis_index) else {
-                continue;
-            };
-            let v = reported.get(i).copied().unwrap_or(0.0);
-            q[k] = match a.kind {
-                AxisKind::Rotary => v.to_radians(),
-                AxisKind::Linear => v,
-            };
-        }
+        let q = link::ControllerAxes::of(&m).from_controller(&reported);
         let spot = kin.forward(&q).spot;
         let here = [spot.x, spot.y, spot.z];
         let was = self.eval.start();

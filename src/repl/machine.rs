@@ -783,10 +783,7 @@ impl Station {
 
 /// A machine's axis letters, as its controller names them.
 fn machine_letters(m: &Machine) -> Vec<char> {
-    m.axes
-        .iter()
-        .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
-        .collect()
+    link::ControllerAxes::of(m).letters().to_vec()
 }
 
 /// After a feed hold: waits (a little) until motion has stopped.

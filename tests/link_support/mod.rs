@@ -8,8 +8,8 @@ use lase_lang::{Loader, SourceMap, Span};
 use lase_runtime::emit::{EmitOptions, NcLine};
 use lase_runtime::eval::{Evaluator, Host};
 use lase_runtime::link::sim::{self, Recording, SimHandle, SimOptions};
-use lase_runtime::link::{AxisPos, MAX_AXES, axis_index};
-use lase_runtime::machine::{AxisKind, Machine};
+use lase_runtime::link::{AxisPos, ControllerAxes, MAX_AXES};
+use lase_runtime::machine::Machine;
 use lase_runtime::motion::Job;
 use lase_runtime::program::OpKind;
 use std::path::{Path, PathBuf};
@@ -124,18 +124,9 @@ pub fn examples() -> Vec<PathBuf> {
 }
 
 /// Machine axes in a controller's position: X Y Z A B C by letter, rotary axes in degrees.
-pub fn to_controller(m: &Machine) -> impl Fn(&[f64]) -> AxisPos + '_ {
-    move |q: &[f64]| {
-        let mut p = [0.0; MAX_AXES];
-        for (k, a) in m.axes.iter().enumerate() {
-            let i = axis_index(a.name.chars().next().unwrap()).unwrap();
-            p[i] = match a.kind {
-                AxisKind::Rotary => q[k].to_degrees(),
-                AxisKind::Linear => q[k],
-            };
-        }
-        p
-    }
+pub fn to_controller(m: &Machine) -> impl Fn(&[f64]) -> AxisPos {
+    let axes = ControllerAxes::of(m);
+    move |q: &[f64]| axes.to_controller(q)
 }
 
 fn dist(a: AxisPos, b: AxisPos) -> f64 {

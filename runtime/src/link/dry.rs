@@ -6,7 +6,7 @@
 //! ([`super::sim`]).
 
 use super::{DryLink, LinkError, Reply};
-use crate::machine::{AxisKind, Machine};
+use crate::machine::Machine;
 
 #[derive(Debug, Clone)]
 pub struct SimController {
@@ -33,9 +33,9 @@ impl SimController {
             travel: m
                 .axes
                 .iter()
-                .map(|a| match a.kind {
-                    AxisKind::Rotary => (a.min.to_degrees(), a.max.to_degrees()),
-                    AxisKind::Linear => (a.min, a.max),
+                .map(|a| {
+                    let scale = super::controller_scale(a.kind);
+                    (a.min * scale, a.max * scale)
                 })
                 .collect(),
             pos: vec![0.0; m.axes.len()],

@@ -6,9 +6,8 @@
 //! position, matched against the planned segments of the last lines, says where in them the
 //! machine is.
 
-use super::{AxisPos, MAX_AXES, axis_index};
+use super::{AxisPos, ControllerAxes, MAX_AXES};
 use crate::emit::NcLine;
-use crate::machine::AxisKind;
 use crate::motion::Job;
 
 /// How far back from the last acknowledged line the position is searched, in planned
@@ -35,33 +34,8 @@ impl Eta {
     pub fn new(job: &Job, lines: &[NcLine]) -> Eta {
         let plan = &job.plan;
         let t0 = job.initial_dwell_s;
-        // Machine axis k → (controller axis, scale to its unit).
-        let slots: Vec<Option<(usize, f64)>> = job
-            .program
-            .machine
-            .axes
-            .iter()
-            .map(|a| {
-                let scale = match a.kind {
-                    AxisKind::Rotary => 180.0 / std::f64::consts::PI,
-                    AxisKind::Linear => 1.0,
-                };
-                let mut letters = a.name.chars();
-                match (letters.next(), letters.next()) {
-                    (Some(l), None) => axis_index(l).map(|i| (i, scale)),
-                    _ => None,
-                }
-            })
-            .collect();
-        let map = |q: &[f64]| {
-            let mut p = [0.0; MAX_AXES];
-            for (k, slot) in slots.iter().enumerate() {
-                if let (Some((i, scale)), Some(v)) = (slot, q.get(k)) {
-                    p[*i] = *v * scale;
-                }
-            }
-            p
-        };
+        let axes = ControllerAxes::of(&job.program.machine);
+        let map = |q: &[f64]| axes.to_controller(q);
         let mut op_end = vec![f64::NAN; job.program.ops.len()];
         let mut segs = Vec::with_capacity(plan.segments().len());
         for (i, s) in plan.segments().iter().enumerate() {
@@ -110,13 +84,7 @@ impl Eta {
             total: job.cycle_time(),
             pulses_by,
             pulses,
-            letters: job
-                .program
-                .machine
-                .axes
-                .iter()
-                .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
-                .collect(),
+            letters: axes.letters().to_vec(),
         }
     }
 

@@ -58,6 +58,76 @@ pub fn axis_index(letter: char) -> Option<usize> {
     AXIS_LETTERS.iter().position(|&c| c == l)
 }
 
+/// A machine axis's controller unit per internal unit: 1 for mm, degrees per radian for a
+/// rotary axis (GRBL-family controllers take rotary positions, rates and accelerations in
+/// degrees).
+pub fn controller_scale(kind: crate::machine::AxisKind) -> f64 {
+    match kind {
+        crate::machine::AxisKind::Rotary => 180.0 / std::f64::consts::PI,
+        crate::machine::AxisKind::Linear => 1.0,
+    }
+}
+
+/// How a machine's axes sit in a GRBL-family controller's position: by letter (X Y Z A B C),
+/// rotary axes in degrees. An axis whose name is not one of those letters has no place (the
+/// dialect check refuses such machines before anything is sent).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ControllerAxes {
+    /// Per machine axis: its index in a controller position and its unit scale.
+    slots: Vec<Option<(usize, f64)>>,
+    letters: Vec<char>,
+}
+
+impl ControllerAxes {
+    pub fn of(machine: &crate::machine::Machine) -> ControllerAxes {
+        let letters: Vec<char> = machine
+            .axes
+            .iter()
+            .map(|a| a.name.chars().next().unwrap_or('X').to_ascii_uppercase())
+            .collect();
+        let slots = machine
+            .axes
+            .iter()
+            .zip(&letters)
+            .map(|(a, &l)| {
+                (a.name.chars().count() == 1)
+                    .then(|| axis_index(l))
+                    .flatten()
+                    .map(|i| (i, controller_scale(a.kind)))
+            })
+            .collect();
+        ControllerAxes { slots, letters }
+    }
+
+    /// Each machine axis's NC letter, in the machine's order.
+    pub fn letters(&self) -> &[char] {
+        &self.letters
+    }
+
+    /// Machine axis positions (mm, rad) as a controller position (mm, degrees).
+    pub fn to_controller(&self, q: &[f64]) -> AxisPos {
+        let mut p = [0.0; MAX_AXES];
+        for (slot, v) in self.slots.iter().zip(q) {
+            if let Some((i, scale)) = slot {
+                p[*i] = v * scale;
+            }
+        }
+        p
+    }
+
+    /// A controller position (mm, degrees; missing axes 0) as machine axis positions (mm,
+    /// rad).
+    pub fn from_controller(&self, p: &[f64]) -> crate::planner::Axes {
+        let mut q = [0.0; crate::planner::MAX_AXES];
+        for (k, slot) in self.slots.iter().enumerate().take(q.len()) {
+            if let Some((i, scale)) = slot {
+                q[k] = p.get(*i).copied().unwrap_or(0.0) / scale;
+            }
+        }
+        q
+    }
+}
+
 /// How many axes a GRBL-family controller needs for a machine: 3 (GRBL 1.1) when its axes
 /// are linear X, Y, Z; else as many as its highest letter, at least 4 (a grblHAL build; a
 /// machine with C needs all six). Axis names outside X Y Z A B C count as six: the dialect

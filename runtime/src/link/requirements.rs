@@ -68,6 +68,7 @@ impl Requirements {
         // Where each axis's peaks are reached: the same per-segment quantities `summarize`
         // takes the maximum of (|u_k|·v_peak and |u_k|·a_peak along a straight move).
         let segs = job.plan.segments();
+        let controller = super::ControllerAxes::of(&program.machine);
         let mut axes = Vec::new();
         for (k, axis) in program.machine.axes.iter().enumerate() {
             let Some(peaks) = summary.axes.get(&axis.name) else {
@@ -86,7 +87,7 @@ impl Requirements {
                 }
             }
             axes.push(AxisNeed {
-                letter: axis.name.chars().next().unwrap_or('X').to_ascii_uppercase(),
+                letter: controller.letters()[k],
                 rotary: axis.kind == crate::machine::AxisKind::Rotary,
                 v_mm_min: peaks.v_max * 60.0,
                 a_mm_s2: peaks.a_max,

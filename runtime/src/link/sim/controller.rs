@@ -26,7 +26,7 @@ use crate::link::grbl::codes::realtime_of;
 use crate::link::{
     AXIS_LETTERS, AxisPos, MAX_AXES, MotionMode, OverrideStep, Plane, Realtime, Spindle,
 };
-use crate::machine::{AxisKind, Machine};
+use crate::machine::Machine;
 use std::collections::{BTreeMap, VecDeque};
 
 /// GRBL's version string.
@@ -210,14 +210,6 @@ impl ControllerConfig {
     }
 }
 
-/// An axis's limits in the controller's units: mm or degrees.
-fn controller_units(kind: AxisKind) -> f64 {
-    match kind {
-        AxisKind::Rotary => 180.0 / std::f64::consts::PI,
-        _ => 1.0,
-    }
-}
-
 /// GRBL settings matching a machine file: rates and accelerations from each axis's limits
 /// (in mm or degrees), travel, laser mode, S of full power from the post of its firmware.
 pub fn settings_for(machine: &Machine) -> BTreeMap<u32, f64> {
@@ -257,7 +249,7 @@ pub fn settings_for(machine: &Machine) -> BTreeMap<u32, f64> {
             .axes
             .iter()
             .find(|a| a.name.eq_ignore_ascii_case(&letter.to_string()));
-        let unit = axis.map_or(1.0, |a| controller_units(a.kind));
+        let unit = axis.map_or(1.0, |a| crate::link::controller_scale(a.kind));
         s.insert(100 + k, 250.0);
         s.insert(110 + k, axis.map_or(500.0, |a| a.v_max * 60.0 * unit));
         s.insert(120 + k, axis.map_or(10.0, |a| a.a_max * unit));
@@ -274,7 +266,7 @@ pub fn travel_for(machine: &Machine) -> [Option<(f64, f64)>; MAX_AXES] {
             .iter()
             .find(|a| a.name.eq_ignore_ascii_case(&AXIS_LETTERS[k].to_string()))
             .map(|a| {
-                let unit = controller_units(a.kind);
+                let unit = crate::link::controller_scale(a.kind);
                 (a.min * unit, a.max * unit)
             })
     })
