@@ -1,7 +1,7 @@
 //! From a recipe file on disk to a planned job: the file system side of the pipeline
 //! (imports, machine files) and the one place where diagnostics meet their source text.
 
-use lase_lang::{CheckError, FileId, Loader, ParseError, Program, SourceMap, Span};
+use lase_lang::{CheckError, FileId, Loader, Program, SourceMap, Span};
 use lase_runtime::eval::{EvalError, Evaluator, Host};
 use lase_runtime::motion::{Job, MotionError};
 use lase_runtime::program::ProcessProgram;
@@ -62,6 +62,16 @@ impl Failure {
             diagnostics: vec![Box::new(d)],
         }
     }
+
+    /// Several diagnostics of one kind, in order.
+    pub fn many<E: Diagnostic + Send + Sync + 'static>(v: Vec<E>) -> Failure {
+        Failure {
+            diagnostics: v
+                .into_iter()
+                .map(|e| Box::new(e) as Box<dyn Diagnostic + Send + Sync>)
+                .collect(),
+        }
+    }
 }
 
 /// A loaded recipe: its sources and parsed modules.
@@ -116,23 +126,13 @@ pub fn load(path: &Path) -> Result<Recipe, (SourceMap, Failure)> {
     let main = map.add(path.to_string_lossy(), text);
     let (program, errors) = lase_lang::load(&mut map, main, &mut FsLoader);
     if !errors.is_empty() {
-        return Err((
-            map,
-            Failure {
-                diagnostics: boxed(errors),
-            },
-        ));
+        return Err((map, Failure::many(errors)));
     }
     let mut program = program;
     let mut ext = lase_runtime::ext::Extensions::new();
     let errors = ext.load_uses(&mut program, &mut map, &mut FsLoader);
     if !errors.is_empty() {
-        return Err((
-            map,
-            Failure {
-                diagnostics: boxed(errors),
-            },
-        ));
+        return Err((map, Failure::many(errors)));
     }
     Ok(Recipe {
         map,
@@ -142,23 +142,13 @@ pub fn load(path: &Path) -> Result<Recipe, (SourceMap, Failure)> {
     })
 }
 
-fn boxed<E: Diagnostic + Send + Sync + 'static>(
-    v: Vec<E>,
-) -> Vec<Box<dyn Diagnostic + Send + Sync>> {
-    v.into_iter()
-        .map(|e| Box::new(e) as Box<dyn Diagnostic + Send + Sync>)
-        .collect()
-}
-
 /// Checks a loaded recipe.
 pub fn check(recipe: &Recipe) -> Result<(), Failure> {
     let errors: Vec<CheckError> = lase_lang::check_program(&recipe.program);
     if errors.is_empty() {
         Ok(())
     } else {
-        Err(Failure {
-            diagnostics: boxed(errors),
-        })
+        Err(Failure::many(errors))
     }
 }
 
@@ -180,6 +170,17 @@ pub fn evaluate(recipe: &mut Recipe) -> Result<ProcessProgram, Failure> {
 /// Plans a process program.
 pub fn plan(program: ProcessProgram) -> Result<Job, Failure> {
     lase_runtime::motion::plan_program(program).map_err(|e: MotionError| Failure::one(e))
+}
+
+/// What `lase check` (and the REPL's `:check FILE`) says of a recipe that compiled.
+pub fn ok_line(recipe: &Recipe, job: &Job) -> String {
+    format!(
+        "{}: ok — {} ops on `{}`, cycle time {:.3} s",
+        recipe.name(),
+        job.program.ops.len(),
+        job.program.machine.name,
+        lase_runtime::report::summarize(job).cycle_time_s
+    )
 }
 
 /// load → check → evaluate → plan, stopping at the first phase that fails.
@@ -273,18 +274,5 @@ impl Diagnostic for WithSource<'_> {
     }
     fn diagnostic_source(&self) -> Option<&dyn Diagnostic> {
         self.inner.diagnostic_source()
-    }
-}
-
-/// Parse errors of the REPL and of files, as one list.
-pub fn parse_failure(errors: Vec<ParseError>) -> Failure {
-    Failure {
-        diagnostics: boxed(errors),
-    }
-}
-
-pub fn check_failure(errors: Vec<CheckError>) -> Failure {
-    Failure {
-        diagnostics: boxed(errors),
     }
 }

@@ -194,15 +194,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     };
     let mismatches = link.check_settings(&needs).map_err(setup_fail)?;
     if !mismatches.is_empty() {
-        return Err((
-            map.clone(),
-            Failure {
-                diagnostics: mismatches
-                    .into_iter()
-                    .map(|e| Box::new(e) as Box<dyn miette::Diagnostic + Send + Sync>)
-                    .collect(),
-            },
-        ));
+        return Err((map.clone(), Failure::many(mismatches)));
     }
     let summary = lase_runtime::report::summarize(&job);
 
@@ -722,17 +714,8 @@ pub fn nc_lines(
     job: &lase_runtime::motion::Job,
     dialect: Dialect,
 ) -> Result<Vec<NcLine>, (SourceMap, Failure)> {
-    let mut lines: Vec<NcLine> = Vec::new();
     let locate = |s: Span| recipe.locate(s);
-    lase_runtime::emit::emit(
-        job,
-        dialect,
-        &crate::emit_options(&locate),
-        &mut |l: &NcLine| {
-            lines.push(l.clone());
-            Ok(())
-        },
-    )
-    .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
-    Ok(lines)
+    lase_runtime::emit::emit_lines(job, dialect, &crate::emit_options(&locate))
+        .map(|(lines, _)| lines)
+        .map_err(|e| (recipe.map.clone(), Failure::one(e)))
 }

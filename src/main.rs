@@ -252,14 +252,7 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
 
 fn cmd_check(file: &Path) -> CmdResult {
     let (recipe, job) = driver::compile(file)?;
-    let summary = lase_runtime::report::summarize(&job);
-    println!(
-        "{}: ok — {} ops on `{}`, cycle time {:.3} s",
-        recipe.name(),
-        job.program.ops.len(),
-        job.program.machine.name,
-        summary.cycle_time_s
-    );
+    println!("{}", driver::ok_line(&recipe, &job));
     Ok(())
 }
 

@@ -6,7 +6,7 @@
 mod common;
 
 use common::{compile, job};
-use lase_runtime::emit::{Dialect, EmitError, EmitOptions, NcLine, emit, emit_to_string};
+use lase_runtime::emit::{Dialect, EmitError, EmitOptions, emit_lines, emit_to_string};
 use lase_runtime::motion::{Job, power};
 use lase_runtime::report::beam_at;
 
@@ -82,12 +82,7 @@ fn uncoupled_power_stays_constant() {
 /// (op, power written before it, end point) of every lit motion block of a LinuxCNC or ISO
 /// program.
 fn lit_blocks(j: &Job, dialect: Dialect, max_power: f64) -> Vec<(u32, f64, [f64; 2])> {
-    let mut lines: Vec<NcLine> = Vec::new();
-    emit(j, dialect, &EmitOptions::default(), &mut |l: &NcLine| {
-        lines.push(l.clone());
-        Ok(())
-    })
-    .unwrap();
+    let (lines, _) = emit_lines(j, dialect, &EmitOptions::default()).unwrap();
     let mut out = Vec::new();
     let (mut lit, mut power, mut pos) = (false, 0.0, [0.0f64; 2]);
     for l in &lines {

@@ -390,16 +390,7 @@ impl Session {
     fn check(&self, arg: Option<&str>) {
         if let Some(file) = arg {
             match driver::compile(Path::new(file)) {
-                Ok((recipe, job)) => {
-                    let s = lase_runtime::report::summarize(&job);
-                    println!(
-                        "{}: ok — {} ops on `{}`, cycle time {:.3} s",
-                        recipe.name(),
-                        job.program.ops.len(),
-                        job.program.machine.name,
-                        s.cycle_time_s
-                    );
-                }
+                Ok((recipe, job)) => println!("{}", driver::ok_line(&recipe, &job)),
                 Err((map, f)) => self.report_in(&map, &f),
             }
             return;
@@ -462,18 +453,8 @@ impl Session {
 
     fn nc_lines_in(&self, map: &SourceMap, job: &Job, dialect: Dialect) -> Option<Vec<NcLine>> {
         let locate = |s: Span| Self::locate(map, s);
-        let mut lines = Vec::new();
-        let r = lase_runtime::emit::emit(
-            job,
-            dialect,
-            &crate::emit_options(&locate),
-            &mut |l: &NcLine| {
-                lines.push(l.clone());
-                Ok(())
-            },
-        );
-        match r {
-            Ok(stats) => {
+        match lase_runtime::emit::emit_lines(job, dialect, &crate::emit_options(&locate)) {
+            Ok((lines, stats)) => {
                 for w in &stats.warnings {
                     eprintln!("warning: {w}");
                 }

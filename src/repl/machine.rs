@@ -464,15 +464,7 @@ impl Station {
         match link.check_settings(&needs) {
             Ok(m) if m.is_empty() => {}
             Ok(m) => {
-                return (
-                    Ran::NotStarted,
-                    Err(Trouble::Diag(Failure {
-                        diagnostics: m
-                            .into_iter()
-                            .map(|e| Box::new(e) as Box<dyn miette::Diagnostic + Send + Sync>)
-                            .collect(),
-                    })),
-                );
+                return (Ran::NotStarted, Err(Trouble::Diag(Failure::many(m))));
             }
             Err(e) => return (Ran::NotStarted, Err(e.into())),
         }

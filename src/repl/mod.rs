@@ -106,7 +106,7 @@ impl Session {
         let parsed = match parse_repl(text, base) {
             Ok(p) => p,
             Err(e) => {
-                self.report(&driver::parse_failure(vec![e]));
+                self.report(&Failure::one(e));
                 return false;
             }
         };
@@ -137,7 +137,7 @@ impl Session {
                     &mut vec![id],
                 );
                 if !errors.is_empty() {
-                    self.report(&driver::parse_failure(errors));
+                    self.report(&Failure::many(errors));
                     return false;
                 }
                 // `use` lines load their extension module or preset into the session before
@@ -153,12 +153,7 @@ impl Session {
                     &mut FsLoader,
                 );
                 if !ext_errors.is_empty() {
-                    self.report(&Failure {
-                        diagnostics: ext_errors
-                            .into_iter()
-                            .map(|e| Box::new(e) as Box<dyn miette::Diagnostic + Send + Sync>)
-                            .collect(),
-                    });
+                    self.report(&Failure::many(ext_errors));
                     return false;
                 }
                 self.program.uses = with_input.uses;
@@ -166,7 +161,7 @@ impl Session {
                 self.checker.check_stmts(&stmts);
                 let errs = self.checker.take_errors();
                 if !errs.is_empty() {
-                    self.report(&driver::check_failure(errs));
+                    self.report(&Failure::many(errs));
                     return false;
                 }
                 match self
@@ -184,7 +179,7 @@ impl Session {
                 self.checker.check_expr_stmt(&e);
                 let errs = self.checker.take_errors();
                 if !errs.is_empty() {
-                    self.report(&driver::check_failure(errs));
+                    self.report(&Failure::many(errs));
                     return false;
                 }
                 match self

@@ -94,17 +94,12 @@ pub fn compile(path: &Path) -> Compiled {
         ),
         None => String::new(),
     };
-    let mut lines = Vec::new();
-    lase_runtime::emit::emit(
+    let (lines, _) = lase_runtime::emit::emit_lines(
         &job,
         lase_runtime::link::live_dialect(&job.program.machine),
         &EmitOptions {
             locate: Some(&locate),
             comments: true,
-        },
-        &mut |l: &NcLine| {
-            lines.push(l.clone());
-            Ok(())
         },
     )
     .unwrap();

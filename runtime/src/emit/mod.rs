@@ -287,6 +287,21 @@ pub fn emit(
     Ok(stats)
 }
 
+/// The whole program as lines, each with the op it came from (what a link streams), and the
+/// emitter's statistics and warnings.
+pub fn emit_lines(
+    job: &Job,
+    dialect: Dialect,
+    options: &EmitOptions<'_>,
+) -> Result<(Vec<NcLine>, EmitStats), EmitError> {
+    let mut lines = Vec::new();
+    let stats = emit(job, dialect, options, &mut |l: &NcLine| {
+        lines.push(l.clone());
+        Ok(())
+    })?;
+    Ok((lines, stats))
+}
+
 /// The whole program as one string, one `\n` after every line. For tests and small jobs.
 pub fn emit_to_string(job: &Job, dialect: Dialect) -> Result<String, EmitError> {
     emit_to_string_with(job, dialect, &EmitOptions::default())
