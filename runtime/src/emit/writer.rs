@@ -147,6 +147,15 @@ pub(super) fn write(
     let oriented = kin.oriented();
     let arc_axes = validate::arc_axes(machine);
     let mut train = pulse::Train::default();
+    // What pulse lowering needs of this program (the same for every op).
+    let gate = pulse::Gate {
+        dialect,
+        post,
+        machine,
+        kin: &*kin,
+        arc_axes,
+        words: &words,
+    };
     let ops = &program.ops;
     for (i, op) in ops.iter().enumerate() {
         let tag = Some(i as u32);
@@ -185,17 +194,7 @@ pub(super) fn write(
                     }
                 }
             }
-            OpKind::Fire { .. } => {
-                let gate = pulse::Gate {
-                    dialect,
-                    post,
-                    machine,
-                    kin: &*kin,
-                    arc_axes,
-                    words: &words,
-                };
-                pulse::write_fire(op, &mut out, &gate, tag)?;
-            }
+            OpKind::Fire { .. } => pulse::write_fire(op, &mut out, &gate, tag)?,
             OpKind::Rapid { .. } | OpKind::Line { .. } | OpKind::Arc { .. } => {
                 if !moves(op, m.pos) {
                     continue;
@@ -244,14 +243,6 @@ pub(super) fn write(
                     None
                 };
                 if let Some(pitch) = gated {
-                    let gate = pulse::Gate {
-                        dialect,
-                        post,
-                        machine,
-                        kin: &*kin,
-                        arc_axes,
-                        words: &words,
-                    };
                     pulse::write_gated(ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag)?;
                 } else if blocks.is_empty() {
                     let line = motion_line(op, &mut m, &*kin, machine, arc_axes);
