@@ -190,6 +190,21 @@ pub struct AxisLimit {
     pub j: f64,
 }
 
+impl AxisLimit {
+    /// A machine's own limits, one per axis (before any `limits` statement).
+    pub fn of_machine(machine: &Machine) -> Vec<AxisLimit> {
+        machine
+            .axes
+            .iter()
+            .map(|a| AxisLimit {
+                v: a.v_max,
+                a: a.a_max,
+                j: a.j_max,
+            })
+            .collect()
+    }
+}
+
 /// Extra limits along the path (`limits { path: ... }`); infinite when not given.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PathLimits {

@@ -567,15 +567,7 @@ impl Evaluator {
             None => cx.map.add(name, text),
         };
         let machine = parse_machine(cx.map.text(id), cx.map.base(id))?;
-        self.limits = machine
-            .axes
-            .iter()
-            .map(|a| AxisLimit {
-                v: a.v_max,
-                a: a.a_max,
-                j: a.j_max,
-            })
-            .collect();
+        self.limits = AxisLimit::of_machine(&machine);
         self.orients_beam = crate::kinematics::for_machine(&machine).oriented();
         self.machine = Some(machine);
         Ok(())

@@ -45,15 +45,7 @@ pub fn program(
         lase_runtime::machine::parse_machine(lase_stdlib::machine(machine).unwrap(), 0).unwrap();
     lase_runtime::program::ProcessProgram {
         recipe: "test.lase".into(),
-        limits: m
-            .axes
-            .iter()
-            .map(|a| AxisLimit {
-                v: a.v_max,
-                a: a.a_max,
-                j: a.j_max,
-            })
-            .collect(),
+        limits: AxisLimit::of_machine(&m),
         path_limits: PathLimits::default(),
         planner: PlannerSettings {
             ramp: m.ramp,
