@@ -368,8 +368,9 @@ fn st_start(st: &Option<journal::State>) -> AxisPos {
 }
 
 /// The diagnostic of a job the controller refused a line of or stopped with an alarm: the
-/// line, the recipe statement it came from, and what stopping the machine did.
-fn controller_stop(
+/// line, the recipe statement it came from, and what stopping the machine did (`lase run`,
+/// its check mode and the REPL's jobs).
+pub(crate) fn controller_stop(
     outcome: Outcome,
     lines: &[String],
     span_of: &dyn Fn(usize) -> Span,

@@ -706,31 +706,14 @@ impl Station {
                 }
                 Ok(msg)
             }
-            Outcome::Rejected {
-                index,
-                code,
-                message,
-            } => Err(Trouble::Diag(Failure::one(output::ControllerRejected {
-                line_no: index + 1,
-                line: lines[index].clone(),
-                code,
-                message,
-                span: job.span_of(index),
-                stop: report.stop_note.unwrap_or_default(),
-            }))),
-            Outcome::Alarm {
-                index,
-                code,
-                message,
-            } => Err(Trouble::Diag(Failure::one(output::ControllerAlarm {
-                line: index
-                    .map(|i| format!(" at line {} `{}`", i + 1, lines[i]))
-                    .unwrap_or_default(),
-                code,
-                message,
-                span: index.map(|i| job.span_of(i)),
-                stop: report.stop_note.unwrap_or_default(),
-            }))),
+            outcome @ (Outcome::Rejected { .. } | Outcome::Alarm { .. }) => {
+                Err(Trouble::Diag(crate::live::controller_stop(
+                    outcome,
+                    lines,
+                    &|i| job.span_of(i),
+                    report.stop_note.unwrap_or_default(),
+                )))
+            }
             Outcome::Aborted => Err(Trouble::Diag(Failure::one(output::JobAborted {
                 acked: report.acked,
                 total,
