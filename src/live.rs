@@ -206,7 +206,6 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     let mut lead = Vec::new();
     let (mut jour, from, restored, start_pos) = match (&args.resume, resume_plan) {
         (Some(path), Some(plan)) => {
-            let (mut j, _) = Journal::append(path).map_err(fail)?;
             let all = plan.reapproach.all();
             eprintln!(
                 "{}: {} of {} lines had run (the controller's state fits {}); re-approach: {}",
@@ -220,11 +219,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
                     .join(", "),
                 all.join(" | ")
             );
-            j.resumed(plan.executed, &all).map_err(fail)?;
-            for p in &plan.reapproach.setup {
-                let reply = link.send(p).map_err(fail)?;
-                link::reply_error(p, reply).map_err(fail)?;
-            }
+            let j = resume::enter(&mut *link, &plan, path).map_err(fail)?;
             lead = plan.reapproach.lead;
             (
                 Some(j),

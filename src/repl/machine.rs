@@ -558,19 +558,13 @@ impl Station {
             None,
             Duration::from_secs(600),
         )?;
-        let (mut jour, _) = Journal::append(&path)?;
-        let all = plan.reapproach.all();
-        jour.resumed(plan.executed, &all)?;
+        let jour = resume::enter(&mut **link, &plan, &path)?;
         let note = format!(
             "{} of {} lines had run; re-approach: {}",
             plan.executed,
             lines.len(),
-            all.join(" | ")
+            plan.reapproach.all().join(" | ")
         );
-        for p in &plan.reapproach.setup {
-            let reply = link.send(p)?;
-            link::reply_error(p, reply)?;
-        }
         let Some(lost) = self.lost.take() else {
             return Err(Trouble::Say("no job to resume".into()));
         };

@@ -191,6 +191,24 @@ pub fn plan(
     })
 }
 
+/// Starts carrying out `plan` for the job journaled at `journal`: records the resume point and
+/// the re-approach in the journal, then sends the re-approach's setup lines one at a time,
+/// each answered (its lead lines go out with the job's next lines, [`super::stream`]).
+/// Returns the journal, open for the rest of the job.
+pub fn enter(
+    link: &mut dyn Link,
+    plan: &ResumePlan,
+    journal: &std::path::Path,
+) -> Result<super::journal::Journal, LinkError> {
+    let (mut j, _) = super::journal::Journal::append(journal)?;
+    j.resumed(plan.executed, &plan.reapproach.all())?;
+    for p in &plan.reapproach.setup {
+        let reply = link.send(p)?;
+        super::reply_error(p, reply)?;
+    }
+    Ok(j)
+}
+
 /// Lines that must wait for acknowledgements before they are sent, so that a resume can
 /// always tell how far a job ran: `guards[k] = Some(c)` means line `k` may only be sent once
 /// the first `c + 1` lines are acknowledged.
