@@ -233,8 +233,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             let st = link
                 .query_status(Duration::from_secs(2))
                 .map_err(setup_fail)?;
-            let pos = st.work_position(st.wco.as_deref()).unwrap_or_default();
-            let start: AxisPos = std::array::from_fn(|i| pos.get(i).copied().unwrap_or(0.0));
+            let start = st.work_axes();
             let j = match path {
                 Some(path) => {
                     let recipe_path = std::fs::canonicalize(&file).unwrap_or(file.clone());

@@ -488,10 +488,7 @@ impl Station {
         }
         // The journal: what was sent and acknowledged, so that a lost link can be resumed.
         let header_start = match link.query_status(Duration::from_secs(2)) {
-            Ok(s) => {
-                let pos = s.work_position(s.wco.as_deref()).unwrap_or_default();
-                std::array::from_fn(|i| pos.get(i).copied().unwrap_or(0.0))
-            }
+            Ok(s) => s.work_axes(),
             Err(e) => return (Ran::NotStarted, Err(e.into())),
         };
         let path = match tempfile::Builder::new()

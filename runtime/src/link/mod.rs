@@ -252,6 +252,13 @@ impl Status {
         )
     }
 
+    /// The work position as a controller position (axes it does not report are 0), from the
+    /// report's own work offset: where a job starts, for its journal.
+    pub fn work_axes(&self) -> AxisPos {
+        let pos = self.work_position(self.wco.as_deref()).unwrap_or_default();
+        std::array::from_fn(|i| pos.get(i).copied().unwrap_or(0.0))
+    }
+
     /// One line for people: `Idle | X10 Y0 Z0`.
     pub fn summary(&self) -> String {
         self.summary_for(None, &[])
