@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 use driver::{Failure, IoError};
 use lase_lang::SourceMap;
 use lase_runtime::emit::{Dialect, EmitOptions, NcLine};
+use output::{out, outln};
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -252,7 +253,7 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
 
 fn cmd_check(file: &Path) -> CmdResult {
     let (recipe, job) = driver::compile(file)?;
-    println!("{}", driver::ok_line(&recipe, &job));
+    outln!("{}", driver::ok_line(&recipe, &job));
     Ok(())
 }
 
@@ -290,10 +291,10 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
     match output {
         Some(path) => output::write_atomic(path, |w| write(w)),
         None => {
-            let stdout = std::io::stdout();
-            let mut lock = std::io::BufWriter::new(stdout.lock());
-            write(&mut lock)?;
-            lock.flush().map_err(|e| io_fail(format!("stdout: {e}")))
+            // A reader that stops early (`| head`) ends lase quietly, as it would `cat`.
+            let mut out = std::io::BufWriter::new(output::Stdout(std::io::stdout().lock()));
+            write(&mut out)?;
+            out.flush().map_err(|e| io_fail(format!("stdout: {e}")))
         }
     }
 }
@@ -350,34 +351,38 @@ fn cmd_plan(
             lase_runtime::report::write_pulses(&job, w).map_err(|e| io_fail(e.to_string()))
         })?;
     }
-    println!(
+    outln!(
         "{} on `{}` ({:?} ramps)",
         recipe.name(),
         job.program.machine.name,
         job.program.planner.ramp
     );
-    println!("  cycle time      {:.4} s", s.cycle_time_s);
-    println!(
+    outln!("  cycle time      {:.4} s", s.cycle_time_s);
+    outln!(
         "  path length     {:.4} mm ({:.4} mm rapid)",
-        s.path_length_mm, s.rapid_length_mm
+        s.path_length_mm,
+        s.rapid_length_mm
     );
-    println!(
+    outln!(
         "  laser on        {:.4} mm, {:.4} s",
-        s.laser_on_length_mm, s.laser_on_time_s
+        s.laser_on_length_mm,
+        s.laser_on_time_s
     );
-    println!("  pulses          {}", s.pulses);
-    println!(
+    outln!("  pulses          {}", s.pulses);
+    outln!(
         "  blocks          {} planned moves from {} ops",
-        s.blocks, s.ops
+        s.blocks,
+        s.ops
     );
     for (axis, p) in &s.axes {
         let j = p
             .j_max
             .map(|j| format!("{j:.1}"))
             .unwrap_or_else(|| "unbounded (trapezoid)".into());
-        println!(
+        outln!(
             "  axis {axis:<3}  v {:.3}  a {:.3}  j {j}",
-            p.v_max, p.a_max
+            p.v_max,
+            p.a_max
         );
     }
     Ok(())
@@ -392,19 +397,19 @@ fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
         w.write_all(svg.as_bytes())
             .map_err(|e| io_fail(e.to_string()))
     })?;
-    println!("{}: wrote {}", recipe.name(), path.display());
+    outln!("{}: wrote {}", recipe.name(), path.display());
     Ok(())
 }
 
 /// `lase doc [NAME]`: one reference text for the CLI, the REPL's `:help` and docs/reference.md.
 fn cmd_doc(name: Option<&str>, markdown: bool) -> ExitCode {
     if markdown {
-        print!("{}", doc::reference_markdown());
+        out!("{}", doc::reference_markdown());
         return ExitCode::SUCCESS;
     }
     match doc::lookup(name) {
         Some(text) => {
-            print!("{text}");
+            out!("{text}");
             ExitCode::SUCCESS
         }
         None => {
