@@ -73,6 +73,8 @@ pub struct GrblLink {
     partial: Vec<u8>,
     events: VecDeque<Event>,
     banner: Option<String>,
+    /// `$I` said `[FIRMWARE:grblHAL]` (grblHAL sends no banner to a TCP client).
+    hal_build: bool,
     last_status: Option<Status>,
     statuses: u64,
     wco: Option<Vec<f64>>,
@@ -102,6 +104,13 @@ fn lost(e: std::io::Error) -> LinkError {
     }
 }
 
+/// What `$I` told about the controller.
+#[derive(Debug, Default)]
+struct BuildInfo {
+    rx_buffer: Option<usize>,
+    grblhal: bool,
+}
+
 impl GrblLink {
     /// Greets the controller: asks for status until one arrives. A USB GRBL resets when the
     /// port opens and answers after its boot loader, so the question is repeated.
@@ -120,6 +129,7 @@ impl GrblLink {
             partial: Vec::new(),
             events: VecDeque::new(),
             banner: None,
+            hal_build: false,
             last_status: None,
             statuses: 0,
             wco: None,
@@ -142,8 +152,11 @@ impl GrblLink {
                 other => other,
             })?;
         link.barrier(options.busy_wait)?;
+        let info = link.build_info()?;
+        // grblHAL greets no TCP client with a banner; its `$I` says what it is.
+        link.hal_build = info.grblhal;
         if options.rx_buffer.is_none()
-            && let Some(rx) = link.reported_rx_buffer()?
+            && let Some(rx) = info.rx_buffer
         {
             link.rx_capacity = rx;
         }
@@ -152,23 +165,29 @@ impl GrblLink {
         Ok(link)
     }
 
-    /// The RX buffer the controller reports in `$I` (`[OPT:codes,blocks,rx…]`, GRBL 1.1 and
-    /// grblHAL alike), when it answers with a plausible one. A controller that refuses `$I`
-    /// or leaves the field out keeps GRBL's 128.
-    fn reported_rx_buffer(&mut self) -> Result<Option<usize>, LinkError> {
+    /// What the controller's `$I` says: the RX buffer (`[OPT:codes,blocks,rx…]`, GRBL 1.1 and
+    /// grblHAL alike) when plausible, and whether it is grblHAL (`[FIRMWARE:grblHAL]`). A
+    /// controller that refuses `$I` or leaves a field out keeps GRBL's 128 and GRBL's limits.
+    fn build_info(&mut self) -> Result<BuildInfo, LinkError> {
         let got = match self.command_collect("$I", Duration::from_secs(3)) {
             Ok((Reply::Ok, got)) => got,
-            Ok((Reply::Error { .. }, _)) | Err(LinkError::Timeout { .. }) => return Ok(None),
+            Ok((Reply::Error { .. }, _)) | Err(LinkError::Timeout { .. }) => {
+                return Ok(BuildInfo::default());
+            }
             Err(e) => return Err(e),
         };
-        Ok(got.iter().find_map(|r| match r {
+        let rx_buffer = got.iter().find_map(|r| match r {
             Response::Feedback { kind, body } if kind == "OPT" => body
                 .split(',')
                 .nth(2)
                 .and_then(|v| v.trim().parse::<usize>().ok())
                 .filter(|rx| (16..=1 << 16).contains(rx)),
             _ => None,
-        }))
+        });
+        let grblhal = got.iter().any(|r| {
+            matches!(r, Response::Feedback { kind, body } if kind == "FIRMWARE" && body == "grblHAL")
+        });
+        Ok(BuildInfo { rx_buffer, grblhal })
     }
 
     /// The input buffer lines are counted against, bytes.
@@ -256,9 +275,11 @@ impl GrblLink {
     /// Whether the controller greeted as grblHAL (a longer line buffer; unknown means GRBL's
     /// limits, the stricter ones).
     pub fn is_grblhal(&self) -> bool {
-        self.banner
-            .as_deref()
-            .is_some_and(|b| b.starts_with("GrblHAL "))
+        self.hal_build
+            || self
+                .banner
+                .as_deref()
+                .is_some_and(|b| b.starts_with("GrblHAL "))
     }
 
     fn read_some(&mut self, timeout: Duration) -> Result<usize, LinkError> {
@@ -347,6 +368,13 @@ impl GrblLink {
             Response::Message(m) => self.events.push_back(Event::Message(format!("[MSG:{m}]"))),
             Response::ParserState(_) => self.stale = false,
             Response::Setting { .. } | Response::StartupLineSetting { .. } => {}
+            // A message neither GRBL nor grblHAL documents (a plugin's, a newer build's) is
+            // shown and ignored: it says nothing about the lines in flight.
+            Response::Feedback { kind, body } if !response::documented_feedback(&kind) => {
+                self.events.push_back(Event::Message(format!(
+                    "warning: ignored a controller message lase does not know: [{kind}:{body}]"
+                )))
+            }
             Response::Feedback { kind, body } => self
                 .events
                 .push_back(Event::Message(format!("[{kind}:{body}]"))),

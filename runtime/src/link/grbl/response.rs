@@ -1,7 +1,16 @@
-//! GRBL 1.1's messages, one line at a time: `ok`, `error:N`, `ALARM:N`, the welcome banner,
-//! `<…>` status reports, `[…]` feedback (`[MSG:…]`, `[GC:…]`, …), `$N=value` settings and
-//! `>line:ok` startup lines. Any byte sequence either parses or gives a reason; nothing here
-//! panics (a property test feeds it arbitrary bytes).
+//! GRBL 1.1's and grblHAL's messages, one line at a time: `ok`, `error:N`, `ALARM:N`, the
+//! welcome banner, `<…>` status reports, `[…]` feedback (`[MSG:…]`, `[GC:…]`, …), `$N=value`
+//! settings and `>line:ok` startup lines. Any byte sequence either parses or gives a reason;
+//! nothing here panics (a property test feeds it arbitrary bytes).
+//!
+//! grblHAL says more than GRBL (its core's `report.c`): feedback types with spaces
+//! (`[NVS STORAGE:…]`, `[DRIVER VERSION:…]`, `[MAX STEP RATE:…]`, `[AUX IO:…]`), plugin lines
+//! (`[PLUGIN:…]`), states with sub-states (`Run:1` feed hold pending, `Run:2` probing,
+//! `Alarm:N`, `Tool` for a manual tool change), status fields GRBL lacks (`FS:` with a third
+//! value, `WCS:`, `Sc:`, `MPG:`, `H:`, `D:`, `T:`, `TLR:`, `In:`, `FW:`, `AR` without a
+//! value, `SP1:` …, and whatever a plugin appends). Every bracketed line parses, so a message
+//! lase has not met is shown and ignored rather than ending a job; [`documented_feedback`]
+//! tells the link which ones deserve a warning.
 
 use crate::link::{BufferState, MachineState, ModalState, MotionMode, Plane, Spindle, Status};
 
@@ -22,7 +31,9 @@ pub enum Response {
     Message(String),
     /// `[GC:…]`, the answer to `$G`.
     ParserState(String),
-    /// Any other bracketed feedback: `[HLP:…]`, `[VER:…]`, `[OPT:…]`, `[G54:…]`, `[echo:…]`, …
+    /// Any other bracketed feedback: `[HLP:…]`, `[VER:…]`, `[OPT:…]`, `[G54:…]`, `[echo:…]`,
+    /// grblHAL's `[NVS STORAGE:…]`, …; `kind` is the text before the first `:` (the whole
+    /// text, and an empty `body`, when there is none).
     Feedback {
         kind: String,
         body: String,
@@ -125,12 +136,9 @@ pub fn parse(line: &[u8]) -> Result<Response, Malformed> {
         let inner = inner
             .strip_suffix(']')
             .ok_or_else(|| bad("feedback message without its closing `]`"))?;
-        let (kind, body) = inner
-            .split_once(':')
-            .ok_or_else(|| bad("feedback message without a type"))?;
-        if kind.is_empty() || !kind.bytes().all(|b| b.is_ascii_alphanumeric()) {
-            return Err(bad("bad feedback message type"));
-        }
+        // GRBL's types are letters and digits; grblHAL's may hold spaces (`NVS STORAGE`), and a
+        // plugin may print anything. The line is printable ASCII already (checked above).
+        let (kind, body) = inner.split_once(':').unwrap_or((inner, ""));
         return Ok(match kind {
             "MSG" => Response::Message(body.to_string()),
             "GC" => Response::ParserState(body.to_string()),
@@ -170,6 +178,66 @@ pub fn parse(line: &[u8]) -> Result<Response, Malformed> {
         });
     }
     Err(bad("not a GRBL 1.1 message"))
+}
+
+/// Whether a bracketed message type is one GRBL 1.1 or grblHAL documents (answers to `$I`,
+/// `$#`, `$G`, `$N`, `$$` in machine-readable form, probing, echo). Any other one still parses;
+/// the link shows it as an unknown message and goes on.
+pub fn documented_feedback(kind: &str) -> bool {
+    const KINDS: &[&str] = &[
+        "MSG",
+        "GC",
+        "HLP",
+        "VER",
+        "OPT",
+        "echo",
+        "PRB",
+        "HOME",
+        "TLO",
+        "TLR",
+        "G28",
+        "G30",
+        "G92",
+        "G51",
+        "T",
+        "PARAM",
+        "AXS",
+        "NEWOPT",
+        "FIRMWARE",
+        "NVS STORAGE",
+        "DRIVER",
+        "DRIVER VERSION",
+        "DRIVER OPTIONS",
+        "BOARD",
+        "MAX STEP RATE",
+        "COMPATIBILITY LEVEL",
+        "AUX IO",
+        "PLUGIN",
+        "SIGNALS",
+        "SETTING",
+        "SETTINGGROUP",
+        "SETTINGDESCR",
+        "ALARMCODE",
+        "ERRORCODE",
+        "SPINDLE",
+        "SD",
+        "FILE",
+        "FS",
+        "IP",
+        "WIFI",
+        "NETCON",
+        "MODE",
+        "AP",
+        "STA",
+        "ETHERNET",
+        "MAC",
+        "HOSTNAME",
+        "KEYPAD",
+    ];
+    KINDS.contains(&kind)
+        || kind
+            .strip_prefix('G')
+            .is_some_and(|n| n.starts_with('5') && n.len() >= 2 && n.len() <= 4)
 }
 
 fn code(s: &str) -> Option<u32> {
@@ -233,7 +301,8 @@ pub fn parse_status(text: &str) -> Result<Status, String> {
     };
     let state = match (name, sub) {
         ("Idle", None) => MachineState::Idle,
-        ("Run", None) => MachineState::Run,
+        // grblHAL: `Run:1` a feed hold is pending, `Run:2` probing; both are still moving.
+        ("Run", _) => MachineState::Run,
         ("Hold", s) => MachineState::Hold {
             complete: s.unwrap_or(0) == 0,
         },
@@ -244,6 +313,9 @@ pub fn parse_status(text: &str) -> Result<Status, String> {
         ("Check", None) => MachineState::Check,
         ("Home", None) => MachineState::Home,
         ("Sleep", None) => MachineState::Sleep,
+        // grblHAL waits at a manual tool change (`M6`) for a cycle start: a completed hold,
+        // as far as streaming is concerned.
+        ("Tool", None) => MachineState::Hold { complete: true },
         _ => return Err(format!("unknown machine state `{state_field}`")),
     };
     let mut st = Status {
@@ -251,9 +323,8 @@ pub fn parse_status(text: &str) -> Result<Status, String> {
         ..Status::default()
     };
     for f in fields {
-        let (key, value) = f
-            .split_once(':')
-            .ok_or_else(|| format!("status field `{f}` without `:`"))?;
+        // grblHAL's auto-report flag is a bare `AR` when the interval is off.
+        let (key, value) = f.split_once(':').unwrap_or((f, ""));
         let field_err = |e: String| format!("{key}: {e}");
         match key {
             "MPos" => st.mpos = Some(numbers(value, 3, 6).map_err(field_err)?),
@@ -269,7 +340,8 @@ pub fn parse_status(text: &str) -> Result<Status, String> {
             "Ln" => st.line = Some(code_u32(value).ok_or("Ln: bad line number")?),
             "F" => st.feed = Some(numbers(value, 1, 1).map_err(field_err)?[0]),
             "FS" => {
-                let v = numbers(value, 2, 2).map_err(field_err)?;
+                // grblHAL adds the spindle's measured speed as a third value.
+                let v = numbers(value, 2, 3).map_err(field_err)?;
                 st.feed = Some(v[0]);
                 st.spindle = Some(v[1]);
             }
@@ -284,7 +356,8 @@ pub fn parse_status(text: &str) -> Result<Status, String> {
                 st.pins = Some(value.to_string());
             }
             "A" => {
-                if !value.bytes().all(|b| b"SCFM".contains(&b)) {
+                // S/C spindle, F/M coolant; grblHAL adds E (encoder error) and T (tool change).
+                if !value.bytes().all(|b| b"SCFMET".contains(&b)) {
                     return Err("A: bad accessory letters".into());
                 }
                 st.accessories = Some(value.to_string());
@@ -307,7 +380,8 @@ pub fn parse_parser_state(body: &str) -> Result<ModalState, String> {
         let mut chars = w.chars();
         let letter = chars.next().map(String::from).unwrap_or_default();
         let letter = letter.as_str();
-        let value = chars.as_str();
+        // grblHAL reports active scaling as `G51:XY` (the scaled axes after the colon).
+        let value = chars.as_str().split(':').next().unwrap_or("");
         let v = number(value).ok_or_else(|| format!("bad word `{w}`"))?;
         match (letter, (v * 10.0).round() as i64) {
             ("G", 0) => m.motion = MotionMode::Rapid,
@@ -417,6 +491,97 @@ mod tests {
         assert_eq!(s.pins.as_deref(), Some("XP"));
         assert_eq!(s.accessories.as_deref(), Some("SF"));
         assert_eq!(s.work_position(None), Some(vec![1.0, -3.5, 0.0]));
+    }
+
+    /// What a real grblHAL (its core's `report.c`, the Simulator driver) says to `$I`, with
+    /// the plugin lines a board may add: every line parses, and the RX buffer and axis count
+    /// are where the link reads them.
+    #[test]
+    fn grblhal_build_info_parses_line_by_line() {
+        let reply = [
+            "[VER:1.1f.20240901:]",
+            "[OPT:VNMSL+,35,1024,6,0]",
+            "[AXS:6:XYZABC]",
+            "[NEWOPT:ENUMS,RT+,HOME,TC,SED]",
+            "[FIRMWARE:grblHAL]",
+            "[SIGNALS:HSE]",
+            "[NVS STORAGE:*EEPROM]",
+            "[DRIVER:Simulator]",
+            "[DRIVER VERSION:260324]",
+            "[DRIVER OPTIONS:SIM]",
+            "[BOARD:Linux host]",
+            "[MAX STEP RATE:50000 Hz]",
+            "[COMPATIBILITY LEVEL:0]",
+            "[AUX IO:2,2,0,0]",
+            "[PLUGIN:Laser PPI v0.07]",
+            "[SOMETHING NEW FROM A PLUGIN]",
+            "ok",
+        ];
+        let mut kinds = Vec::new();
+        for line in reply {
+            match parse(line.as_bytes()) {
+                Ok(Response::Feedback { kind, body }) => kinds.push((kind, body)),
+                Ok(Response::Ok) => {}
+                other => panic!("{line}: {other:?}"),
+            }
+        }
+        let get = |k: &str| {
+            kinds
+                .iter()
+                .find(|(kind, _)| kind == k)
+                .map(|(_, b)| b.as_str())
+        };
+        assert_eq!(get("OPT").unwrap().split(',').nth(2), Some("1024"));
+        assert_eq!(get("AXS"), Some("6:XYZABC"));
+        assert_eq!(get("NVS STORAGE"), Some("*EEPROM"));
+        assert_eq!(get("DRIVER VERSION"), Some("260324"));
+        assert_eq!(get("MAX STEP RATE"), Some("50000 Hz"));
+        assert_eq!(get("SOMETHING NEW FROM A PLUGIN"), Some(""));
+        let undocumented: Vec<&str> = kinds
+            .iter()
+            .map(|(k, _)| k.as_str())
+            .filter(|k| !documented_feedback(k))
+            .collect();
+        assert_eq!(undocumented, ["SOMETHING NEW FROM A PLUGIN"]);
+        assert!(
+            matches!(parse(b"[echo: G1X10]"), Ok(Response::Feedback { kind, .. }) if kind == "echo")
+        );
+    }
+
+    /// grblHAL's status reports with every field its `report_realtime_status` can print.
+    #[test]
+    fn grblhal_status_reports_parse() {
+        let Ok(Response::Status(s)) = parse(
+            b"<Run:1|MPos:10.000,2.000,0.000,0.000,90.000,-45.500|Bf:34,1023|Ln:12|FS:1200,0,0|SP1:0,,,100|Pn:POXT|WCO:0.000,0.000,0.000,0.000,0.000,0.000|WCS:G54|Ov:100,100,100|A:ST|Sc:|MPG:0|H:1,7|D:0|T:0|TLR:0|In:-1|FW:grblHAL|AR>",
+        ) else {
+            panic!("a full grblHAL status report parses");
+        };
+        assert_eq!(s.state, MachineState::Run);
+        assert_eq!(s.mpos.as_ref().unwrap()[4], 90.0);
+        assert_eq!(s.feed, Some(1200.0));
+        assert_eq!(s.buffer.unwrap().rx_free, 1023);
+        assert_eq!(s.accessories.as_deref(), Some("ST"));
+        assert_eq!(s.line, Some(12));
+        for (line, state) in [
+            (&b"<Run:2|MPos:0,0,0>"[..], MachineState::Run),
+            (
+                b"<Tool|MPos:0,0,0|A:T>",
+                MachineState::Hold { complete: true },
+            ),
+            (b"<Alarm:11|MPos:0,0,0|AR:50>", MachineState::Alarm),
+            (
+                b"<Hold:0|WPos:0,0,0|FS:0,0>",
+                MachineState::Hold { complete: true },
+            ),
+        ] {
+            let Ok(Response::Status(s)) = parse(line) else {
+                panic!("{}", printable(line));
+            };
+            assert_eq!(s.state, state);
+        }
+        let m =
+            parse_parser_state("G1 G54 G17 G21 G90 G94 G49 G98 G51:XY M5 M9 T0 F600 S0").unwrap();
+        assert_eq!((m.motion, m.feed), (MotionMode::Linear, 600.0));
     }
 
     #[test]
