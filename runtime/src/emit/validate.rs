@@ -158,7 +158,7 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
         .iter()
         .find(|o| o.laser().is_some() || matches!(o.kind, OpKind::Fire { .. }))
     {
-        check_post(post, key, machine, dialect, lit.span)?;
+        check_post(post, key, machine, dialect, lit.span, PostLines::Laser)?;
     }
     if let Some(pulsed) = ops.iter().find(|o| {
         matches!(o.kind, OpKind::Fire { .. })
@@ -166,7 +166,7 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
                 .and_then(|l| l.pulse.as_ref())
                 .is_some_and(|p| matches!(p.mode, crate::program::PulseMode::Distance { .. }))
     }) {
-        check_pulse_post(post, key, machine, dialect, pulsed.span)?;
+        check_post(post, key, machine, dialect, pulsed.span, PostLines::Pulse)?;
     }
     if let Some(coupled) = ops
         .iter()
@@ -255,57 +255,45 @@ fn check_axes(machine: &Machine, dialect: Dialect, span: Span) -> Result<(), Emi
     })
 }
 
+/// Which template lines of a post a program uses.
+#[derive(Debug, Clone, Copy)]
+enum PostLines {
+    /// `laser_on`, `laser_off`, `power`: every lit program.
+    Laser,
+    /// `pulse_on`, `pulse_off`, `pso`: pulses by distance and dot mode (`writer::pulse`).
+    Pulse,
+}
+
 fn check_post(
     post: &DialectPost,
     key: &str,
     machine: &Machine,
     dialect: Dialect,
     span: Span,
+    which: PostLines,
 ) -> Result<(), EmitError> {
-    let lines = [
-        ("laser_on", &post.laser_on),
-        ("laser_off", &post.laser_off),
-        ("power", &post.power),
-    ];
-    let help = |what: &str| {
-        format!(
-            "templates in [post.{key}] {what} may use {{power}} (W), {{s}} (power scaled to \
-             s_max) and {{pct}} (percent of max power)"
-        )
+    let (lines, extra, fill): (_, _, fn(&str) -> String) = match which {
+        PostLines::Laser => (
+            [
+                ("laser_on", &post.laser_on),
+                ("laser_off", &post.laser_off),
+                ("power", &post.power),
+            ],
+            " (W), {s} (power scaled to s_max) and {pct} (percent of max power)",
+            str::to_string,
+        ),
+        PostLines::Pulse => (
+            [
+                ("pulse_on", &post.pulse_on),
+                ("pulse_off", &post.pulse_off),
+                ("pso", &post.pso),
+            ],
+            ", {s}, {pct}, and in pso {pitch} (mm) and {ppi} (pulses per inch)",
+            |t| format::fill_pitch(t, 0.001),
+        ),
     };
-    check_templates(
-        post,
-        key,
-        machine,
-        dialect,
-        span,
-        &lines,
-        &|t| t.to_string(),
-        &help,
-    )
-}
-
-/// The trigger and PSO lines of pulses by distance and dot mode (`writer::pulse`).
-fn check_pulse_post(
-    post: &DialectPost,
-    key: &str,
-    machine: &Machine,
-    dialect: Dialect,
-    span: Span,
-) -> Result<(), EmitError> {
-    let lines = [
-        ("pulse_on", &post.pulse_on),
-        ("pulse_off", &post.pulse_off),
-        ("pso", &post.pso),
-    ];
-    let help = |what: &str| {
-        format!(
-            "templates in [post.{key}] {what} may use {{power}}, {{s}}, {{pct}}, and in pso \
-             {{pitch}} (mm) and {{ppi}} (pulses per inch)"
-        )
-    };
-    let pitch = |t: &str| format::fill_pitch(t, 0.001);
-    check_templates(post, key, machine, dialect, span, &lines, &pitch, &help)
+    let help = |what: &str| format!("templates in [post.{key}] {what} may use {{power}}{extra}");
+    check_templates(post, key, machine, dialect, span, &lines, &fill, &help)
 }
 
 /// Each template of a post section: its placeholders, its M-codes in this dialect, and its

@@ -14,19 +14,22 @@ fn cross(a: V2, b: V2) -> f64 {
     a.x * b.y - a.y * b.x
 }
 
+/// Distance from `p` to the straight segment from `a` to `b` (to `a` when they coincide).
+pub(crate) fn line_distance(a: V2, b: V2, p: V2) -> f64 {
+    let ab = b - a;
+    let l2 = ab.norm_squared();
+    let f = if l2 > 0.0 {
+        ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + ab * f - p).norm()
+}
+
 /// Distance from `p` to a segment.
 pub(crate) fn seg_distance(seg: &Seg, p: V2) -> f64 {
     match seg {
-        Seg::Line { a, b } => {
-            let ab = b - a;
-            let l2 = ab.norm_squared();
-            let f = if l2 > 0.0 {
-                ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (a + ab * f - p).norm()
-        }
+        Seg::Line { a, b } => line_distance(*a, *b, p),
         Seg::Arc {
             center,
             r,

@@ -8,6 +8,7 @@
 //! two samples to their chord (exact for arcs, the maximum to within higher-order terms for a
 //! smooth spline span).
 
+use super::biarc::line_distance;
 use super::{Frame, GeomError, Profile, Seg, Spline, V2};
 
 /// One resampled point.
@@ -112,17 +113,6 @@ fn spline_frame_in_span(sp: &Spline, j: usize, local: f64, s: f64) -> Frame {
     } else {
         Frame::new(s, p, d2.try_normalize(0.0).unwrap_or(V2::x()), 0.0)
     }
-}
-
-fn chord_distance(a: V2, b: V2, p: V2) -> f64 {
-    let ab = b - a;
-    let l2 = ab.norm_squared();
-    let f = if l2 > 0.0 {
-        ((p - a).dot(&ab) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a + ab * f - p).norm()
 }
 
 /// Largest |curvature| of the profile (spline: sampled 8 times per span, with 10% margin).
@@ -267,14 +257,14 @@ impl Profile {
                     let a: &Sample = &samples[i - 1];
                     let a = a.point;
                     let f = w.frame(s);
-                    let mut e = chord_distance(a, f.point, mid);
+                    let mut e = line_distance(a, f.point, mid);
                     while ci < corner_s.len() && corner_s[ci] <= s0 {
                         ci += 1;
                     }
                     let straddles = ci < corner_s.len() && corner_s[ci] < s;
                     if straddles {
                         let c = w.frame(corner_s[ci]).point;
-                        e = e.max(chord_distance(a, f.point, c));
+                        e = e.max(line_distance(a, f.point, c));
                         corner_err = corner_err.max(e);
                         w.frame(s);
                     } else {
