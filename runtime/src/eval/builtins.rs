@@ -3,7 +3,7 @@
 //! builtins of `schema::BUILTINS` (profile transforms, queries, math).
 
 use super::{
-    Cx, EvalError, Evaluator, Flow, MAX_DEPTH, R, Value, bad, geom_error, point2, type_err,
+    Cx, EvalError, Evaluator, Flow, Kind, MAX_DEPTH, R, Value, bad, geom_error, point2, type_err,
 };
 use crate::geometry::{GeomError, Profile, V2};
 use lase_lang::ast::*;
@@ -59,6 +59,7 @@ impl Evaluator {
             for (p, b) in f.params.iter().zip(bound) {
                 let (v, vspan) = b.ok_or_else(|| {
                     bad(
+                        Kind::MissingArgument,
                         span,
                         &format!("missing argument `{}`", p.name.name),
                         "in this call",
@@ -106,6 +107,7 @@ impl Evaluator {
             for (n, b) in names.iter().zip(bound) {
                 values.push(b.ok_or_else(|| {
                     bad(
+                        Kind::MissingArgument,
                         span,
                         &format!("missing argument `{n}`"),
                         "in this call",
@@ -117,6 +119,7 @@ impl Evaluator {
         }
         let Some(b) = schema::builtin(&callee.name) else {
             return Err(bad(
+                Kind::Undefined,
                 callee.span,
                 &format!("unknown function `{}`", callee.name),
                 "unknown",
@@ -128,6 +131,7 @@ impl Evaluator {
         let arg = |i: usize| {
             a.get(i).cloned().flatten().ok_or_else(|| {
                 bad(
+                    Kind::MissingArgument,
                     span,
                     &format!("missing argument `{}`", names[i]),
                     "in this call",
@@ -231,6 +235,7 @@ impl Evaluator {
                 let (x, d, sp) = num(self, 0)?;
                 if x < 0.0 {
                     return Err(bad(
+                        Kind::Negative,
                         sp,
                         "square root of a negative number",
                         "negative",
@@ -242,6 +247,7 @@ impl Evaluator {
                     .any(|e| e % 2 != 0)
                 {
                     return Err(bad(
+                        Kind::Dimension,
                         sp,
                         "sqrt needs even unit powers",
                         "odd unit power",
@@ -263,6 +269,7 @@ impl Evaluator {
                 let d = if a_is_zero(&a, 0) { dy } else { dx };
                 if dx != dy && !a_is_zero(&a, 0) && !a_is_zero(&a, 1) {
                     return Err(bad(
+                        Kind::Dimension,
                         sy,
                         "both operands need one dimension",
                         "different dimension",
@@ -283,6 +290,7 @@ impl Evaluator {
                 let (x, d, sp) = num(self, 0)?;
                 if !d.is_none() {
                     return Err(bad(
+                        Kind::Dimension,
                         sp,
                         "rounding needs a plain number",
                         "has a unit",
@@ -307,6 +315,7 @@ impl Evaluator {
             }
             other => {
                 return Err(bad(
+                    Kind::Undefined,
                     callee.span,
                     &format!("`{other}` is not available"),
                     "not available",

@@ -2,7 +2,7 @@
 //! and binary operators (`binary`, with dimension arithmetic), and the conversions from a
 //! `Value` to what a statement needs (`as_dim`, `as_count`, `as_point`, ...).
 
-use super::{Cx, EvalError, Evaluator, R, Value, bad, point2, type_err};
+use super::{Cx, EvalError, Evaluator, Kind, R, Value, bad, point2, type_err};
 use crate::geometry::Profile;
 use lase_lang::ast::*;
 use lase_lang::units::{self, Dim};
@@ -45,6 +45,7 @@ impl Evaluator {
         let x = self.as_dim(v, Dim::NONE, span, ctx)?;
         if x.fract() != 0.0 || !x.is_finite() || x.abs() > 1e15 {
             return Err(bad(
+                Kind::NotWhole,
                 span,
                 &format!("{ctx} must be a whole number"),
                 "not a whole number",
@@ -78,8 +79,15 @@ impl Evaluator {
                 None if *value == 0.0 => Ok(Value::Zero),
                 None => Ok(Value::Num(*value, Dim::NONE)),
                 Some((u, uspan)) => {
-                    let unit = units::parse_unit(u)
-                        .map_err(|_| bad(*uspan, "unknown unit", "not a unit", None))?;
+                    let unit = units::parse_unit(u).map_err(|_| {
+                        bad(
+                            Kind::UnknownName,
+                            *uspan,
+                            "unknown unit",
+                            "not a unit",
+                            None,
+                        )
+                    })?;
                     Ok(Value::Num(value * unit.factor, unit.dim))
                 }
             },
@@ -93,6 +101,7 @@ impl Evaluator {
                 .cloned()
                 .ok_or_else(|| {
                     bad(
+                        Kind::Undefined,
                         e.span,
                         &format!("`{name}` is not defined here"),
                         "undefined",
@@ -156,6 +165,7 @@ impl Evaluator {
                     (Value::Profile(p), "start") => Ok(point2(p.start())),
                     (Value::Profile(p), "end") => Ok(point2(p.end())),
                     _ => Err(bad(
+                        Kind::UnknownName,
                         field.span,
                         &format!("{} has no field `{}`", v.type_name(), field.name),
                         "no such field",
@@ -177,6 +187,7 @@ impl Evaluator {
                             .cloned()
                             .ok_or_else(|| {
                                 bad(
+                                    Kind::OutOfRange,
                                     index.span,
                                     &format!("index {i} is out of range for a list of {len}"),
                                     "out of range",
@@ -228,7 +239,13 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
                     BinOp::Sub => mk(a - b, d),
                     _ => {
                         if b == 0.0 {
-                            return Err(bad(rs, "remainder by zero", "zero", None));
+                            return Err(bad(
+                                Kind::DivisionByZero,
+                                rs,
+                                "remainder by zero",
+                                "zero",
+                                None,
+                            ));
                         }
                         mk(a % b, d)
                     }
@@ -241,7 +258,13 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
             }),
             BinOp::Div => {
                 if b == 0.0 {
-                    return Err(bad(rs, "division by zero", "this is zero", None));
+                    return Err(bad(
+                        Kind::DivisionByZero,
+                        rs,
+                        "division by zero",
+                        "this is zero",
+                        None,
+                    ));
                 }
                 Ok(Num(
                     a / b,
@@ -275,7 +298,13 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
         }
         (BinOp::Div, Point(a, n), Num(k, d)) if d.is_none() => {
             if *k == 0.0 {
-                return Err(bad(rs, "division by zero", "this is zero", None));
+                return Err(bad(
+                    Kind::DivisionByZero,
+                    rs,
+                    "division by zero",
+                    "this is zero",
+                    None,
+                ));
             }
             Ok(Point([a[0] / k, a[1] / k, a[2] / k], *n))
         }

@@ -18,6 +18,7 @@ mod stmt;
 mod value;
 
 pub use error::EvalError;
+use error::Kind;
 pub use value::Value;
 
 use crate::geometry::toolpath::HeadSide;
@@ -302,13 +303,16 @@ fn no_machine(span: Span) -> EvalError {
     }
 }
 
-fn bad(span: Span, message: &str, label: &str, help: Option<&str>) -> EvalError {
-    EvalError::BadValue {
-        message: message.into(),
+/// A diagnostic of one of the kinds that share a shape (`error::Kind`): a message, a label on
+/// `span`, an optional help.
+fn bad(kind: Kind, span: Span, message: &str, label: &str, help: Option<&str>) -> EvalError {
+    EvalError::of_kind(
+        kind,
         span,
-        label: label.into(),
-        help: help.map(String::from),
-    }
+        message.into(),
+        label.into(),
+        help.map(String::from),
+    )
 }
 
 fn type_err(expected: &str, found: &Value, span: Span, ctx: &str) -> EvalError {

@@ -2,7 +2,7 @@
 //! that orient it) and `follow` (a profile as lines and arcs on a flat bed, or as an oriented
 //! toolpath of poses on machines that orient the beam).
 
-use super::{Cx, EvalError, Evaluator, LaserSet, R, Value, bad, geom_error, type_err};
+use super::{Cx, EvalError, Evaluator, Kind, LaserSet, R, Value, bad, geom_error, type_err};
 use crate::geometry::toolpath::{HeadSide, Normals, Station, ToolpathError, oriented_stations};
 use crate::geometry::{Profile, Seg, V2};
 use crate::program::*;
@@ -70,6 +70,7 @@ impl Evaluator {
         match self.orient {
             Some(o) => Ok(Some(o)),
             None => Err(bad(
+                Kind::NoOrientation,
                 span,
                 "this machine orients the beam, and no path has set its direction yet",
                 "which way does the beam point here?",
@@ -85,6 +86,7 @@ impl Evaluator {
         let f = self.as_dim(v, Dim::SPEED, span, "a speed")?;
         if !(f > 0.0) {
             return Err(bad(
+                Kind::NotPositive,
                 span,
                 "a speed must be greater than zero",
                 "not positive",
@@ -117,6 +119,7 @@ impl Evaluator {
         }
         if let Some((_, side_span)) = set.side {
             return Err(bad(
+                Kind::Conflict,
                 side_span,
                 "`side` only applies to machines that orient the beam",
                 "the beam of this machine always points down",
@@ -196,6 +199,7 @@ impl Evaluator {
         let machine = self.need_machine(span)?.name.clone();
         let standoff = set.standoff.or(self.laser.standoff_mm).ok_or_else(|| {
             bad(
+                Kind::MissingSetting,
                 span,
                 &format!("machine `{machine}` orients the beam: it needs a standoff"),
                 "no standoff in force",
@@ -210,6 +214,7 @@ impl Evaluator {
                     "inside"
                 };
                 return Err(bad(
+                    Kind::Conflict,
                     sp,
                     &format!("`side {word}` needs a closed profile"),
                     "this path is open",

@@ -2,7 +2,7 @@
 //! `spline`), cams from a motion program or a lift table, profiles imported from DXF files
 //! and SVG path data, and the data files they read through the `Host`.
 
-use super::{Cx, EvalError, Evaluator, R, Value, bad, geom_error, type_err};
+use super::{Cx, EvalError, Evaluator, Kind, R, Value, bad, geom_error, type_err};
 use crate::geometry::{Profile, V2};
 use lase_lang::ast::*;
 use lase_lang::diag::did_you_mean;
@@ -20,7 +20,13 @@ impl Evaluator {
         cx: &mut Cx,
     ) -> R<Value> {
         let Some(pk) = schema::profile_kind(&kind.name) else {
-            return Err(bad(kind.span, "unknown profile", "unknown", None));
+            return Err(bad(
+                Kind::UnknownName,
+                kind.span,
+                "unknown profile",
+                "unknown",
+                None,
+            ));
         };
         let names: Vec<&str> = pk.params.iter().map(|p| p.name).collect();
         let a = self.bind_args(&names, args, cx)?;
@@ -28,6 +34,7 @@ impl Evaluator {
         let get = |i: usize| {
             a.get(i).cloned().flatten().ok_or_else(|| {
                 bad(
+                    Kind::MissingArgument,
                     span,
                     &format!("missing `{}`", names[i]),
                     "in this profile",
@@ -82,6 +89,7 @@ impl Evaluator {
                 let h = len(self, 2)?;
                 if !(w > 0.0 && h > 0.0) {
                     return Err(bad(
+                        Kind::NotPositive,
                         span,
                         "a rectangle needs a positive width and height",
                         "empty rectangle",
@@ -114,6 +122,7 @@ impl Evaluator {
             "dxf" | "svg" => return self.imported_profile(pk.name, &a, span, cx),
             other => {
                 return Err(bad(
+                    Kind::UnknownName,
                     kind.span,
                     &format!("`profile {other}` is not supported yet"),
                     "not supported",
@@ -134,7 +143,15 @@ impl Evaluator {
     ) -> R<Value> {
         use crate::geometry::cam::{CamLaw, CamSegment, CamSegmentKind};
         let arg = |i: usize| a.get(i).cloned().flatten();
-        let (bv, bs) = arg(0).ok_or_else(|| bad(span, "missing `base`", "in this cam", None))?;
+        let (bv, bs) = arg(0).ok_or_else(|| {
+            bad(
+                Kind::MissingArgument,
+                span,
+                "missing `base`",
+                "in this cam",
+                None,
+            )
+        })?;
         let base = self.positive_length(&bv, bs, "`base`")?;
         if let Some((tv, ts)) = arg(6) {
             let Value::Str(path) = &tv else {
@@ -142,6 +159,7 @@ impl Evaluator {
             };
             if let Some((_, ls)) = arg(1) {
                 return Err(bad(
+                    Kind::Conflict,
                     ls,
                     "a cam takes its lift from a motion program or from a table, not both",
                     "remove this",
@@ -164,6 +182,7 @@ impl Evaluator {
         let need = |i: usize, name: &str| {
             arg(i).ok_or_else(|| {
                 bad(
+                    Kind::MissingArgument,
                     span,
                     &format!("a cam motion program needs `{name}`"),
                     "in this cam",
@@ -199,6 +218,7 @@ impl Evaluator {
                         "the laws are \"harmonic\", \"cycloidal\", \"345\" and \"modified_trapezoid\"".into()
                     });
                     return Err(bad(
+                        Kind::UnknownName,
                         sp,
                         &format!("unknown cam law \"{other}\""),
                         "not a cam law",
@@ -213,6 +233,7 @@ impl Evaluator {
             if neg || !deg.is_finite() {
                 let sp = arg(i).map_or(span, |x| x.1);
                 return Err(bad(
+                    Kind::NotPositive,
                     sp,
                     &format!("`{name}` must be a positive angle"),
                     "out of range",
@@ -223,6 +244,7 @@ impl Evaluator {
         let rest = 360.0 - rise - dwell - fall;
         if rest < -1e-9 {
             return Err(bad(
+                Kind::OutOfRange,
                 span,
                 &format!(
                     "rise, top and fall add up to {}°, more than a turn",
@@ -260,11 +282,15 @@ impl Evaluator {
         cx: &mut Cx,
     ) -> R<Value> {
         use crate::geometry::import::{ImportOptions, dxf_profiles, svg_path_profiles};
-        let (v, sp) = a
-            .first()
-            .cloned()
-            .flatten()
-            .ok_or_else(|| bad(span, "missing the source", "in this profile", None))?;
+        let (v, sp) = a.first().cloned().flatten().ok_or_else(|| {
+            bad(
+                Kind::MissingArgument,
+                span,
+                "missing the source",
+                "in this profile",
+                None,
+            )
+        })?;
         let Value::Str(src) = &v else {
             return Err(type_err("a string", &v, sp, "the source"));
         };
@@ -294,6 +320,7 @@ impl Evaluator {
         let pick = match index {
             Some((i, isp)) if i < 0 || i as usize >= n => {
                 return Err(bad(
+                    Kind::OutOfRange,
                     isp,
                     &format!("{what} holds {n} contour(s)"),
                     "no such contour",
@@ -304,6 +331,7 @@ impl Evaluator {
             None if n == 1 => 0,
             None => {
                 return Err(bad(
+                    Kind::MissingArgument,
                     sp,
                     &format!("{what} holds {n} contours"),
                     "which one?",

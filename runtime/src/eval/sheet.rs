@@ -3,7 +3,7 @@
 //! and the planner settings (`planner { ... }`), each checked against the machine, and the
 //! pulse rate a feed implies.
 
-use super::{Cx, EvalError, Evaluator, LaserSet, R, Value, bad, type_err};
+use super::{Cx, EvalError, Evaluator, Kind, LaserSet, R, Value, bad, type_err};
 use crate::geometry::toolpath::HeadSide;
 use crate::machine::{AxisKind, parse_machine};
 use crate::program::*;
@@ -108,6 +108,7 @@ impl Evaluator {
                 let x = self.as_dim(&v, want, e.span, &format!("limit `{}`", s.key.name))?;
                 if !(x > 0.0) {
                     return Err(bad(
+                        Kind::NotPositive,
                         e.span,
                         "limits must be greater than zero",
                         "not positive",
@@ -193,6 +194,7 @@ impl Evaluator {
                     let p = self.as_dim(&v, Dim::POWER, e.span, "`power`")?;
                     if p < 0.0 {
                         return Err(bad(
+                            Kind::Negative,
                             e.span,
                             "laser power cannot be negative",
                             "negative",
@@ -219,6 +221,7 @@ impl Evaluator {
                     let d = self.as_dim(&v, Dim::LENGTH, e.span, "`standoff`")?;
                     if !(d >= 0.0 && d.is_finite()) {
                         return Err(bad(
+                            Kind::Negative,
                             e.span,
                             "the standoff cannot be negative",
                             "negative",
@@ -232,6 +235,7 @@ impl Evaluator {
                     let d = self.as_dim(&v, Dim::LENGTH, e.span, "`spot`")?;
                     if !(d > 0.0) {
                         return Err(bad(
+                            Kind::NotPositive,
                             e.span,
                             "the spot diameter must be greater than zero",
                             "not positive",
@@ -256,7 +260,13 @@ impl Evaluator {
     pub(super) fn positive_length(&self, v: &Value, span: Span, ctx: &str) -> R<f64> {
         let x = self.as_dim(v, Dim::LENGTH, span, ctx)?;
         if !(x > 0.0 && x.is_finite()) {
-            return Err(bad(span, "must be greater than zero", "not positive", None));
+            return Err(bad(
+                Kind::NotPositive,
+                span,
+                "must be greater than zero",
+                "not positive",
+                None,
+            ));
         }
         Ok(x)
     }
@@ -278,6 +288,7 @@ impl Evaluator {
                     Ok(x)
                 } else {
                     Err(bad(
+                        Kind::NotPositive,
                         e.span,
                         "pulse settings must be greater than zero",
                         "not positive",
@@ -336,6 +347,7 @@ impl Evaluator {
         if !mode_set {
             let span = set.first().map(|s| s.span).unwrap_or_default();
             return Err(bad(
+                Kind::MissingSetting,
                 span,
                 "pulses need an interval or a rate",
                 "no interval",
@@ -375,6 +387,7 @@ impl Evaluator {
                     let x = self.as_dim(&v, Dim::LENGTH, e.span, &format!("`{}`", s.key.name))?;
                     if !(x > 0.0) {
                         return Err(bad(
+                            Kind::NotPositive,
                             e.span,
                             "must be greater than zero",
                             "not positive",
@@ -392,6 +405,7 @@ impl Evaluator {
                     let n = self.as_count(&v, e.span, "`lookahead`")?;
                     if n < 1 {
                         return Err(bad(
+                            Kind::OutOfRange,
                             e.span,
                             "look-ahead needs at least 1 move",
                             "too small",

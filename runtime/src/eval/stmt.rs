@@ -4,7 +4,7 @@
 //! the head hands over to `sheet.rs` or `moves.rs`.
 
 use super::{
-    Cx, EvalError, Evaluator, Flow, MAX_OPS, R, STEP_BUDGET, Value, bad, no_machine, type_err,
+    Cx, EvalError, Evaluator, Flow, Kind, MAX_OPS, R, STEP_BUDGET, Value, bad, no_machine, type_err,
 };
 use crate::machine::Machine;
 use crate::program::*;
@@ -165,7 +165,13 @@ impl Evaluator {
                 let v = self.expr(e, cx)?;
                 let t = self.as_dim(&v, Dim::TIME, e.span, "`dwell`")?;
                 if t < 0.0 {
-                    return Err(bad(e.span, "a dwell cannot be negative", "negative", None));
+                    return Err(bad(
+                        Kind::Negative,
+                        e.span,
+                        "a dwell cannot be negative",
+                        "negative",
+                        None,
+                    ));
                 }
                 self.need_machine(s.span)?;
                 self.push(OpKind::Dwell { seconds: t }, s.span);
@@ -175,6 +181,7 @@ impl Evaluator {
                 let c = self.as_count(&v, code.span, "an M-code")?;
                 if !(0..1000).contains(&c) {
                     return Err(bad(
+                        Kind::OutOfRange,
                         code.span,
                         "M-codes run from 0 to 999",
                         "out of range",
@@ -288,6 +295,7 @@ impl Evaluator {
     pub(super) fn import(&mut self, path: &StrLit, cx: &mut Cx) -> R<()> {
         let Some(Resolved::Module(idx)) = cx.program.imports.get(&path.span.start).cloned() else {
             return Err(bad(
+                Kind::NotLoaded,
                 path.span,
                 "this import could not be loaded",
                 "not loaded",
