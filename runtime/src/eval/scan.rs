@@ -334,7 +334,7 @@ impl Evaluator {
         // Overscan: the recipe's, else the planner's ramp length along each family's rows
         // (left to the lead-ins when they are on: they compute the same length).
         if firing == Firing::Fly {
-            let leadin = self.planner_in_force().leadin;
+            let leadin = self.planner_settings_now().leadin;
             for fam in &mut families {
                 let (v, a, j) = self.row_limits(&fam.frame, speed);
                 if v < speed * (1.0 - 1e-9) {
@@ -504,18 +504,6 @@ impl Evaluator {
         }
     }
 
-    /// The planner settings the program will be planned with.
-    fn planner_in_force(&self) -> PlannerSettings {
-        let m = self.machine.as_ref();
-        self.planner.clone().unwrap_or(PlannerSettings {
-            ramp: m.map_or(Ramp::Trapezoid, |m| m.ramp),
-            junction_deviation_mm: m.map_or(0.01, |m| m.junction_deviation_mm),
-            arc_tolerance_mm: m.map_or(0.002, |m| m.arc_tolerance_mm),
-            lookahead: None,
-            leadin: LeadIn::Auto,
-        })
-    }
-
     /// Path limits (v, a, j) of a row of `frame` at `speed`, as the planner will derive them
     /// (`planner::move_limits`, the tightest axis along the row).
     fn row_limits(&self, frame: &Frame, speed: f64) -> (f64, f64, f64) {
@@ -541,7 +529,7 @@ impl Evaluator {
             limits.a[i] = l.a;
             limits.j[i] = l.j;
         }
-        let p = self.planner_in_force();
+        let p = self.planner_settings_now();
         let cfg = PlannerConfig {
             profile: match p.ramp {
                 Ramp::Trapezoid => ProfileKind::Trapezoid,
