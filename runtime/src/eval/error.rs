@@ -534,3 +534,50 @@ impl From<crate::ext::ExtError> for EvalError {
         EvalError::Extension(Box::new(e))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each kind raises its own variant, with the code `error.rs` documents for it: the codes
+    /// are part of the product, and two kinds must never share one.
+    #[test]
+    fn every_kind_has_its_own_documented_code() {
+        let kinds = [
+            (Kind::NotPositive, "not_positive"),
+            (Kind::Negative, "negative"),
+            (Kind::OutOfRange, "out_of_range"),
+            (Kind::NotWhole, "not_whole"),
+            (Kind::TooLarge, "too_large"),
+            (Kind::Undefined, "undefined"),
+            (Kind::UnknownName, "unknown_name"),
+            (Kind::MissingArgument, "missing_argument"),
+            (Kind::MissingSetting, "missing_setting"),
+            (Kind::Conflict, "conflict"),
+            (Kind::Dimension, "dimension"),
+            (Kind::DivisionByZero, "division_by_zero"),
+            (Kind::NoOrientation, "no_orientation"),
+            (Kind::NotLoaded, "not_loaded"),
+            (Kind::Empty, "empty"),
+            (Kind::Geometry, "geometry"),
+        ];
+        let doc = include_str!("error.rs");
+        for (kind, name) in kinds {
+            let span = Span::new(3, 5);
+            let e = EvalError::of_kind(kind, span, "m".into(), "l".into(), Some("h".into()));
+            let code = e.code().map(|c| c.to_string());
+            assert_eq!(
+                code.as_deref(),
+                Some(&*format!("lase::eval::{name}")),
+                "{kind:?}"
+            );
+            assert_eq!(e.span(), span);
+            assert_eq!(e.to_string(), "m");
+            assert_eq!(e.help().map(|h| h.to_string()).as_deref(), Some("h"));
+            assert!(
+                doc.contains(&format!("`{name}`")),
+                "{name} is not documented"
+            );
+        }
+    }
+}
