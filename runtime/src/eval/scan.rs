@@ -9,7 +9,7 @@
 //! * hatch lines are lit `Line`s with the pulse setting in force;
 //! * positioning between rows is a `Rapid`, overscan and gaps unlit `Line`s at the speed.
 
-use super::{Cx, Evaluator, R, Value, bad, type_err};
+use super::{Cx, Evaluator, Kind, R, Value, bad, type_err};
 use crate::geometry::{Profile, V2};
 use crate::kinematics::{self, ToolPose};
 use crate::planner::{self, AxisLimits, MAX_AXES, PlannerConfig, ProfileKind};
@@ -63,6 +63,7 @@ impl Evaluator {
             "raster" => false,
             _ => {
                 return Err(bad(
+                    Kind::UnknownName,
                     kind.span,
                     &format!("unknown scan kind `{}`", kind.name),
                     "not a scan kind",
@@ -81,6 +82,7 @@ impl Evaluator {
         let laser = self.current_laser(span, &ls)?;
         let (speed, speed_span) = set.speed.ok_or_else(|| {
             bad(
+                Kind::MissingSetting,
                 span,
                 "`scan` needs a `speed`",
                 "no speed",
@@ -90,6 +92,7 @@ impl Evaluator {
         let positive = |v: Option<(f64, Span)>, what: &str| -> R<Option<(f64, Span)>> {
             match v {
                 Some((x, sp)) if !(x > 0.0 && x.is_finite()) => Err(bad(
+                    Kind::NotPositive,
                     sp,
                     &format!("{what} must be greater than zero"),
                     "not positive",
@@ -104,7 +107,13 @@ impl Evaluator {
         if let Some((o, sp)) = set.overscan
             && !(o >= 0.0 && o.is_finite())
         {
-            return Err(bad(sp, "the overscan cannot be negative", "negative", None));
+            return Err(bad(
+                Kind::Negative,
+                sp,
+                "the overscan cannot be negative",
+                "negative",
+                None,
+            ));
         }
         let passes = set.passes.map_or(1, |p| p.0);
         let pulses = set.pulses.map_or(1, |p| p.0);
@@ -112,6 +121,7 @@ impl Evaluator {
             (false, _, _) => Firing::Fly,
             (true, Some((Firing::Fly, sp)), n) if n > 1 => {
                 return Err(bad(
+                    Kind::Conflict,
                     sp,
                     &format!("{n} pulses per spot cannot be fired on the fly"),
                     "needs the spot at rest",
@@ -135,6 +145,7 @@ impl Evaluator {
         let need_pitch = || {
             pitch.map(|p| p.0).ok_or_else(|| {
                 bad(
+                    Kind::MissingSetting,
                     span,
                     &format!("`scan {}` needs a `pitch`", kind.name),
                     "no pitch",
@@ -167,6 +178,7 @@ impl Evaluator {
             (Value::Point(p, _), true) => {
                 let (Some((rows, _)), Some((cols, _))) = (set.rows, set.cols) else {
                     return Err(bad(
+                        Kind::MissingSetting,
                         region.span,
                         "an array given by its origin needs `rows` and `cols`",
                         "array origin",
@@ -192,7 +204,13 @@ impl Evaluator {
                     })
                     .collect();
                 if pts.is_empty() {
-                    return Err(bad(region.span, "no spots to scan", "empty list", None));
+                    return Err(bad(
+                        Kind::Empty,
+                        region.span,
+                        "no spots to scan",
+                        "empty list",
+                        None,
+                    ));
                 }
                 let frame = Frame::new(set.origin.unwrap_or(V2::zeros()), angle);
                 let rows = raster::point_rows(&frame, &pts, default_pitch);
@@ -208,6 +226,7 @@ impl Evaluator {
                 let profiles = self.region_profiles(&rv, region.span, dots)?;
                 let reg = Region::new(&profiles, set.inset).map_err(|e| {
                     bad(
+                        Kind::Geometry,
                         region.span,
                         &e.to_string(),
                         "this region",
@@ -265,6 +284,7 @@ impl Evaluator {
             .sum();
         if families.iter().all(|f| f.rows.is_empty()) {
             return Err(bad(
+                Kind::Empty,
                 region.span,
                 "the region holds no spot or line to scan",
                 "nothing to scan",
@@ -273,6 +293,7 @@ impl Evaluator {
         }
         if firing == Firing::Dot && spots * u64::from(passes) > MAX_DOT_WINDOWS {
             return Err(bad(
+                Kind::TooLarge,
                 span,
                 &format!(
                     "dot mode would stop at {} spots; lase handles at most {MAX_DOT_WINDOWS}",
@@ -313,11 +334,12 @@ impl Evaluator {
         // Overscan: the recipe's, else the planner's ramp length along each family's rows
         // (left to the lead-ins when they are on: they compute the same length).
         if firing == Firing::Fly {
-            let leadin = self.planner_in_force().leadin;
+            let leadin = self.planner_settings_now().leadin;
             for fam in &mut families {
                 let (v, a, j) = self.row_limits(&fam.frame, speed);
                 if v < speed * (1.0 - 1e-9) {
                     return Err(bad(
+                        Kind::OutOfRange,
                         speed_span,
                         &format!(
                             "the scan speed {} is above what the axes allow along the rows ({})",
@@ -333,6 +355,7 @@ impl Evaluator {
                 fam.overscan = match (set.overscan, leadin) {
                     (Some((o, sp)), LeadIn::Auto) if o + 1e-9 < needed => {
                         return Err(bad(
+                            Kind::OutOfRange,
                             sp,
                             &format!(
                                 "an overscan of {} is shorter than the {} the table needs to \
@@ -452,6 +475,7 @@ impl Evaluator {
     fn rows_fit(&self, rows: f64, span: Span) -> R<()> {
         if rows > MAX_ROWS || !rows.is_finite() {
             return Err(bad(
+                Kind::TooLarge,
                 span,
                 &format!("the raster would have {rows:.0} rows"),
                 "too many rows",
@@ -480,18 +504,6 @@ impl Evaluator {
         }
     }
 
-    /// The planner settings the program will be planned with.
-    fn planner_in_force(&self) -> PlannerSettings {
-        let m = self.machine.as_ref();
-        self.planner.clone().unwrap_or(PlannerSettings {
-            ramp: m.map_or(Ramp::Trapezoid, |m| m.ramp),
-            junction_deviation_mm: m.map_or(0.01, |m| m.junction_deviation_mm),
-            arc_tolerance_mm: m.map_or(0.002, |m| m.arc_tolerance_mm),
-            lookahead: None,
-            leadin: LeadIn::Auto,
-        })
-    }
-
     /// Path limits (v, a, j) of a row of `frame` at `speed`, as the planner will derive them
     /// (`planner::move_limits`, the tightest axis along the row).
     fn row_limits(&self, frame: &Frame, speed: f64) -> (f64, f64, f64) {
@@ -517,7 +529,7 @@ impl Evaluator {
             limits.a[i] = l.a;
             limits.j[i] = l.j;
         }
-        let p = self.planner_in_force();
+        let p = self.planner_settings_now();
         let cfg = PlannerConfig {
             profile: match p.ramp {
                 Ramp::Trapezoid => ProfileKind::Trapezoid,
@@ -595,6 +607,7 @@ impl Evaluator {
                             let x = self.as_dim(&v, Dim::LENGTH, e.span, &ctx)?;
                             if !(x >= 0.0 && x.is_finite()) {
                                 return Err(bad(
+                                    Kind::Negative,
                                     e.span,
                                     "an inset cannot be negative",
                                     "negative",
@@ -611,6 +624,7 @@ impl Evaluator {
                             let n = self.as_count(&v, e.span, &ctx)?;
                             if !(1..=i64::from(u32::MAX)).contains(&n) {
                                 return Err(bad(
+                                    Kind::OutOfRange,
                                     e.span,
                                     &format!("{ctx} must be at least 1"),
                                     "out of range",

@@ -9,7 +9,8 @@
 //!
 //! Submodules: `spline` (interpolation, arc length), `biarc` (line/arc approximation of smooth
 //! curves), `resample` (constant arc-length steps with a chord bound), `offset` (C0 = C ± d·n
-//! and the seed-2 fold-over rule), `cam` (lift tables and motion laws), `import` (DXF, SVG).
+//! and the seed-2 fold-over rule), `cam` (lift tables and motion laws), `import` (DXF, SVG),
+//! `toolpath` (oriented toolpaths: beam normals, exact or by chords, and the fold-over rule).
 
 pub mod biarc;
 pub mod cam;
@@ -17,6 +18,7 @@ pub mod import;
 pub mod offset;
 pub mod resample;
 pub mod spline;
+pub mod toolpath;
 
 pub use cam::{CamLaw, CamSegment, CamSegmentKind};
 pub use import::{ImportError, ImportOptions};

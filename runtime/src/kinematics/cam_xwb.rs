@@ -11,6 +11,7 @@
 //! the previous solution, never special-cased by quadrant.
 
 use super::{KinError, Kinematics, ToolPose, check_travel, unwrap_near};
+use crate::geometry::toolpath::chord_stations;
 use crate::machine::Machine;
 use crate::planner::{Axes, MAX_AXES};
 use nalgebra::{Rotation2, Vector2, Vector3};
@@ -103,31 +104,26 @@ pub struct Seed1Step {
 
 impl CamXwb {
     /// The paper's method on a closed, counter-clockwise contour polyline: scan points at the
-    /// chords' midpoints, normals from their perpendicular bisectors, axes through the same
+    /// chords' midpoints, normals from their perpendicular bisectors (the same
+    /// [`chord_stations`] that `follow ... { normals chord }` uses), axes through the same
     /// exact machine transform (so the comparison isolates the normal and point error).
     pub fn seed1_steps(&self, contour: &[Vector2<f64>], standoff: f64) -> Vec<Seed1Step> {
-        let n = contour.len();
-        let mut out: Vec<Seed1Step> = Vec::with_capacity(n);
+        // Every chord of the closed contour, the closing one included.
+        let closed: Vec<Vector2<f64>> = contour.iter().chain(contour.first()).copied().collect();
+        // Counter-clockwise contour: outward, where the head stands, is to the right of travel.
+        let stations = chord_stations(&closed, false);
+        let mut out: Vec<Seed1Step> = Vec::with_capacity(stations.len());
         let mut prev: Option<Axes> = None;
-        for k in 0..n {
-            let (p1, p2) = (contour[k], contour[(k + 1) % n]);
-            let chord = p2 - p1;
-            let len = chord.norm();
-            if len < 1e-12 {
-                continue;
-            }
-            // Counter-clockwise contour: outward is to the right of travel.
-            let normal = Vector2::new(chord.y, -chord.x) / len;
-            let m = (p1 + p2) / 2.0;
+        for st in stations {
             let pose = ToolPose {
-                spot: Vector3::new(m.x, m.y, 0.0),
-                beam: Vector3::new(-normal.x, -normal.y, 0.0),
+                spot: Vector3::new(st.point.x, st.point.y, 0.0),
+                beam: Vector3::new(st.beam.x, st.beam.y, 0.0),
                 standoff,
             };
             if let Ok(q) = self.inverse(&pose, prev.as_ref()) {
                 out.push(Seed1Step {
-                    m,
-                    normal,
+                    m: st.point,
+                    normal: -st.beam,
                     axes: [q[0], q[1], q[2]],
                 });
                 prev = Some(q);

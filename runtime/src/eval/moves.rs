@@ -1,0 +1,304 @@
+//! Motion statements: `move` (rapid or at a feed, keeping the beam orientation on machines
+//! that orient it) and `follow` (a profile as lines and arcs on a flat bed, or as an oriented
+//! toolpath of poses on machines that orient the beam).
+
+use super::{Cx, EvalError, Evaluator, Kind, LaserSet, R, Value, bad, geom_error, type_err};
+use crate::geometry::toolpath::{HeadSide, Normals, Station, ToolpathError, oriented_stations};
+use crate::geometry::{Profile, Seg, V2};
+use crate::program::*;
+use lase_lang::Span;
+use lase_lang::ast::*;
+use lase_lang::units::{Dim, format_quantity};
+
+impl Evaluator {
+    pub(super) fn move_stmt(
+        &mut self,
+        kind: MoveKind,
+        target: &Expr,
+        speed: &MoveSpeed,
+        span: Span,
+        cx: &mut Cx,
+    ) -> R<()> {
+        let v = self.expr(target, cx)?;
+        let (p, n) = self.as_point(&v, target.span, "the target of `move`")?;
+        self.need_machine(span)?;
+        let mut to = self.pos;
+        for k in 0..n as usize {
+            to[k] = match kind {
+                MoveKind::To => p[k],
+                MoveKind::By => self.pos[k] + p[k],
+            };
+        }
+        let orient = self.move_orient(span)?;
+        match speed {
+            MoveSpeed::Rapid => self.push(OpKind::Rapid { to, orient }, span),
+            MoveSpeed::At(e) => {
+                let v = self.expr(e, cx)?;
+                let feed = self.feed(&v, e.span)?;
+                let laser = if self.laser.on {
+                    let l = self.current_laser(span, &LaserSet::default())?;
+                    self.check_pulse_rate(&l, feed, e.span)?;
+                    Some(l)
+                } else {
+                    None
+                };
+                self.push(
+                    OpKind::Line {
+                        to,
+                        feed_mm_s: feed,
+                        laser,
+                        orient,
+                    },
+                    span,
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether the selected machine orients the beam (cam X-ω-B, arm).
+    pub(super) fn oriented(&self) -> bool {
+        self.machine.is_some() && self.orients_beam
+    }
+
+    /// The orientation a `move` keeps: the last one on an oriented machine (a move there
+    /// needs one), none on a flat bed.
+    pub(super) fn move_orient(&self, span: Span) -> R<Option<Orient>> {
+        if !self.oriented() {
+            return Ok(None);
+        }
+        match self.orient {
+            Some(o) => Ok(Some(o)),
+            None => Err(bad(
+                Kind::NoOrientation,
+                span,
+                "this machine orients the beam, and no path has set its direction yet",
+                "which way does the beam point here?",
+                Some(
+                    "`follow` a profile first (it sets the beam along the surface normal); a \
+                     `move` keeps the beam direction and standoff of the move before it",
+                ),
+            )),
+        }
+    }
+
+    pub(super) fn feed(&self, v: &Value, span: Span) -> R<f64> {
+        let f = self.as_dim(v, Dim::SPEED, span, "a speed")?;
+        if !(f > 0.0) {
+            return Err(bad(
+                Kind::NotPositive,
+                span,
+                "a speed must be greater than zero",
+                "not positive",
+                None,
+            ));
+        }
+        Ok(f)
+    }
+
+    pub(super) fn follow(
+        &mut self,
+        path: &Expr,
+        speed: &Expr,
+        settings: &[Setting],
+        span: Span,
+        cx: &mut Cx,
+    ) -> R<()> {
+        let v = self.expr(path, cx)?;
+        let Value::Profile(profile) = v else {
+            return Err(type_err("a profile", &v, path.span, "the path of `follow`"));
+        };
+        let sv = self.expr(speed, cx)?;
+        let feed = self.feed(&sv, speed.span)?;
+        let set = self.laser_settings(settings, cx)?;
+        self.need_machine(span)?;
+        let laser = self.current_laser(span, &set)?;
+        self.check_pulse_rate(&laser, feed, speed.span)?;
+        if self.oriented() {
+            return self.follow_oriented(&profile, feed, laser, &set, span);
+        }
+        if let Some((_, side_span)) = set.side {
+            return Err(bad(
+                Kind::Conflict,
+                side_span,
+                "`side` only applies to machines that orient the beam",
+                "the beam of this machine always points down",
+                Some("remove `side`, or choose a machine such as cam_xwb or arm_3r"),
+            ));
+        }
+        let z = self.pos[2];
+        let start = profile.start();
+        if (start.x - self.pos[0]).hypot(start.y - self.pos[1]) > 1e-9 {
+            // Going to the start of a path is part of following it: a rapid, laser off.
+            self.push(
+                OpKind::Rapid {
+                    to: [start.x, start.y, z],
+                    orient: None,
+                },
+                span,
+            );
+        }
+        for seg in &profile.segs {
+            match seg {
+                Seg::Line { b, .. } => self.push(
+                    OpKind::Line {
+                        to: [b.x, b.y, z],
+                        feed_mm_s: feed,
+                        laser: Some(laser.clone()),
+                        orient: None,
+                    },
+                    span,
+                ),
+                Seg::Arc {
+                    center,
+                    r,
+                    a0,
+                    sweep,
+                } => {
+                    // Arcs longer than a half turn are split so every dialect reads them
+                    // unambiguously.
+                    let pieces =
+                        (sweep.abs() / std::f64::consts::PI - 1e-9).ceil().max(1.0) as usize;
+                    for k in 1..=pieces {
+                        let a = a0 + sweep * k as f64 / pieces as f64;
+                        let to = if k == pieces {
+                            seg.end()
+                        } else {
+                            center + V2::new(a.cos(), a.sin()) * *r
+                        };
+                        self.push(
+                            OpKind::Arc {
+                                to: [to.x, to.y, z],
+                                center: [center.x, center.y],
+                                ccw: *sweep > 0.0,
+                                feed_mm_s: feed,
+                                laser: Some(laser.clone()),
+                            },
+                            span,
+                        );
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `follow` on a machine that orients the beam (PROCESS.md §1 and §2): the profile becomes
+    /// an oriented toolpath (`geometry::toolpath`: equal arc-length steps, the beam back along
+    /// the exact normal on the head's side, or seed 1's chord normals with `normals chord`, and
+    /// the fold-over rule), and every station a pose with the lens at the standoff. Equal steps
+    /// at one feed give constant surface speed.
+    pub(super) fn follow_oriented(
+        &mut self,
+        profile: &Profile,
+        feed: f64,
+        laser: Laser,
+        set: &LaserSet,
+        span: Span,
+    ) -> R<()> {
+        let machine = self.need_machine(span)?.name.clone();
+        let standoff = set.standoff.or(self.laser.standoff_mm).ok_or_else(|| {
+            bad(
+                Kind::MissingSetting,
+                span,
+                &format!("machine `{machine}` orients the beam: it needs a standoff"),
+                "no standoff in force",
+                Some("write `laser { standoff 12 mm }`, or `follow ... { standoff 12 mm }`"),
+            )
+        })?;
+        let side = match set.side {
+            Some((s @ (HeadSide::Outside | HeadSide::Inside), sp)) if !profile.closed => {
+                let word = if s == HeadSide::Outside {
+                    "outside"
+                } else {
+                    "inside"
+                };
+                return Err(bad(
+                    Kind::Conflict,
+                    sp,
+                    &format!("`side {word}` needs a closed profile"),
+                    "this path is open",
+                    Some(
+                        "say which side of the direction of travel the head stands on: `side left` or `side right`",
+                    ),
+                ));
+            }
+            Some((s, _)) => s,
+            None if profile.closed => HeadSide::Outside,
+            None => HeadSide::Left,
+        };
+        let step = set.step.or(self.scan_step_mm).unwrap_or(1.0);
+        let tol = self.planner_settings_now().arc_tolerance_mm;
+        let normals = if set.chord_normals {
+            Normals::Chord
+        } else {
+            Normals::Exact
+        };
+        let stations =
+            oriented_stations(profile, step, tol, standoff, side.on_left(profile), normals)
+                .map_err(|e| match e {
+                    ToolpathError::Geometry(g) => geom_error(g, span, None),
+                    ToolpathError::FoldOver {
+                        r_min,
+                        s_start,
+                        s_end,
+                    } => EvalError::Geometry {
+                        message: format!(
+                            "the surface is concave with a radius down to {} toward the head, \
+                             less than the standoff {}: the lens path folds over between s = {} \
+                             and {}",
+                            format_quantity(r_min, Dim::LENGTH),
+                            format_quantity(standoff, Dim::LENGTH),
+                            format_quantity(s_start, Dim::LENGTH),
+                            format_quantity(s_end, Dim::LENGTH)
+                        ),
+                        span,
+                        label: "this path".into(),
+                        help: Some(format!(
+                            "use a standoff below {}, or round the concave region of the profile",
+                            format_quantity(r_min, Dim::LENGTH)
+                        )),
+                    },
+                })?;
+        let z = self.pos[2];
+        let pose = |st: &Station| {
+            (
+                [st.point.x, st.point.y, z],
+                Orient {
+                    beam: [st.beam.x, st.beam.y, 0.0],
+                    standoff_mm: standoff,
+                },
+            )
+        };
+        let Some(first) = stations.first() else {
+            return Ok(());
+        };
+        let (p0, o0) = pose(first);
+        if crate::motion::dist(p0, self.pos) > 1e-9 || self.orient != Some(o0) {
+            // Going to the start of a path, beam already along its normal: a rapid, laser off.
+            self.push(
+                OpKind::Rapid {
+                    to: p0,
+                    orient: Some(o0),
+                },
+                span,
+            );
+        }
+        for st in &stations[1..] {
+            let (p, o) = pose(st);
+            if crate::motion::dist(p, self.pos) <= 1e-12 {
+                continue;
+            }
+            self.push(
+                OpKind::Line {
+                    to: p,
+                    feed_mm_s: feed,
+                    laser: Some(laser.clone()),
+                    orient: Some(o),
+                },
+                span,
+            );
+        }
+        Ok(())
+    }
+}
