@@ -13,6 +13,9 @@
 //! - [`stream`]: a job over any `Link`, nothing lost and nothing repeated: a write-ahead
 //!   [`journal`] on disk, the stop sequence on an error, and the resume logic that finds the
 //!   last executed line from the controller's state ([`modal`] predicts it line by line).
+//! - [`job`]: starting a job, the one safety sequence `lase run` and the REPL share:
+//!   preflight (every line sendable, settings fit the plan, controller idle), then journal,
+//!   resume point and send guards, then [`stream`].
 //! - [`sim`]: a simulated GRBL 1.1 (or grblHAL) controller, a real implementation of the protocol that the
 //!   tests talk to over real sockets, with fault injection and a record of what it executed.
 //!
@@ -24,6 +27,7 @@
 
 pub mod eta;
 pub mod grbl;
+pub mod job;
 pub mod journal;
 pub mod modal;
 pub mod requirements;
