@@ -195,11 +195,17 @@ pub fn not_idle(status: &Status, letters: &[char]) -> LinkError {
 /// A job that passed its preflight: ready to start.
 #[derive(Debug)]
 pub struct Ready {
-    origin: Origin,
-    resume: Option<ResumePlan>,
+    from: ReadyFrom,
     /// The controller's work position when the job started: where its journal and send
     /// guards predict from.
     start: AxisPos,
+}
+
+/// Where a job that passed its preflight starts.
+#[derive(Debug)]
+enum ReadyFrom {
+    Fresh(Option<NewJournal>),
+    Resume { path: PathBuf, plan: ResumePlan },
 }
 
 /// Checks everything that can be checked before a job moves (see the module header). On a
@@ -224,28 +230,34 @@ pub fn preflight(
     }
     // A resumed job first waits for the controller to finish what it had received (`$$` is
     // refused while it moves) and finds where the job stands.
-    let resume = match &origin {
+    let (from, resumed_start) = match origin {
         Origin::Resume {
-            state, resume_at, ..
-        } => Some(resume::plan(
-            link,
-            &job.lines,
+            path,
             state,
-            &job.letters(),
-            *resume_at,
-            RESUME_WAIT,
-        )?),
-        Origin::Fresh(_) => None,
+            resume_at,
+        } => {
+            let plan = resume::plan(
+                link,
+                &job.lines,
+                &state,
+                &job.letters(),
+                resume_at,
+                RESUME_WAIT,
+            )?;
+            (ReadyFrom::Resume { path, plan }, Some(state.header.start))
+        }
+        Origin::Fresh(journal) => (ReadyFrom::Fresh(journal), None),
     };
     let needs = Requirements::of_job(job.job, job.dialect);
     let mismatches = link.check_settings(&needs).map_err(setup)?;
     if !mismatches.is_empty() {
         return Err(Refused::Settings(mismatches));
     }
-    let start = match &origin {
-        // The resume plan found the controller idle and knows where the job started.
-        Origin::Resume { state, .. } => state.header.start,
-        Origin::Fresh(_) => {
+    let start = match resumed_start {
+        // The resume plan found the controller idle, and the journal knows where the job
+        // started.
+        Some(start) => start,
+        None => {
             let status = link.query_status(STATUS_WAIT).map_err(setup)?;
             if status.state != MachineState::Idle {
                 return Err(Refused::NotIdle(Box::new(status)));
@@ -253,23 +265,22 @@ pub fn preflight(
             status.work_axes()
         }
     };
-    Ok(Ready {
-        origin,
-        resume,
-        start,
-    })
+    Ok(Ready { from, start })
 }
 
 impl Ready {
     /// Where a resumed job stands and how it re-approaches; `None` for a fresh job.
     pub fn resume_plan(&self) -> Option<&ResumePlan> {
-        self.resume.as_ref()
+        match &self.from {
+            ReadyFrom::Resume { plan, .. } => Some(plan),
+            ReadyFrom::Fresh(_) => None,
+        }
     }
 
     /// Starts the job: the journal and, resuming, the re-approach's setup lines.
     pub fn start(self, link: &mut dyn Link, job: &JobLines<'_>) -> Result<Started, LinkError> {
-        let (journal, from, lead, restored) = match (self.origin, self.resume) {
-            (Origin::Resume { path, .. }, Some(plan)) => {
+        let (journal, from, lead, restored) = match self.from {
+            ReadyFrom::Resume { path, plan } => {
                 let j = resume::enter(link, &plan, &path)?;
                 (
                     Some(j),
@@ -278,7 +289,7 @@ impl Ready {
                     Some(plan.restored),
                 )
             }
-            (Origin::Fresh(Some(nj)), _) => {
+            ReadyFrom::Fresh(Some(nj)) => {
                 let header = Header {
                     recipe: nj.recipe,
                     link: nj.link,
@@ -294,7 +305,7 @@ impl Ready {
                     None,
                 )
             }
-            _ => (None, 0, Vec::new(), None),
+            ReadyFrom::Fresh(None) => (None, 0, Vec::new(), None),
         };
         // Closed lit contours wait for acknowledgements, so that a drop can always be
         // resumed; without a journal there is nothing to resume.
