@@ -7,12 +7,11 @@ use crate::driver::{self, Failure, IoError};
 use crate::output;
 use lase_lang::{SourceMap, Span};
 use lase_runtime::emit::{Dialect, NcLine};
-use lase_runtime::link::journal::{self, Header, Journal};
+use lase_runtime::link::job::{self, JobLines, NewJournal, Origin, Refused, Started};
+use lase_runtime::link::journal;
 use lase_runtime::link::sim::{self, Faults, SimOptions, TimeScale};
-use lase_runtime::link::stream::{self, Control, Outcome, Progress, StreamJob, StreamOptions};
-use lase_runtime::link::{
-    self, AxisPos, ConnectOptions, Event, Link, LinkError, LinkUrl, MAX_AXES, Requirements, resume,
-};
+use lase_runtime::link::stream::{Control, Outcome, Progress, Report};
+use lase_runtime::link::{self, ConnectOptions, Event, Link, LinkError, LinkUrl};
 use std::io::IsTerminal;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -72,20 +71,12 @@ fn journal_path(args: &RunArgs, recipe: &Path, url: &LinkUrl) -> Option<PathBuf>
     })
 }
 
+/// `lase run`: the recipe compiled, the link opened, then `link::job`'s sequence (preflight →
+/// start → stream). What is left here is the command line's: which recipe, link, dialect and
+/// journal, and what the operator sees.
 pub fn cmd_run(args: RunArgs) -> CmdResult {
     // A resumed job names its recipe, link and dialect in the journal.
-    let resumed = match &args.resume {
-        Some(p) => Some(journal::read(p).map_err(|e| (SourceMap::new(), Failure::one(e)))?),
-        None => None,
-    };
-    if let Some(st) = &resumed
-        && let Some(how) = &st.end
-    {
-        return Err(io_fail(format!(
-            "the job in {} ended ({how}): there is nothing to resume",
-            args.resume.as_deref().unwrap_or(Path::new("")).display()
-        )));
-    }
+    let resumed = read_resumed(&args)?;
     let file: PathBuf = match (&args.file, &resumed) {
         (Some(f), _) => f.clone(),
         (None, Some(st)) => PathBuf::from(&st.header.recipe),
@@ -98,13 +89,84 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .unwrap_or_else(|| "sim".into());
     let url = LinkUrl::parse(&url_text).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
     let (recipe, job) = driver::compile(&file)?;
+    let dialect = run_dialect(&args, resumed.as_ref(), &job, &url)?;
+    let map = recipe.map.clone();
+    let fail = |e: LinkError| (map.clone(), Failure::one(e));
+    let nc = nc_lines(&recipe, &job, dialect)?;
+    let lines = JobLines::new(&job, &nc, dialect);
+    let origin = match (resumed, &args.resume) {
+        (Some(st), Some(path)) => Origin::resume(
+            &lines,
+            path.clone(),
+            st,
+            args.resume_at,
+            &file.display().to_string(),
+        )
+        .map_err(fail)?,
+        _ => Origin::Fresh(new_journal(&args, &file, &url)),
+    };
+    let options = ConnectOptions {
+        rx_buffer: args.rx_buffer,
+        send_response: args.send_response,
+        ..ConnectOptions::default()
+    };
+    // Until the journal exists nothing of the job has been sent: a lost link is a job that
+    // never started, not one to resume.
+    let fresh = matches!(origin, Origin::Fresh(_));
+    let mut link = link::connect(&url, &job.program.machine, &options)
+        .map_err(|e| fail(if fresh { job::not_started(e) } else { e }))?;
+    let ready = job::preflight(&mut *link, &lines, origin).map_err(|r| refused(r, &lines, &map))?;
+    if args.check {
+        return run_check(&recipe.name(), &mut *link, &lines, &map);
+    }
+    if let Some(plan) = ready.resume_plan() {
+        eprintln!(
+            "{}: {} of {} lines had run (the controller's state fits {}); re-approach: {}",
+            recipe.name(),
+            plan.executed,
+            lines.lines().len(),
+            plan.candidates
+                .iter()
+                .map(|c| c.to_string())
+                .collect::<Vec<_>>()
+                .join(", "),
+            plan.reapproach.all().join(" | ")
+        );
+    }
+    let mut started = ready.start(&mut *link, &lines).map_err(fail)?;
+    stream_run(&recipe.name(), &mut *link, &lines, &mut started)
+        .map_err(|failure| (map.clone(), failure))
+}
+
+/// The journal `--resume` names, read; a job that ended has nothing to resume.
+fn read_resumed(args: &RunArgs) -> Result<Option<journal::State>, (SourceMap, Failure)> {
+    let Some(path) = &args.resume else {
+        return Ok(None);
+    };
+    let st = journal::read(path).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
+    if let Some(how) = &st.end {
+        return Err(io_fail(format!(
+            "the job in {} ended ({how}): there is nothing to resume",
+            path.display()
+        )));
+    }
+    Ok(Some(st))
+}
+
+/// The dialect a run streams in: `--dialect`, else the resumed journal's, else the machine's.
+fn run_dialect(
+    args: &RunArgs,
+    resumed: Option<&journal::State>,
+    job: &lase_runtime::motion::Job,
+    url: &LinkUrl,
+) -> Result<Dialect, (SourceMap, Failure)> {
     // Every link lase has speaks the GRBL 1.1 protocol: to GRBL (X, Y, Z) or, for machines
     // with more axes, grblHAL (up to six, inverse-time feed). The machine says which.
     let machine_dialect = link::live_dialect(&job.program.machine);
     let dialect_name = args
         .dialect
         .clone()
-        .or_else(|| resumed.as_ref().map(|s| s.header.dialect.clone()))
+        .or_else(|| resumed.map(|s| s.header.dialect.clone()))
         .unwrap_or_else(|| machine_dialect.to_string());
     let dialect = dialect_name.parse::<Dialect>().map_err(|_| {
         io_fail(format!(
@@ -116,153 +178,44 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             "the link to {url} speaks the GRBL 1.1 protocol and takes the grbl or grblhal dialect, not {dialect}; write a {dialect} program with `lase emit --dialect {dialect}`"
         )));
     }
-    let map = recipe.map.clone();
-    let fail = |e: LinkError| (map.clone(), Failure::one(e));
-    let nc = nc_lines(&recipe, &job, dialect)?;
-    let lines: Vec<String> = nc.iter().map(|l| l.text.clone()).collect();
-    let span_of = |index: usize| -> Span {
-        nc.get(index)
-            .and_then(|l| l.op)
-            .and_then(|o| job.program.ops.get(o as usize))
-            .map(|o| o.span)
-            .unwrap_or_default()
-    };
-    let hash = journal::program_hash(lines.iter().map(String::as_str));
-    if let Some(st) = &resumed
-        && (st.header.hash != hash || st.header.lines != lines.len())
-    {
-        return Err(fail(LinkError::Resume {
-            reason: format!(
-                "{} no longer produces the program the journal recorded ({} lines then, {} now)",
-                file.display(),
-                st.header.lines,
-                lines.len()
-            ),
-            help: "resume with the recipe (and machine file) exactly as they were when the job started".into(),
-        }));
-    }
+    Ok(dialect)
+}
 
-    let options = ConnectOptions {
-        rx_buffer: args.rx_buffer,
-        send_response: args.send_response,
-        ..ConnectOptions::default()
-    };
-    // Until the journal exists nothing of the job has been sent: a lost link is a job that
-    // never started, not one to resume.
-    let fresh = resumed.is_none();
-    let setup_fail = |e: LinkError| match e {
-        LinkError::Lost { reason } if fresh => fail(LinkError::NotReady {
-            reason: format!(
-                "the link was lost while connecting, before the job started ({reason}): no program line was sent"
-            ),
-            help: "check the cable or network and run the job again".into(),
-        }),
-        e => fail(e),
-    };
-    let mut link = link::connect(&url, &job.program.machine, &options).map_err(setup_fail)?;
-    // Nothing moves unless every line can go over this link.
-    for (i, l) in nc.iter().enumerate() {
-        if let Err(reason) = link.validate_line(&l.text) {
-            return Err(fail(LinkError::Unsendable {
-                line_no: i + 1,
-                line: l.text.clone(),
-                reason,
-                span: span_of(i),
-                help: "change the recipe text that ends up in this line (names in comments, for instance)".into(),
-            }));
-        }
-    }
-    let needs = Requirements::of_job(&job, dialect);
-    // A resumed job first waits for the controller to finish what it had received (`$$` is
-    // refused while it moves) and finds where the job stands.
-    let letters = link::ControllerAxes::of(&job.program.machine)
-        .letters()
-        .to_vec();
-    let resume_plan = match &resumed {
-        Some(st) => Some(
-            resume::plan(
-                &mut *link,
-                &lines,
-                st,
-                &letters,
-                args.resume_at,
-                Duration::from_secs(600),
-            )
-            .map_err(fail)?,
-        ),
-        None => None,
-    };
-    let mismatches = link.check_settings(&needs).map_err(setup_fail)?;
-    if !mismatches.is_empty() {
-        return Err((map.clone(), Failure::many(mismatches)));
-    }
-    let summary = lase_runtime::report::summarize(&job);
+/// The journal of a new job (none for the in-process simulator unless asked), its header
+/// naming the recipe by its full path so that `--resume` finds it from anywhere.
+fn new_journal(args: &RunArgs, file: &Path, url: &LinkUrl) -> Option<NewJournal> {
+    let path = journal_path(args, file, url)?;
+    let recipe = std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf());
+    Some(NewJournal {
+        path,
+        recipe: recipe.display().to_string(),
+        link: url.to_string(),
+    })
+}
 
-    if args.check {
-        return run_check(&recipe.name(), &mut *link, &lines, &span_of, &map);
-    }
+/// The diagnostic of a job that did not pass its preflight.
+fn refused(r: Refused, lines: &JobLines<'_>, map: &SourceMap) -> (SourceMap, Failure) {
+    let failure = match r {
+        Refused::Link(e) => Failure::one(e),
+        Refused::Settings(m) => Failure::many(m),
+        Refused::NotIdle(status) => Failure::one(job::not_idle(&status, &lines.letters())),
+    };
+    (map.clone(), failure)
+}
 
-    // The journal, and where streaming starts.
-    let mut lead = Vec::new();
-    let (mut jour, from, restored, start_pos) = match (&args.resume, resume_plan) {
-        (Some(path), Some(plan)) => {
-            let all = plan.reapproach.all();
-            eprintln!(
-                "{}: {} of {} lines had run (the controller's state fits {}); re-approach: {}",
-                recipe.name(),
-                plan.executed,
-                lines.len(),
-                plan.candidates
-                    .iter()
-                    .map(|c| c.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", "),
-                all.join(" | ")
-            );
-            let j = resume::enter(&mut *link, &plan, path).map_err(fail)?;
-            lead = plan.reapproach.lead;
-            (
-                Some(j),
-                plan.executed,
-                Some(plan.restored),
-                st_start(&resumed),
-            )
-        }
-        _ => {
-            let path = journal_path(&args, &file, &url);
-            let st = link
-                .query_status(Duration::from_secs(2))
-                .map_err(setup_fail)?;
-            let start = st.work_axes();
-            let j = match path {
-                Some(path) => {
-                    let recipe_path = std::fs::canonicalize(&file).unwrap_or(file.clone());
-                    let header = Header {
-                        recipe: recipe_path.display().to_string(),
-                        link: url.to_string(),
-                        dialect: dialect.to_string(),
-                        lines: lines.len(),
-                        hash,
-                        start,
-                    };
-                    Some(Journal::create(&path, &header).map_err(fail)?)
-                }
-                None => None,
-            };
-            (j, 0, None, start)
-        }
-    };
-    // Closed lit contours wait for acknowledgements, so that a drop can always be resumed.
-    let guards = if jour.is_some() {
-        resume::send_guards(&lase_runtime::link::modal::Tracker::new(start_pos), &lines)
-    } else {
-        Vec::new()
-    };
-    let journal_name = jour.as_ref().map(|j| j.path().display().to_string());
+/// Streams a started job with the progress bar and the keys, and words how it ended.
+fn stream_run(
+    name: &str,
+    link: &mut dyn Link,
+    lines: &JobLines<'_>,
+    started: &mut Started,
+) -> Result<(), Failure> {
+    let total = lines.lines().len();
+    let summary = lase_runtime::report::summarize(lines.job());
+    let journal_name = started.journal_path().map(|j| j.display().to_string());
     eprintln!(
-        "{}: {} lines to {} — planned cycle time {:.3} s{}",
-        recipe.name(),
-        lines.len() - from,
+        "{name}: {} lines to {} — planned cycle time {:.3} s{}",
+        total - started.from(),
         link.describe(),
         summary.cycle_time_s,
         journal_name
@@ -270,106 +223,73 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             .map(|p| format!(", journal {p}"))
             .unwrap_or_default()
     );
-
-    let eta = lase_runtime::link::eta::Eta::new(&job, &nc);
-    let mut display = Display::new(lines.len(), from, eta);
+    let eta = lase_runtime::link::eta::Eta::new(lines.job(), lines.nc());
+    let mut display = Display::new(total, started.from(), eta);
     let keys = Keys::for_terminal();
-    let report = stream::stream(
-        &mut *link,
-        &StreamJob {
-            lines: &lines,
-            from,
-            lead: &lead,
-            restored,
-            guards: &guards,
-        },
-        jour.as_mut(),
-        &StreamOptions::default(),
-        &mut |p: &Progress, e: Option<&Event>| {
-            display.update(p, e);
-            // `lase run` has no prompt to go back to: Ctrl-C in raw mode aborts.
-            keys.as_ref().and_then(Keys::try_key).map(|k| match k {
-                Key::Interrupt | Key::Abort => Control::Abort,
-                Key::Hold => Control::Hold,
-                Key::Resume => Control::Resume,
-            })
-        },
-    );
+    let report = started.stream(link, lines, &mut |p: &Progress, e: Option<&Event>| {
+        display.update(p, e);
+        // `lase run` has no prompt to go back to: Ctrl-C in raw mode aborts.
+        keys.as_ref().and_then(Keys::try_key).map(|k| match k {
+            Key::Interrupt | Key::Abort => Control::Abort,
+            Key::Hold => Control::Hold,
+            Key::Resume => Control::Resume,
+        })
+    });
     drop(keys);
     display.finish();
+    if report.outcome != Outcome::Done {
+        if let Outcome::Failed(_) = &report.outcome
+            && let Some(note) = report.stop_note.as_deref().filter(|n| !n.is_empty())
+        {
+            eprintln!("stopped: {note}");
+        }
+        let resume = match journal_name {
+            Some(j) => format!("the controller goes on with what it had received; reconnect it and continue with `lase run --resume {j}`"),
+            None => "this run kept no journal and cannot be resumed: check the part; stream to a controller with a journal (tcp:// or serial://, or --journal FILE) to be able to resume".into(),
+        };
+        return Err(job_failure(report, lines, resume));
+    }
     let elapsed = report.elapsed.as_secs_f64();
     let rate = report.program_bytes as f64 / elapsed.max(1e-9);
-    let resume_hint = journal_name
-        .clone()
-        .map(|j| format!("the controller goes on with what it had received; reconnect it and continue with `lase run --resume {j}`"))
-        .unwrap_or_else(|| "this run kept no journal and cannot be resumed: check the part; stream to a controller with a journal (tcp:// or serial://, or --journal FILE) to be able to resume".into());
+    println!(
+        "{name}: done — {} lines acknowledged in {elapsed:.3} s ({:.0} bytes/s), controller {}",
+        report.acked,
+        rate,
+        link.status(&lines.letters())
+    );
+    println!(
+        "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
+        summary.cycle_time_s, summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
+    );
+    Ok(())
+}
+
+/// The diagnostic of a job that did not finish (any outcome but `Done`), for `lase run` and
+/// the REPL's jobs alike; `resume` says how a job stopped by a lost link continues.
+pub(crate) fn job_failure(report: Report, lines: &JobLines<'_>, resume: String) -> Failure {
+    let total = lines.lines().len();
+    let stop = report.stop_note.unwrap_or_default();
     match report.outcome {
-        Outcome::Done => {
-            println!(
-                "{}: done — {} lines acknowledged in {elapsed:.3} s ({:.0} bytes/s), controller {}",
-                recipe.name(),
-                report.acked,
-                rate,
-                link.status(&letters)
-            );
-            println!(
-                "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
-                summary.cycle_time_s,
-                summary.laser_on_length_mm,
-                summary.laser_on_time_s,
-                summary.pulses
-            );
-            Ok(())
-        }
-        outcome @ (Outcome::Rejected { .. } | Outcome::Alarm { .. }) => Err((
-            map.clone(),
-            controller_stop(
-                outcome,
-                &lines,
-                &span_of,
-                report.stop_note.unwrap_or_default(),
-            ),
-        )),
-        Outcome::Aborted => Err((
-            map.clone(),
-            Failure::one(output::JobAborted {
-                acked: report.acked,
-                total: lines.len(),
-                stop: report.stop_note.unwrap_or_default(),
-            }),
-        )),
-        Outcome::Lost(e) => Err((
-            map.clone(),
-            Failure::one(output::LinkLost {
-                reason: e.to_string(),
-                acked: report.acked,
-                total: lines.len(),
-                resume: resume_hint,
-            }),
-        )),
-        Outcome::Failed(e) => {
-            let note = report.stop_note.unwrap_or_default();
-            if !note.is_empty() {
-                eprintln!("stopped: {note}");
-            }
-            Err(fail(e))
-        }
+        Outcome::Aborted => Failure::one(output::JobAborted {
+            acked: report.acked,
+            total,
+            stop,
+        }),
+        Outcome::Lost(e) => Failure::one(output::LinkLost {
+            reason: e.to_string(),
+            acked: report.acked,
+            total,
+            resume,
+        }),
+        Outcome::Failed(e) => Failure::one(e),
+        outcome => controller_stop(outcome, lines, stop),
     }
 }
 
-fn st_start(st: &Option<journal::State>) -> AxisPos {
-    st.as_ref().map_or([0.0; MAX_AXES], |s| s.header.start)
-}
-
 /// The diagnostic of a job the controller refused a line of or stopped with an alarm: the
-/// line, the recipe statement it came from, and what stopping the machine did (`lase run`,
-/// its check mode and the REPL's jobs).
-pub(crate) fn controller_stop(
-    outcome: Outcome,
-    lines: &[String],
-    span_of: &dyn Fn(usize) -> Span,
-    stop: String,
-) -> Failure {
+/// line, the recipe statement it came from, and what stopping the machine did.
+fn controller_stop(outcome: Outcome, lines: &JobLines<'_>, stop: String) -> Failure {
+    let text = lines.lines();
     match outcome {
         Outcome::Rejected {
             index,
@@ -377,10 +297,10 @@ pub(crate) fn controller_stop(
             message,
         } => Failure::one(output::ControllerRejected {
             line_no: index + 1,
-            line: lines[index].clone(),
+            line: text[index].clone(),
             code,
             message,
-            span: span_of(index),
+            span: lines.span_of(index),
             stop,
         }),
         Outcome::Alarm {
@@ -389,11 +309,11 @@ pub(crate) fn controller_stop(
             message,
         } => Failure::one(output::ControllerAlarm {
             line: index
-                .map(|i| format!(" at line {} `{}`", i + 1, lines[i]))
+                .map(|i| format!(" at line {} `{}`", i + 1, text[i]))
                 .unwrap_or_default(),
             code,
             message,
-            span: index.map(span_of),
+            span: index.map(|i| lines.span_of(i)),
             stop,
         }),
         _ => Failure::one(IoError {
@@ -403,34 +323,20 @@ pub(crate) fn controller_stop(
 }
 
 /// `--check`: GRBL check mode parses every line and moves nothing.
-fn run_check(
-    name: &str,
-    link: &mut dyn Link,
-    lines: &[String],
-    span_of: &dyn Fn(usize) -> Span,
-    map: &SourceMap,
-) -> CmdResult {
+fn run_check(name: &str, link: &mut dyn Link, lines: &JobLines<'_>, map: &SourceMap) -> CmdResult {
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
-    link.set_check_mode(true).map_err(fail)?;
-    let report = stream::stream(
-        link,
-        &StreamJob::new(lines),
-        None,
-        &StreamOptions::default(),
-        &mut |_: &Progress, _: Option<&Event>| None,
-    );
-    let _ = link.set_check_mode(false);
+    let report = job::check_mode(link, lines).map_err(fail)?;
     match report.outcome {
         Outcome::Done => {
             println!(
                 "{name}: check mode — the controller accepted all {} lines",
-                lines.len()
+                lines.lines().len()
             );
             Ok(())
         }
         outcome @ (Outcome::Rejected { .. } | Outcome::Alarm { .. }) => Err((
             map.clone(),
-            controller_stop(outcome, lines, span_of, "check mode: nothing moved".into()),
+            controller_stop(outcome, lines, "check mode: nothing moved".into()),
         )),
         Outcome::Aborted => Err(io_fail("check aborted".into())),
         Outcome::Lost(e) | Outcome::Failed(e) => Err(fail(e)),

@@ -1,6 +1,7 @@
 //! Streaming jobs to the simulated GRBL controller over real TCP sockets on 127.0.0.1: every
 //! example, exactly once, executing its plan; hold and resume; an injected error; settings
-//! that do not fit the plan; check mode; garbage from the controller; the `lase sim` server.
+//! that do not fit the plan; a controller that is not idle; check mode; garbage from the
+//! controller; the `lase sim` server.
 
 mod link_support;
 
@@ -8,7 +9,7 @@ use lase_runtime::link::grbl::GrblLink;
 use lase_runtime::link::sim::{Faults, SimOptions, TimeScale};
 use lase_runtime::link::stream::{self, Control, Outcome, Progress, StreamOptions};
 use lase_runtime::link::transport::TcpTransport;
-use lase_runtime::link::{ConnectOptions, Event, MachineState};
+use lase_runtime::link::{ConnectOptions, Event, Link, MachineState, Realtime, Reply};
 use link_support::*;
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
@@ -232,6 +233,51 @@ fn settings_that_do_not_fit_the_plan_stop_the_job_before_it_starts() {
     assert!(err.contains("3 errors"), "{err}");
     let rec = sim.stop();
     assert!(gcode_lines(&rec).is_empty(), "nothing was sent");
+}
+
+/// A controller in alarm (here woken from `$SLP` by a reset, as GRBL wakes) has lost its
+/// position: `lase run` refuses to start, sends no program line and writes no journal, as
+/// the REPL's `:run` does.
+#[test]
+fn a_controller_that_is_not_idle_is_refused_before_the_job_starts() {
+    let ex = root().join("examples/frame_marking.lase");
+    let c = compile(&ex);
+    let sim = sim_for(&c.job, max_sim());
+    {
+        let mut link = connect(&sim);
+        assert_eq!(link.send("$SLP").unwrap(), Reply::Ok);
+        link.realtime(Realtime::SoftReset).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while link.query_status(Duration::from_secs(2)).unwrap().state != MachineState::Alarm {
+            assert!(
+                Instant::now() < deadline,
+                "the simulator did not enter alarm"
+            );
+        }
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let journal = dir.path().join("j");
+    let (code, _out, err) = lase(&[
+        "run",
+        ex.to_str().unwrap(),
+        "--link",
+        &url(&sim),
+        "--journal",
+        journal.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 1, "{err}");
+    // The diagnostic as words, whatever the width it was wrapped at.
+    let words: Vec<&str> = err.split_whitespace().filter(|w| *w != "│").collect();
+    let said = words.join(" ");
+    assert!(said.contains("lase::link::not_ready"), "{err}");
+    assert!(
+        said.contains("it reports `Alarm | X0 Y0`, not Idle: no program line was sent"),
+        "{err}"
+    );
+    assert!(said.contains("clear the alarm"), "{err}");
+    assert!(!journal.exists());
+    let rec = sim.stop();
+    assert!(gcode_lines(&rec).is_empty(), "{:?}", gcode_lines(&rec));
 }
 
 #[test]

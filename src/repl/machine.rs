@@ -2,25 +2,23 @@
 //! `--link` or `:connect` names another), jogging, homing, status, and jobs streamed with the
 //! progress bar.
 //!
-//! Safety at the machine: a job is streamed only once it is planned and every line is known
-//! to be sendable and the controller's settings fit the plan. Ctrl-C during a job or a jog is
-//! a feed hold (GRBL's laser mode switches the beam off while held), never a kill of the
-//! process: the REPL then asks whether to resume or abort. Signals are caught only while the
+//! Safety at the machine: a job starts through `link::job`, as `lase run`'s do: streamed only
+//! once it is planned, every line is known to be sendable, the controller's settings fit the
+//! plan and the controller is idle. Ctrl-C during a job or a jog is a feed hold (GRBL's laser
+//! mode switches the beam off while held), never a kill of the process: the REPL then asks
+//! whether to resume or abort. Signals are caught only while the
 //! controller moves; at the prompt rustyline reads Ctrl-C as a key.
 
 use crate::driver::Failure;
 use crate::live::{Display, Key, Keys};
-use crate::output;
-use lase_lang::Span;
 use lase_runtime::emit::NcLine;
 use lase_runtime::link::grbl::GrblLink;
-use lase_runtime::link::journal::{self, Header, Journal};
-use lase_runtime::link::modal::Tracker;
+use lase_runtime::link::job::{self, JobLines, NewJournal, Origin, Refused, Started};
+use lase_runtime::link::journal;
 use lase_runtime::link::sim::{self, SimHandle};
-use lase_runtime::link::stream::{self, Control, Outcome, Progress, StreamJob, StreamOptions};
+use lase_runtime::link::stream::{self, Control, Outcome, Progress};
 use lase_runtime::link::{
-    self, AxisPos, ConnectOptions, Event, Link, LinkError, LinkUrl, MachineState, ModalState,
-    Realtime, Requirements, Status, resume,
+    self, ConnectOptions, Event, Link, LinkError, LinkUrl, MachineState, Realtime, Status,
 };
 use lase_runtime::machine::Machine;
 use lase_runtime::motion::Job;
@@ -57,13 +55,15 @@ struct LostJob {
     journal: tempfile::TempPath,
 }
 
-/// Where a job starts streaming: from its first line with a new journal, or after a resume.
-struct Start<'a> {
-    journal: Journal,
-    from: usize,
-    lead: &'a [String],
-    restored: Option<ModalState>,
-    start: AxisPos,
+impl LostJob {
+    /// Its lines as they go to the controller.
+    fn lines(&self) -> JobLines<'_> {
+        JobLines::new(
+            &self.job,
+            &self.nc,
+            link::live_dialect(&self.job.program.machine),
+        )
+    }
 }
 
 impl std::fmt::Debug for Station {
@@ -138,17 +138,6 @@ impl Drop for SigGuard {
 pub struct Stream<'a> {
     pub job: &'a Job,
     pub nc: &'a [NcLine],
-}
-
-impl Stream<'_> {
-    fn span_of(&self, index: usize) -> Span {
-        self.nc
-            .get(index)
-            .and_then(|l| l.op)
-            .and_then(|o| self.job.program.ops.get(o as usize))
-            .map(|o| o.span)
-            .unwrap_or_default()
-    }
 }
 
 /// How a job ended, for the session.
@@ -428,8 +417,9 @@ impl Station {
         Ok(())
     }
 
-    /// Streams a planned job: nothing is sent unless every line can go over the link and the
-    /// controller's settings fit the plan, and no job interrupted by a lost link waits.
+    /// Streams a planned job: nothing is sent unless it passes the job preflight (every line
+    /// sendable, settings fit the plan, controller idle), and no job interrupted by a lost
+    /// link waits.
     pub fn run(&mut self, machine: &Machine, job: &Stream<'_>, name: &str) -> (Ran, R<String>) {
         if let Some(old) = &self.lost {
             return (
@@ -440,57 +430,7 @@ impl Station {
                 ))),
             );
         }
-        let link = match self.link(Some(machine)) {
-            Ok(l) => l,
-            Err(t) => return (Ran::NotStarted, Err(t)),
-        };
-        let lines: Vec<String> = job.nc.iter().map(|l| l.text.clone()).collect();
-        for (i, l) in lines.iter().enumerate() {
-            if let Err(reason) = link.validate_line(l) {
-                return (
-                    Ran::NotStarted,
-                    Err(LinkError::Unsendable {
-                        line_no: i + 1,
-                        line: l.clone(),
-                        reason,
-                        span: job.span_of(i),
-                        help: "change the recipe text that ends up in this line".into(),
-                    }
-                    .into()),
-                );
-            }
-        }
-        let needs = Requirements::of_job(job.job, link::live_dialect(&job.job.program.machine));
-        match link.check_settings(&needs) {
-            Ok(m) if m.is_empty() => {}
-            Ok(m) => {
-                return (Ran::NotStarted, Err(Trouble::Diag(Failure::many(m))));
-            }
-            Err(e) => return (Ran::NotStarted, Err(e.into())),
-        }
-        match link.query_status(Duration::from_secs(2)) {
-            Ok(s) if s.state == MachineState::Idle => {}
-            Ok(s) => {
-                return (
-                    Ran::NotStarted,
-                    Err(Trouble::Say(format!(
-                        "the controller is not idle ({}): {}",
-                        s.summary_for(None, &machine_letters(machine)),
-                        match s.state {
-                            MachineState::Alarm => "`:home` it first",
-                            MachineState::Hold { .. } => "`:resume` or `:abort` first",
-                            _ => "wait for it, or `:abort`",
-                        }
-                    ))),
-                );
-            }
-            Err(e) => return (Ran::NotStarted, Err(e.into())),
-        }
         // The journal: what was sent and acknowledged, so that a lost link can be resumed.
-        let header_start = match link.query_status(Duration::from_secs(2)) {
-            Ok(s) => s.work_axes(),
-            Err(e) => return (Ran::NotStarted, Err(e.into())),
-        };
         let path = match tempfile::Builder::new()
             .prefix("lase-repl-")
             .suffix(".journal")
@@ -504,18 +444,6 @@ impl Station {
                 );
             }
         };
-        let header = Header {
-            recipe: name.to_string(),
-            link: self.url.to_string(),
-            dialect: link::live_dialect(machine).to_string(),
-            lines: lines.len(),
-            hash: journal::program_hash(lines.iter().map(String::as_str)),
-            start: header_start,
-        };
-        let jour = match Journal::create(&path, &header) {
-            Ok(j) => j,
-            Err(e) => return (Ran::NotStarted, Err(e.into())),
-        };
         let lost = LostJob {
             name: name.to_string(),
             machine: machine.clone(),
@@ -523,98 +451,123 @@ impl Station {
             nc: job.nc.to_vec(),
             journal: path,
         };
-        self.stream_job(
-            lost,
-            &lines,
-            Start {
-                journal: jour,
-                from: 0,
-                lead: &[],
-                restored: None,
-                start: header_start,
-            },
-        )
+        let lines = lost.lines();
+        let origin = Origin::Fresh(Some(NewJournal {
+            path: lost.journal.to_path_buf(),
+            recipe: name.to_string(),
+            link: self.url.to_string(),
+        }));
+        let started = match self.start_job(machine, &lines, origin) {
+            Ok((started, _)) => started,
+            Err(t) => return (Ran::NotStarted, Err(t)),
+        };
+        let (ran, result, resumable) = self.stream_job(&lost, &lines, started);
+        if resumable {
+            self.lost = Some(lost);
+        }
+        (ran, result)
     }
 
     /// Continues a job after a lost link: reconnects, finds from the controller's state where
-    /// the job stands, re-approaches and streams the rest.
+    /// the job stands, re-approaches and streams the rest. Until it is streamed again, the job
+    /// stays resumable.
     fn resume_job(&mut self, lost: LostJob) -> R<String> {
-        let lines: Vec<String> = lost.nc.iter().map(|l| l.text.clone()).collect();
-        let letters = machine_letters(&lost.machine);
-        let path = lost.journal.to_path_buf();
-        let machine = lost.machine.clone();
-        // Until it is streamed again, the job stays resumable.
-        self.lost = Some(lost);
-        let link = self.link(Some(&machine))?;
-        let st = journal::read(&path)?;
-        let plan = resume::plan(
-            &mut **link,
-            &lines,
-            &st,
-            &letters,
-            None,
-            Duration::from_secs(600),
-        )?;
-        let jour = resume::enter(&mut **link, &plan, &path)?;
-        let note = format!(
-            "{} of {} lines had run; re-approach: {}",
-            plan.executed,
-            lines.len(),
-            plan.reapproach.all().join(" | ")
-        );
-        let Some(lost) = self.lost.take() else {
-            return Err(Trouble::Say("no job to resume".into()));
+        let lines = lost.lines();
+        let origin = match journal::read(&lost.journal)
+            .and_then(|st| Origin::resume(&lines, lost.journal.to_path_buf(), st, None, &lost.name))
+        {
+            Ok(o) => o,
+            Err(e) => {
+                self.lost = Some(lost);
+                return Err(e.into());
+            }
         };
-        if self.interactive {
-            eprintln!("{}: {note}", lost.name);
-        } else {
-            println!("{}: {note}", lost.name);
+        let started = match self.start_job(&lost.machine, &lines, origin) {
+            Ok((started, note)) => {
+                let note = note.unwrap_or_default();
+                if self.interactive {
+                    eprintln!("{}: {note}", lost.name);
+                } else {
+                    println!("{}: {note}", lost.name);
+                }
+                started
+            }
+            Err(t) => {
+                self.lost = Some(lost);
+                return Err(t);
+            }
+        };
+        let (_, result, resumable) = self.stream_job(&lost, &lines, started);
+        if resumable {
+            self.lost = Some(lost);
         }
-        let (_, r) = self.stream_job(
-            lost,
-            &lines,
-            Start {
-                journal: jour,
-                from: plan.executed,
-                lead: &plan.reapproach.lead,
-                restored: Some(plan.restored),
-                start: st.header.start,
-            },
-        );
-        r
+        result
     }
 
-    /// Streams a checked job's lines from `at`, with the progress bar and Ctrl-C as a feed
-    /// hold. A lost link keeps the job for `:resume`.
-    fn stream_job(&mut self, lost: LostJob, lines: &[String], at: Start<'_>) -> (Ran, R<String>) {
+    /// The job preflight and start on the session's link; for a resumed job also what the
+    /// resume found, worded for the operator.
+    fn start_job(
+        &mut self,
+        machine: &Machine,
+        lines: &JobLines<'_>,
+        origin: Origin,
+    ) -> R<(Started, Option<String>)> {
+        let link = self.link(Some(machine))?;
+        let ready = job::preflight(&mut **link, lines, origin).map_err(|r| match r {
+            Refused::Link(e) => Trouble::from(e),
+            Refused::Settings(m) => Trouble::Diag(Failure::many(m)),
+            Refused::NotIdle(s) => Trouble::Say(format!(
+                "the controller is not idle ({}): {}",
+                s.summary_for(None, &lines.letters()),
+                match s.state {
+                    MachineState::Alarm => "`:home` it first",
+                    MachineState::Hold { .. } => "`:resume` or `:abort` first",
+                    _ => "wait for it, or `:abort`",
+                }
+            )),
+        })?;
+        let note = ready.resume_plan().map(|plan| {
+            format!(
+                "{} of {} lines had run; re-approach: {}",
+                plan.executed,
+                lines.lines().len(),
+                plan.reapproach.all().join(" | ")
+            )
+        });
+        let started = ready.start(&mut **link, lines)?;
+        Ok((started, note))
+    }
+
+    /// Streams a started job with the progress bar and Ctrl-C as a feed hold. The flag says
+    /// whether the link was lost and the job is worth keeping for `:resume`.
+    fn stream_job(
+        &mut self,
+        lost: &LostJob,
+        lines: &JobLines<'_>,
+        mut started: Started,
+    ) -> (Ran, R<String>, bool) {
         let interactive = self.interactive;
         let Some(conn) = self.conn.as_mut() else {
-            return (Ran::NotStarted, Err(Trouble::Say("not connected".into())));
+            return (
+                Ran::NotStarted,
+                Err(Trouble::Say("not connected".into())),
+                false,
+            );
         };
         let link = &mut conn.link;
-        let job = Stream {
-            job: &lost.job,
-            nc: &lost.nc,
-        };
         let name = lost.name.as_str();
-        let Start {
-            journal: mut jour,
-            from,
-            lead,
-            restored,
-            start,
-        } = at;
-        let guards = resume::send_guards(&Tracker::new(start), lines);
-        let letters = machine_letters(&lost.machine);
-        let summary = lase_runtime::report::summarize(job.job);
-        let eta = lase_runtime::link::eta::Eta::new(job.job, job.nc);
+        let from = started.from();
+        let total = lines.lines().len();
+        let letters = lines.letters();
+        let summary = lase_runtime::report::summarize(lines.job());
+        let eta = lase_runtime::link::eta::Eta::new(lines.job(), lines.nc());
         // Ctrl-C is ours from here until the job has ended.
         let sig = SigGuard::new();
         let keys = interactive.then(Keys::start);
-        let mut display = Display::new(lines.len(), from, eta);
+        let mut display = Display::new(total, from, eta);
         let header = format!(
             "{name}: {} lines to {}, planned cycle time {:.3} s",
-            lines.len() - from,
+            total - from,
             link.describe(),
             summary.cycle_time_s
         );
@@ -622,21 +575,13 @@ impl Station {
             display.println(&header);
             display.println("Ctrl-C = feed hold, laser off");
         } else {
-            println!("{}: {} lines", name, lines.len() - from);
+            println!("{}: {} lines", name, total - from);
         }
         let mut asking = false;
         let mut announced = false;
-        let report = stream::stream(
+        let report = started.stream(
             &mut **link,
-            &StreamJob {
-                lines,
-                from,
-                lead,
-                restored,
-                guards: &guards,
-            },
-            Some(&mut jour),
-            &StreamOptions::default(),
+            lines,
             &mut |p: &Progress, e: Option<&Event>| {
                 display.update(p, e);
                 let mut key = keys.as_ref().and_then(Keys::try_key);
@@ -656,9 +601,8 @@ impl Station {
                         .map(|s| s.summary_for(None, &letters))
                         .unwrap_or_default();
                     display.println(&format!(
-                        "held: {at}, laser off, {} of {} lines done — r = resume, a = abort",
+                        "held: {at}, laser off, {} of {total} lines done — r = resume, a = abort",
                         p.acked,
-                        lines.len()
                     ));
                 }
                 match key {
@@ -684,66 +628,39 @@ impl Station {
         drop(keys);
         display.finish();
         drop(sig);
-        let total = lines.len();
-        let result = match report.outcome {
-            Outcome::Done => {
-                let mut msg = format!(
-                    "{name}: done — {} lines, controller {}",
-                    report.acked,
-                    link.status(&letters)
-                );
-                if interactive {
-                    msg.push_str(&format!(" ({:.1} s)", report.elapsed.as_secs_f64()));
-                }
-                Ok(msg)
-            }
-            outcome @ (Outcome::Rejected { .. } | Outcome::Alarm { .. }) => {
-                Err(Trouble::Diag(crate::live::controller_stop(
-                    outcome,
-                    lines,
-                    &|i| job.span_of(i),
-                    report.stop_note.unwrap_or_default(),
-                )))
-            }
-            Outcome::Aborted => Err(Trouble::Diag(Failure::one(output::JobAborted {
-                acked: report.acked,
-                total,
-                stop: report.stop_note.unwrap_or_default(),
-            }))),
-            Outcome::Lost(e) => {
-                self.conn = None;
-                let resume = match &self.url {
-                    // The in-process simulator ends with its link: there is nothing to resume.
-                    LinkUrl::Sim(_) => {
-                        "the simulator ended with the link: check the part, `:connect` again"
-                            .to_string()
-                    }
-                    _ => format!(
-                        "the controller goes on with what it had received; reconnect it and `:resume`: the job continues where the controller stopped (its journal: {})",
-                        lost.journal.display()
-                    ),
-                };
-                if !matches!(self.url, LinkUrl::Sim(_)) {
-                    self.lost = Some(lost);
-                }
-                return (
-                    Ran::Started,
-                    Err(Trouble::Diag(Failure::one(output::LinkLost {
-                        reason: e.to_string(),
-                        acked: report.acked,
-                        total,
-                        resume,
-                    }))),
-                );
-            }
-            Outcome::Failed(e) => Err(e.into()),
-        };
-        let ran = if report.sent > 0 {
+        let ran = if report.sent > 0 || matches!(report.outcome, Outcome::Lost(_)) {
             Ran::Started
         } else {
             Ran::NotStarted
         };
-        (ran, result)
+        if report.outcome == Outcome::Done {
+            let mut msg = format!(
+                "{name}: done — {} lines, controller {}",
+                report.acked,
+                link.status(&letters)
+            );
+            if interactive {
+                msg.push_str(&format!(" ({:.1} s)", report.elapsed.as_secs_f64()));
+            }
+            return (ran, Ok(msg), false);
+        }
+        let lost_link = matches!(report.outcome, Outcome::Lost(_));
+        if lost_link {
+            self.conn = None;
+        }
+        let resume = match &self.url {
+            // The in-process simulator ends with its link: there is nothing to resume.
+            LinkUrl::Sim(_) => {
+                "the simulator ended with the link: check the part, `:connect` again".to_string()
+            }
+            _ => format!(
+                "the controller goes on with what it had received; reconnect it and `:resume`: the job continues where the controller stopped (its journal: {})",
+                lost.journal.display()
+            ),
+        };
+        let resumable = lost_link && !matches!(self.url, LinkUrl::Sim(_));
+        let failure = crate::live::job_failure(report, lines, resume);
+        (ran, Err(Trouble::Diag(failure)), resumable)
     }
 }
 

@@ -19,6 +19,8 @@
 //! dwell), and power changes between lit moves are written before the next lit move.
 
 mod format;
+pub mod modal;
+pub mod reapproach;
 mod validate;
 mod writer;
 

@@ -13,9 +13,11 @@
 //! - [`stream`]: a job over any `Link`, nothing lost and nothing repeated: a write-ahead
 //!   [`journal`] on disk, the stop sequence on an error, and the resume logic that finds the
 //!   last executed line from the controller's state ([`modal`] predicts it line by line).
+//! - [`job`]: starting a job, the one safety sequence `lase run` and the REPL share:
+//!   preflight (every line sendable, settings fit the plan, controller idle), then journal,
+//!   resume point and send guards, then [`stream`].
 //! - [`sim`]: a simulated GRBL 1.1 (or grblHAL) controller, a real implementation of the protocol that the
 //!   tests talk to over real sockets, with fault injection and a record of what it executed.
-//! - [`dry`]: the protocol-less line checker behind the REPL's `:run`.
 //!
 //! The path of one line: `emit` writes it (with its op index) → [`stream::Streamer`] journals
 //! it as about to be sent → [`Link::send_line`] writes it when the controller's input buffer
@@ -23,9 +25,9 @@
 //! journal records the acknowledgement. An `error:N` comes back as [`Event::Rejected`] for the
 //! same line, and the caller maps the line to its op and the op to its recipe span.
 
-pub mod dry;
 pub mod eta;
 pub mod grbl;
+pub mod job;
 pub mod journal;
 pub mod modal;
 pub mod requirements;
@@ -35,6 +37,8 @@ pub mod stream;
 pub mod transport;
 mod url;
 
+pub use crate::emit::modal::{ModalState, MotionMode, Plane, Spindle};
+pub use crate::emit::reapproach::Reapproach;
 pub use requirements::{AxisNeed, Requirements, SettingMismatch};
 pub use url::{LinkUrl, SimUrlOptions};
 
@@ -341,86 +345,6 @@ pub enum OverrideStep {
     Minus1,
 }
 
-/// The modal state of a controller's G-code interpreter, as far as a job depends on it. Feed
-/// is in mm/min (or the inverse-time value in G93), positions in mm, work coordinates.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ModalState {
-    pub motion: MotionMode,
-    pub plane: Plane,
-    pub inches: bool,
-    pub incremental: bool,
-    pub inverse_time: bool,
-    pub spindle: Spindle,
-    pub flood: bool,
-    pub mist: bool,
-    pub feed: f64,
-    pub s: f64,
-}
-
-impl Default for ModalState {
-    /// GRBL's state after power-up or reset: G0 G54 G17 G21 G90 G94 M5 M9 F0 S0.
-    fn default() -> Self {
-        ModalState {
-            motion: MotionMode::Rapid,
-            plane: Plane::Xy,
-            inches: false,
-            incremental: false,
-            inverse_time: false,
-            spindle: Spindle::Off,
-            flood: false,
-            mist: false,
-            feed: 0.0,
-            s: 0.0,
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MotionMode {
-    Rapid,
-    Linear,
-    ArcCw,
-    ArcCcw,
-    /// G80: no motion mode.
-    None,
-}
-
-impl MotionMode {
-    pub fn word(self) -> &'static str {
-        match self {
-            MotionMode::Rapid => "G0",
-            MotionMode::Linear => "G1",
-            MotionMode::ArcCw => "G2",
-            MotionMode::ArcCcw => "G3",
-            MotionMode::None => "G80",
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Plane {
-    Xy,
-    Zx,
-    Yz,
-}
-
-impl Plane {
-    pub fn word(self) -> &'static str {
-        match self {
-            Plane::Xy => "G17",
-            Plane::Zx => "G18",
-            Plane::Yz => "G19",
-        }
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Spindle {
-    Off,
-    Cw,
-    Ccw,
-}
-
 /// A controller connection speaking one protocol.
 ///
 /// Lines are answered in the order they were sent. A streaming caller checks
@@ -468,22 +392,6 @@ pub trait Link: Send {
     /// How to send `line` after a re-approach that restored `state`: a GRBL controller cannot
     /// be put in G2/G3 without an arc, so the first modal arc line needs its motion word.
     fn continue_line(&self, state: &ModalState, line: &str) -> Continue;
-}
-
-/// A re-approach in two parts.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct Reapproach {
-    /// Laser off, then positioning and modal state: sent one at a time, each answered.
-    pub setup: Vec<String>,
-    /// The lines that re-arm the laser (power, motion mode): sent in one burst with the job's
-    /// next lines, so that the beam is on at rest no longer than in the program itself.
-    pub lead: Vec<String>,
-}
-
-impl Reapproach {
-    pub fn all(&self) -> Vec<String> {
-        self.setup.iter().chain(&self.lead).cloned().collect()
-    }
 }
 
 /// How a line after a re-approach relates to the restored state (see [`Link::continue_line`]).
@@ -651,26 +559,4 @@ pub fn connect(
     };
     let link = grbl::GrblLink::connect(transport, url.to_string(), options)?;
     Ok(Box::new(link))
-}
-
-/// The dry-run line checker the REPL uses: answers at once, speaks no protocol.
-pub trait DryLink {
-    /// Sends one line (without newline) and waits for the controller's reply.
-    fn send(&mut self, line: &str) -> Result<Reply, LinkError>;
-    /// A one-line description of the controller's state.
-    fn status(&self) -> String;
-}
-
-/// Opens the dry-run checker (`None` or `sim`); live links go through [`connect`].
-pub fn open(
-    url: Option<&str>,
-    machine: &crate::machine::Machine,
-) -> Result<Box<dyn DryLink>, LinkError> {
-    match url {
-        None | Some("sim") | Some("sim://") => Ok(Box::new(dry::SimController::new(machine))),
-        Some(other) => Err(LinkError::Unsupported {
-            url: other.to_string(),
-            help: Some("the dry run checks lines in this process; stream to a controller with `lase run FILE --link URL`".into()),
-        }),
-    }
 }

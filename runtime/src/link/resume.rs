@@ -10,9 +10,10 @@
 //! that fits is taken, unless a lit move lies between the fits (a full circle ends where it
 //! starts): then it cannot be told whether that cut ran, and lase refuses to guess.
 //!
-//! The re-approach ([`Link::reapproach`]): laser off, millimetres and absolute, a rapid to the
-//! resume point, then the modal state after line `c` (units, distance mode, feed mode, plane,
-//! coolant, laser power, motion mode with feed). Nothing already executed is sent again.
+//! The re-approach ([`Link::reapproach`], its lines written by `emit::reapproach`): laser off,
+//! millimetres and absolute, a rapid to the resume point, then the modal state after line `c`
+//! (units, distance mode, feed mode, plane, coolant, laser power, motion mode with feed).
+//! Nothing already executed is sent again.
 
 use super::journal::State;
 use super::modal::{self, LineKind, Tracker};
@@ -145,7 +146,7 @@ pub fn plan(
                     reason: format!(
                         "the controller is at ({}) in {}, which fits none of lines {lo} to {hi} the journal says may have run",
                         words.join(", "),
-                        describe(&observed)
+                        observed.describe()
                     ),
                     help: "it was reset, re-homed or moved since the link dropped; check the part and run the rest by hand, or give the number of lines that ran with --resume-at".into(),
                 });
@@ -300,22 +301,6 @@ pub fn send_guards(start: &Tracker, lines: &[String]) -> Vec<Option<usize>> {
         buckets.entry((k, cellpos)).or_default().push((c, t.pos));
     }
     guards
-}
-
-fn describe(m: &ModalState) -> String {
-    format!(
-        "{} {} {} M{} F{} S{}",
-        m.motion.word(),
-        if m.incremental { "G91" } else { "G90" },
-        if m.inches { "G20" } else { "G21" },
-        match m.spindle {
-            super::Spindle::Off => 5,
-            super::Spindle::Cw => 3,
-            super::Spindle::Ccw => 4,
-        },
-        m.feed,
-        m.s
-    )
 }
 
 #[cfg(test)]

@@ -21,9 +21,8 @@ pub mod settings;
 use super::transport::Transport;
 use super::{
     ConnectOptions, Continue, Event, Link, LinkError, ModalState, MotionMode, Realtime, Reapproach,
-    Reply, Requirements, Spindle, Status,
+    Reply, Requirements, Status,
 };
-use crate::emit::{degrees, number};
 use response::Response;
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
@@ -54,9 +53,9 @@ pub fn continuation(state: &ModalState, line: &str) -> Continue {
         return Continue::Pending;
     }
     match state.motion {
-        MotionMode::ArcCw | MotionMode::ArcCcw => {
-            Continue::Replace(format!("{} {line}", state.motion.word()))
-        }
+        MotionMode::ArcCw | MotionMode::ArcCcw => Continue::Replace(
+            crate::emit::reapproach::with_motion_word(state.motion, line),
+        ),
         _ => Continue::Settled,
     }
 }
@@ -651,63 +650,7 @@ impl Link for GrblLink {
     }
 
     fn reapproach(&self, state: &ModalState, letters: &[char], position: &[f64]) -> Reapproach {
-        let mut out = vec!["M5".to_string(), "G21 G90 G94".to_string()];
-        let axes: Vec<String> = letters
-            .iter()
-            .zip(position)
-            .filter(|(l, _)| super::axis_index(**l).is_some())
-            // A, B, C to the job's own precision (1e-6°), so the re-approach ends exactly
-            // where the job's next line starts from.
-            .map(|(l, v)| match l {
-                'A' | 'B' | 'C' => format!("{l}{}", degrees(*v)),
-                _ => format!("{l}{}", number(*v)),
-            })
-            .collect();
-        if !axes.is_empty() {
-            out.push(format!("G0 {}", axes.join(" ")));
-        }
-        out.push(format!(
-            "{} {} {} {}",
-            if state.inches { "G20" } else { "G21" },
-            if state.incremental { "G91" } else { "G90" },
-            if state.inverse_time { "G93" } else { "G94" },
-            state.plane.word()
-        ));
-        out.push(
-            match (state.flood, state.mist) {
-                (false, false) => "M9",
-                (true, false) => "M8",
-                (false, true) => "M7",
-                (true, true) => "M7 M8",
-            }
-            .into(),
-        );
-        let units = if state.inches { 25.4 } else { 1.0 };
-        let setup = out;
-        let mut out = Vec::new();
-        // Power before the motion mode: in G0 the laser stays off whatever M3 says.
-        out.push(match state.spindle {
-            Spindle::Off => format!("S{}", number(state.s)),
-            Spindle::Cw => format!("M3 S{}", number(state.s)),
-            Spindle::Ccw => format!("M4 S{}", number(state.s)),
-        });
-        match state.motion {
-            MotionMode::Rapid => {}
-            MotionMode::None => out.push("G80".into()),
-            // G2/G3 cannot be set without an arc: G1 stands in, and the next modal arc line
-            // is sent with its motion word (`continue_line`).
-            MotionMode::Linear | MotionMode::ArcCw | MotionMode::ArcCcw => {
-                if state.inverse_time {
-                    // In G93 a block with a G1 word needs an F of its own, even when nothing
-                    // moves (GRBL's error 22). No move uses this one: each G93 move carries
-                    // its own.
-                    out.push("G1 F1".into());
-                } else if state.feed > 0.0 {
-                    out.push(format!("G1 F{}", number(state.feed / units)));
-                }
-            }
-        }
-        Reapproach { setup, lead: out }
+        crate::emit::reapproach::grbl_reapproach(state, letters, position)
     }
 
     fn continue_line(&self, state: &ModalState, line: &str) -> Continue {

@@ -1,0 +1,384 @@
+//! Starting a job on a controller: the one safety sequence that `lase run` and the REPL's
+//! `:run` and `:resume` go through, so that what is checked before anything moves cannot
+//! drift between them.
+//!
+//! 1. [`preflight`]: every line can go over this link; a resumed job finds where it stands
+//!    ([`resume::plan`], which waits for the controller to finish what it had received); the
+//!    controller's settings (`$$`) fit the plan's needs; the controller is idle. Nothing of
+//!    the job is sent, and a link lost here is a job that never started.
+//! 2. [`Ready::start`]: the journal is created (or, resuming, the resume point recorded and
+//!    the re-approach's setup lines sent), and the send guards that keep a dropped link
+//!    resumable are set.
+//! 3. [`Started::stream`]: the lines go out through [`stream::stream`]; the caller's
+//!    observer sees progress and returns the operator's hold/resume/abort.
+//!
+//! The callers keep only what is theirs: where the journal lives, the progress display, the
+//! keys, and the wording of the outcome.
+
+use super::journal::{self, Header, Journal};
+use super::modal::Tracker;
+use super::resume::{self, ResumePlan};
+use super::stream::{self, Control, Progress, Report, StreamJob, StreamOptions};
+use super::{
+    AxisPos, ControllerAxes, Event, Link, LinkError, MachineState, ModalState, Requirements,
+    SettingMismatch, Status,
+};
+use crate::emit::{Dialect, NcLine};
+use crate::motion::Job;
+use lase_lang::Span;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// How long a status report may take.
+const STATUS_WAIT: Duration = Duration::from_secs(2);
+
+/// How long a resumed job waits for the controller to finish the lines it had received.
+const RESUME_WAIT: Duration = Duration::from_secs(600);
+
+/// A job's NC lines as they go to a controller, with the planned job they came from (for the
+/// settings it needs and the recipe statement behind each line).
+#[derive(Debug)]
+pub struct JobLines<'a> {
+    job: &'a Job,
+    nc: &'a [NcLine],
+    lines: Vec<String>,
+    dialect: Dialect,
+}
+
+impl<'a> JobLines<'a> {
+    /// The lines `nc` of `job`, written in `dialect`.
+    pub fn new(job: &'a Job, nc: &'a [NcLine], dialect: Dialect) -> JobLines<'a> {
+        JobLines {
+            job,
+            nc,
+            lines: nc.iter().map(|l| l.text.clone()).collect(),
+            dialect,
+        }
+    }
+
+    pub fn lines(&self) -> &[String] {
+        &self.lines
+    }
+
+    pub fn job(&self) -> &'a Job {
+        self.job
+    }
+
+    pub fn nc(&self) -> &'a [NcLine] {
+        self.nc
+    }
+
+    pub fn dialect(&self) -> Dialect {
+        self.dialect
+    }
+
+    /// The recipe statement that produced line `index` (empty for header and footer lines).
+    pub fn span_of(&self, index: usize) -> Span {
+        self.nc
+            .get(index)
+            .and_then(|l| l.op)
+            .and_then(|o| self.job.program.ops.get(o as usize))
+            .map(|o| o.span)
+            .unwrap_or_default()
+    }
+
+    /// The machine's axis letters, as its controller names them.
+    pub fn letters(&self) -> Vec<char> {
+        ControllerAxes::of(&self.job.program.machine)
+            .letters()
+            .to_vec()
+    }
+
+    fn hash(&self) -> u64 {
+        journal::program_hash(self.lines.iter().map(String::as_str))
+    }
+}
+
+/// The journal of a job that starts from its first line.
+#[derive(Debug, Clone)]
+pub struct NewJournal {
+    pub path: PathBuf,
+    /// The recipe and the link, as the journal's header names them for `--resume`.
+    pub recipe: String,
+    pub link: String,
+}
+
+/// Where a job starts.
+#[derive(Debug)]
+pub enum Origin {
+    /// From its first line, journaled (or not: then it cannot be resumed).
+    Fresh(Option<NewJournal>),
+    /// After a lost link, continuing the job journaled at `path`.
+    Resume {
+        path: PathBuf,
+        state: journal::State,
+        /// The executed count an operator gave after checking the part.
+        resume_at: Option<usize>,
+    },
+}
+
+impl Origin {
+    /// Continuing the job journaled at `path` (read as `state`), once it is sure that `job`
+    /// is the program the journal recorded; `recipe` names it in the refusal.
+    pub fn resume(
+        job: &JobLines<'_>,
+        path: PathBuf,
+        state: journal::State,
+        resume_at: Option<usize>,
+        recipe: &str,
+    ) -> Result<Origin, LinkError> {
+        if state.header.hash != job.hash() || state.header.lines != job.lines.len() {
+            return Err(LinkError::Resume {
+                reason: format!(
+                    "{recipe} no longer produces the program the journal recorded ({} lines then, {} now)",
+                    state.header.lines,
+                    job.lines.len()
+                ),
+                help: "resume with the recipe (and machine file) exactly as they were when the job started".into(),
+            });
+        }
+        Ok(Origin::Resume {
+            path,
+            state,
+            resume_at,
+        })
+    }
+}
+
+/// Why a job did not start: nothing of it was sent.
+#[derive(Debug)]
+pub enum Refused {
+    /// A line that cannot be sent, a resume that cannot be decided, a failed link.
+    Link(LinkError),
+    /// Controller settings that would make the job run differently from its plan.
+    Settings(Vec<SettingMismatch>),
+    /// The controller is not idle (an alarm, a hold, still moving): its status. Each caller
+    /// words what to do about it (`lase run`: [`not_idle`]; the REPL names its commands).
+    NotIdle(Box<Status>),
+}
+
+impl From<LinkError> for Refused {
+    fn from(e: LinkError) -> Refused {
+        Refused::Link(e)
+    }
+}
+
+/// A link lost before a job's first line was sent: nothing to resume, so not
+/// [`LinkError::Lost`] (whose help points at the journal).
+pub fn not_started(e: LinkError) -> LinkError {
+    match e {
+        LinkError::Lost { reason } => LinkError::NotReady {
+            reason: format!(
+                "the link was lost while connecting, before the job started ({reason}): no program line was sent"
+            ),
+            help: "check the cable or network and run the job again".into(),
+        },
+        e => e,
+    }
+}
+
+/// The diagnostic of [`Refused::NotIdle`] for a command-line run.
+pub fn not_idle(status: &Status, letters: &[char]) -> LinkError {
+    LinkError::NotReady {
+        reason: format!(
+            "it reports `{}`, not Idle: no program line was sent",
+            status.summary_for(None, letters)
+        ),
+        help: match status.state {
+            MachineState::Alarm => "an alarm may have lost the position: check the machine, clear the alarm (`$H` homing, or `$X`) and run the job again".into(),
+            MachineState::Hold { .. } | MachineState::Door(_) => "the controller holds a job: resume it (`~`) or reset it, then run the job again".into(),
+            _ => "wait until the controller is idle, then run the job again".into(),
+        },
+    }
+}
+
+/// A job that passed its preflight: ready to start.
+#[derive(Debug)]
+pub struct Ready {
+    from: ReadyFrom,
+    /// The controller's work position when the job started: where its journal and send
+    /// guards predict from.
+    start: AxisPos,
+}
+
+/// Where a job that passed its preflight starts.
+#[derive(Debug)]
+enum ReadyFrom {
+    Fresh(Option<NewJournal>),
+    Resume { path: PathBuf, plan: ResumePlan },
+}
+
+/// Checks everything that can be checked before a job moves (see the module header). On a
+/// fresh job a lost link is reported as [`not_started`].
+pub fn preflight(
+    link: &mut dyn Link,
+    job: &JobLines<'_>,
+    origin: Origin,
+) -> Result<Ready, Refused> {
+    let fresh = matches!(origin, Origin::Fresh(_));
+    let setup = |e: LinkError| if fresh { not_started(e) } else { e };
+    for (i, l) in job.lines.iter().enumerate() {
+        if let Err(reason) = link.validate_line(l) {
+            return Err(Refused::Link(LinkError::Unsendable {
+                line_no: i + 1,
+                line: l.clone(),
+                reason,
+                span: job.span_of(i),
+                help: "change the recipe text that ends up in this line (names in comments, for instance)".into(),
+            }));
+        }
+    }
+    // A resumed job first waits for the controller to finish what it had received (`$$` is
+    // refused while it moves) and finds where the job stands.
+    let (from, resumed_start) = match origin {
+        Origin::Resume {
+            path,
+            state,
+            resume_at,
+        } => {
+            let plan = resume::plan(
+                link,
+                &job.lines,
+                &state,
+                &job.letters(),
+                resume_at,
+                RESUME_WAIT,
+            )?;
+            (ReadyFrom::Resume { path, plan }, Some(state.header.start))
+        }
+        Origin::Fresh(journal) => (ReadyFrom::Fresh(journal), None),
+    };
+    let needs = Requirements::of_job(job.job, job.dialect);
+    let mismatches = link.check_settings(&needs).map_err(setup)?;
+    if !mismatches.is_empty() {
+        return Err(Refused::Settings(mismatches));
+    }
+    let start = match resumed_start {
+        // The resume plan found the controller idle, and the journal knows where the job
+        // started.
+        Some(start) => start,
+        None => {
+            let status = link.query_status(STATUS_WAIT).map_err(setup)?;
+            if status.state != MachineState::Idle {
+                return Err(Refused::NotIdle(Box::new(status)));
+            }
+            status.work_axes()
+        }
+    };
+    Ok(Ready { from, start })
+}
+
+impl Ready {
+    /// Where a resumed job stands and how it re-approaches; `None` for a fresh job.
+    pub fn resume_plan(&self) -> Option<&ResumePlan> {
+        match &self.from {
+            ReadyFrom::Resume { plan, .. } => Some(plan),
+            ReadyFrom::Fresh(_) => None,
+        }
+    }
+
+    /// Starts the job: the journal and, resuming, the re-approach's setup lines.
+    pub fn start(self, link: &mut dyn Link, job: &JobLines<'_>) -> Result<Started, LinkError> {
+        let (journal, from, lead, restored) = match self.from {
+            ReadyFrom::Resume { path, plan } => {
+                let j = resume::enter(link, &plan, &path)?;
+                (
+                    Some(j),
+                    plan.executed,
+                    plan.reapproach.lead,
+                    Some(plan.restored),
+                )
+            }
+            ReadyFrom::Fresh(Some(nj)) => {
+                let header = Header {
+                    recipe: nj.recipe,
+                    link: nj.link,
+                    dialect: job.dialect.to_string(),
+                    lines: job.lines.len(),
+                    hash: job.hash(),
+                    start: self.start,
+                };
+                (
+                    Some(Journal::create(&nj.path, &header)?),
+                    0,
+                    Vec::new(),
+                    None,
+                )
+            }
+            ReadyFrom::Fresh(None) => (None, 0, Vec::new(), None),
+        };
+        // Closed lit contours wait for acknowledgements, so that a drop can always be
+        // resumed; without a journal there is nothing to resume.
+        let guards = if journal.is_some() {
+            resume::send_guards(&Tracker::new(self.start), &job.lines)
+        } else {
+            Vec::new()
+        };
+        Ok(Started {
+            journal,
+            from,
+            lead,
+            restored,
+            guards,
+        })
+    }
+}
+
+/// A started job: its journal open, where streaming starts, its send guards.
+#[derive(Debug)]
+pub struct Started {
+    journal: Option<Journal>,
+    from: usize,
+    lead: Vec<String>,
+    restored: Option<ModalState>,
+    guards: Vec<Option<usize>>,
+}
+
+impl Started {
+    /// The first job line to send (0 unless resuming).
+    pub fn from(&self) -> usize {
+        self.from
+    }
+
+    pub fn journal_path(&self) -> Option<&Path> {
+        self.journal.as_ref().map(Journal::path)
+    }
+
+    /// Streams the job's lines from [`Started::from`]; `observer` sees progress after every
+    /// event and returns the operator's [`Control`].
+    pub fn stream(
+        &mut self,
+        link: &mut dyn Link,
+        job: &JobLines<'_>,
+        observer: &mut dyn FnMut(&Progress, Option<&Event>) -> Option<Control>,
+    ) -> Report {
+        stream::stream(
+            link,
+            &StreamJob {
+                lines: &job.lines,
+                from: self.from,
+                lead: &self.lead,
+                restored: self.restored.clone(),
+                guards: &self.guards,
+            },
+            self.journal.as_mut(),
+            &StreamOptions::default(),
+            observer,
+        )
+    }
+}
+
+/// Check mode (GRBL `$C`): the controller parses every line of a job that passed its
+/// preflight and moves nothing; the controller leaves check mode afterwards.
+pub fn check_mode(link: &mut dyn Link, job: &JobLines<'_>) -> Result<Report, LinkError> {
+    link.set_check_mode(true)?;
+    let report = stream::stream(
+        link,
+        &StreamJob::new(&job.lines),
+        None,
+        &StreamOptions::default(),
+        &mut |_: &Progress, _: Option<&Event>| None,
+    );
+    let _ = link.set_check_mode(false);
+    Ok(report)
+}
