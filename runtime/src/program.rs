@@ -264,8 +264,10 @@ pub enum LaserLimit {
     PulseRate {
         rate: String,
         max: String,
-        #[label("at this speed")]
+        #[label("{label}")]
         span: Span,
+        /// "at this speed" for pulses by distance (the evaluator's label in every case).
+        label: String,
         #[help]
         help: Option<String>,
     },
@@ -311,17 +313,30 @@ pub fn check_pulse_rate(
 ) -> Result<(), LaserLimit> {
     let max = machine.laser.max_pulse_rate_hz;
     if rate_hz > max * (1.0 + LIMIT_MARGIN) {
-        return Err(LaserLimit::PulseRate {
-            rate: format_quantity(rate_hz, Dim::FREQUENCY),
-            max: format_quantity(max, Dim::FREQUENCY),
-            span,
-            help: pitch_mm.map(|pitch| {
+        let (label, help) = match pitch_mm {
+            Some(pitch) => (
+                "at this speed",
                 format!(
                     "with pulses every {} the fastest allowed speed is {}",
                     format_quantity(pitch, Dim::LENGTH),
                     format_quantity(max * pitch, Dim::SPEED)
-                )
-            }),
+                ),
+            ),
+            None => (
+                "pulses by time too close together",
+                format!(
+                    "`{}`'s laser fires at most {}: lower `rate`, or lengthen `interval`",
+                    machine.name,
+                    format_quantity(max, Dim::FREQUENCY)
+                ),
+            ),
+        };
+        return Err(LaserLimit::PulseRate {
+            rate: format_quantity(rate_hz, Dim::FREQUENCY),
+            max: format_quantity(max, Dim::FREQUENCY),
+            span,
+            label: label.into(),
+            help: Some(help),
         });
     }
     Ok(())
@@ -396,5 +411,85 @@ impl ProcessProgram {
         } else {
             Err(errors)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn program(ops: Vec<Op>) -> ProcessProgram {
+        let m =
+            crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
+        ProcessProgram {
+            recipe: "t".into(),
+            limits: AxisLimit::of_machine(&m),
+            path_limits: PathLimits::default(),
+            planner: PlannerSettings {
+                ramp: m.ramp,
+                junction_deviation_mm: m.junction_deviation_mm,
+                arc_tolerance_mm: m.arc_tolerance_mm,
+                lookahead: None,
+                leadin: LeadIn::Auto,
+            },
+            start: [0.0; 3],
+            ops,
+            machine: m,
+        }
+    }
+
+    fn lit(power_w: f64, mode: PulseMode, feed_mm_s: f64, at: usize) -> Op {
+        Op {
+            kind: OpKind::Line {
+                to: [1.0, 0.0, 0.0],
+                feed_mm_s,
+                laser: Some(Laser {
+                    power_w,
+                    spot_mm: 0.05,
+                    pulse: Some(Pulse {
+                        mode,
+                        width_s: None,
+                        energy_j: None,
+                    }),
+                    couple: Coupling::None,
+                }),
+                orient: None,
+            },
+            span: Span::new(at, at + 1),
+        }
+    }
+
+    /// The xy_table: 100 W, 100 kHz. Each (span, problem) is reported once.
+    #[test]
+    fn validate_holds_every_lit_op_to_the_laser() {
+        let by_distance = PulseMode::Distance { pitch_mm: 0.001 };
+        let ok = program(vec![lit(100.0, by_distance, 100.0, 0)]);
+        assert_eq!(ok.validate(), Ok(()));
+        let bad = program(vec![
+            lit(100.0, by_distance, 101.0, 0),
+            lit(100.0, by_distance, 120.0, 0),
+            lit(150.0, PulseMode::Time { period_s: 5e-6 }, 1.0, 5),
+        ]);
+        let errs = bad.validate().unwrap_err();
+        let codes: Vec<String> = errs
+            .iter()
+            .map(|e| format!("{} {}", e.code().unwrap(), e.span().start))
+            .collect();
+        assert_eq!(
+            codes,
+            [
+                "lase::eval::pulse_rate 0",
+                "lase::eval::above_machine 5",
+                "lase::eval::pulse_rate 5"
+            ]
+        );
+        assert_eq!(
+            errs[0].to_string(),
+            "pulse rate 101000 Hz is above the laser's maximum 100000 Hz"
+        );
+        assert_eq!(
+            errs[1].to_string(),
+            "laser power 150 W is above the machine's 100 W"
+        );
     }
 }

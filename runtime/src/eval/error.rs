@@ -208,6 +208,7 @@ impl From<crate::program::LaserLimit> for EvalError {
                 max,
                 span,
                 help,
+                ..
             } => EvalError::PulseRate {
                 rate,
                 max,
