@@ -5,20 +5,12 @@
 mod common;
 
 use common::*;
-use lase_lang::{Loader, SourceMap};
-use lase_runtime::eval::{Evaluator, StdlibOnly};
+use lase_lang::SourceMap;
+use lase_runtime::compile::{self, FsFiles};
 use lase_runtime::program::{OpKind, ProcessProgram};
+use libtest_mimic::{Arguments, Failed, Trial};
 use std::fmt::Write;
 use std::path::Path;
-
-struct Fs;
-impl Loader for Fs {
-    fn load(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
-        let p = Path::new(importer).parent().unwrap().join(path);
-        let text = std::fs::read_to_string(&p).map_err(|e| e.to_string())?;
-        Ok((p.to_string_lossy().into_owned(), text))
-    }
-}
 
 fn n(v: f64) -> String {
     lase_lang::units::format_number(v)
@@ -28,22 +20,14 @@ fn p3(p: [f64; 3]) -> String {
     format!("({}, {}, {})", n(p[0]), n(p[1]), n(p[2]))
 }
 
-pub fn evaluate(path: &Path) -> (SourceMap, ProcessProgram) {
-    let mut map = SourceMap::new();
-    let id = map.add(
-        path.to_string_lossy(),
-        std::fs::read_to_string(path).unwrap(),
-    );
-    let (program, perr) = lase_lang::load(&mut map, id, &mut Fs);
-    assert!(perr.is_empty(), "{}: {perr:?}", path.display());
-    let cerr = lase_lang::check_program(&program);
-    assert!(cerr.is_empty(), "{}: {cerr:#?}", path.display());
-    let mut ev = Evaluator::new();
-    let stmts = program.modules[0].stmts.clone();
-    ev.run(&stmts, &program, &mut map, &mut StdlibOnly)
-        .unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
-    let p = ev.program("t", Default::default()).unwrap();
-    (map, p)
+/// A recipe's process program, through the pipeline `lase` runs (up to planning).
+pub fn evaluate(path: &Path) -> Result<(SourceMap, ProcessProgram), Failed> {
+    let fail = |f: compile::Failure| Failed::from(format!("{}: {f}", path.display()));
+    let mut recipe =
+        compile::load(&mut FsFiles, &path.to_string_lossy()).map_err(|(_, f)| fail(f))?;
+    compile::check(&recipe).map_err(fail)?;
+    let p = compile::evaluate(&mut recipe, &mut FsFiles).map_err(fail)?;
+    Ok((recipe.map, p))
 }
 
 fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
@@ -107,19 +91,35 @@ fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
     s
 }
 
-#[test]
-fn ok_recipes_evaluate_to_their_programs() {
+/// One test per `tests/ok/*.lase` (named by the file: `cargo test --test lang_ok units`),
+/// and the tests of particular programs.
+fn main() {
     let files = lase_files(&root().join("tests/ok"));
     assert!(files.len() >= 4);
-    for f in files {
-        let (map, p) = evaluate(&f);
-        golden(&f.with_extension("ops"), &dump(&map, &p));
-    }
+    let mut trials: Vec<Trial> = files
+        .into_iter()
+        .map(|f| {
+            let name = f.file_stem().unwrap().to_string_lossy().into_owned();
+            Trial::test(name, move || {
+                let (map, p) = evaluate(&f)?;
+                golden(&f.with_extension("ops"), &dump(&map, &p));
+                Ok(())
+            })
+        })
+        .collect();
+    trials.push(Trial::test(
+        "units_convert_to_internal_units",
+        units_convert_to_internal_units,
+    ));
+    trials.push(Trial::test(
+        "functions_and_loops_produce_the_expected_geometry",
+        functions_and_loops_produce_the_expected_geometry,
+    ));
+    libtest_mimic::run(&Arguments::from_args(), trials).exit();
 }
 
-#[test]
-fn units_convert_to_internal_units() {
-    let (_, p) = evaluate(&root().join("tests/ok/units.lase"));
+fn units_convert_to_internal_units() -> Result<(), Failed> {
+    let (_, p) = evaluate(&root().join("tests/ok/units.lase"))?;
     let OpKind::Line { to, feed_mm_s, .. } = &p.ops[0].kind else {
         panic!()
     };
@@ -141,11 +141,11 @@ fn units_convert_to_internal_units() {
     let l = p.ops[4].laser().expect("lit");
     assert_eq!(l.power_w, 250.0);
     assert!((l.spot_mm - 0.04).abs() < 1e-15);
+    Ok(())
 }
 
-#[test]
-fn functions_and_loops_produce_the_expected_geometry() {
-    let (_, p) = evaluate(&root().join("tests/ok/control.lase"));
+fn functions_and_loops_produce_the_expected_geometry() -> Result<(), Failed> {
+    let (_, p) = evaluate(&root().join("tests/ok/control.lase"))?;
     // fib(6) = 8: the squares start at x = 8 mm.
     let OpKind::Rapid { to, .. } = &p.ops[0].kind else {
         panic!("{:?}", p.ops[0])
@@ -162,4 +162,5 @@ fn functions_and_loops_produce_the_expected_geometry() {
         })
         .sum();
     assert!((lit - 4.0 * (1.0 + 2.0)).abs() < 1e-12, "{lit}");
+    Ok(())
 }

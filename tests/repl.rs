@@ -216,3 +216,48 @@ follow disc_cam(30 mm, 10 mm, 120 deg, 40 deg, 120 deg, \"cycloidal\") at speed 
     // One turn of the cam, back at C = −360° after the lead-out.
     assert!(out.contains("C-360.315"), "{out}");
 }
+
+/// A speed override multiplies the pulse rate of pulses by distance: `:set speed 200%` on a
+/// cut at 60 % of the laser's maximum rate asks 120 % of it. The job is refused with the
+/// diagnostic a recipe written at that speed gets, at the recipe line, before anything runs;
+/// without the override it plans. (The REPL used to recheck power only.)
+#[test]
+fn a_speed_override_that_exceeds_the_pulse_rate_is_refused() {
+    let input = "\
+machine xy_table
+laser { power 20 W }
+pulse interval 1 um
+follow profile line((0, 0), (10 mm, 0)) at 60 mm/s
+:plan
+:set speed 200%
+:plan
+:run
+:set speed 150%
+:plan
+:set speed off
+:plan
+";
+    let (code, out, err) = session(input);
+    assert_eq!(code, 0, "{err}");
+    // 60 mm/s every 1 µm is 60 kHz; doubled, 120 kHz on a 100 kHz laser.
+    assert_eq!(err.matches("lase::eval::pulse_rate").count(), 2, "{err}");
+    assert!(
+        err.contains("pulse rate 120000 Hz is above the laser's maximum 100000 Hz"),
+        "{err}"
+    );
+    assert!(
+        err.contains("the fastest allowed speed is 100 mm/s"),
+        "{err}"
+    );
+    assert!(
+        err.contains("follow profile line((0, 0), (10 mm, 0)) at 60 mm/s"),
+        "{err}"
+    );
+    assert!(
+        err.contains("with the overrides (speed 200%) the job asks more than the laser can give"),
+        "{err}"
+    );
+    // Nothing ran; 150 % (90 kHz) and no override plan.
+    assert!(!out.contains("repl: done"), "{out}");
+    assert_eq!(out.matches(" ops, cycle time ").count(), 3, "{out}");
+}

@@ -4,45 +4,54 @@
 
 mod common;
 
-use lase_lang::{Loader, SourceMap};
-use lase_runtime::eval::{Evaluator, StdlibOnly};
+use lase_runtime::compile::{self, MemFiles};
 use proptest::prelude::*;
+use std::sync::OnceLock;
 
-struct NoFiles;
-impl Loader for NoFiles {
-    fn load(&mut self, _: &str, path: &str) -> Result<(String, String), String> {
-        Err(format!("no file {path}"))
-    }
+/// The files the corpus imports and uses, beside the recipe under test (`fuzz.lase`).
+fn files() -> MemFiles {
+    static FILES: OnceLock<MemFiles> = OnceLock::new();
+    FILES
+        .get_or_init(|| {
+            let read = |p: &str| std::fs::read_to_string(common::root().join(p)).unwrap();
+            MemFiles::new([
+                ("lib/shapes.lase", read("tests/ok/lib/shapes.lase")),
+                ("rhai_cam_law.rhai", read("examples/rhai_cam_law.rhai")),
+            ])
+        })
+        .clone()
 }
 
-/// Runs every phase; returns how far it got (for the corpus test's own sanity).
+/// Runs every phase, through the pipeline `lase` runs; returns how far it got (for the corpus
+/// test's own sanity): 0 load, 1 check, 2 evaluate, 3 plan, 4 all the way.
 fn pipeline(text: &str) -> usize {
-    let mut map = SourceMap::new();
-    let id = map.add("fuzz.lase", text);
-    let (program, perr) = lase_lang::load(&mut map, id, &mut NoFiles);
-    if !perr.is_empty() {
-        // Every diagnostic's span lies inside the source map.
-        for e in &perr {
-            assert!(
-                map.file_of(e.span().start as usize).is_some()
-                    || e.span().start as usize == text.len()
-            );
+    let mut files = files();
+    files.insert("fuzz.lase", text);
+    let mut recipe = match compile::load(&mut files, "fuzz.lase") {
+        Ok(r) => r,
+        Err((map, f)) => {
+            // Every diagnostic's span lies inside the source map (the end of a file included).
+            for d in &f.diagnostics {
+                for l in d.labels().into_iter().flatten() {
+                    assert!(
+                        map.files().any(|id| {
+                            let base = map.base(id);
+                            (base..=base + map.text(id).len()).contains(&l.offset())
+                        }),
+                        "{d}"
+                    );
+                }
+            }
+            return 0;
         }
-        return 0;
-    }
-    let cerr = lase_lang::check_program(&program);
-    if !cerr.is_empty() {
+    };
+    if compile::check(&recipe).is_err() {
         return 1;
     }
-    let mut ev = Evaluator::new();
-    let stmts = program.modules[0].stmts.clone();
-    if ev.run(&stmts, &program, &mut map, &mut StdlibOnly).is_err() {
-        return 2;
-    }
-    let Ok(p) = ev.program("fuzz", Default::default()) else {
+    let Ok(p) = compile::evaluate(&mut recipe, &mut files) else {
         return 2;
     };
-    let Ok(job) = lase_runtime::motion::plan_program(p) else {
+    let Ok(job) = compile::plan(p) else {
         return 3;
     };
     let _ = lase_runtime::emit::emit_to_string(&job, lase_runtime::emit::Dialect::LinuxCnc);
@@ -73,12 +82,8 @@ fn mutation_corpus() -> Vec<String> {
 
 #[test]
 fn the_unmutated_corpus_runs_all_the_way() {
+    // Imports and extension files come from `files()`.
     for (i, src) in corpus().iter().enumerate() {
-        // Recipes that import recipes or use extension files need files; everything else
-        // plans and emits.
-        if src.contains("import") || src.contains("use \"") {
-            continue;
-        }
         assert_eq!(
             pipeline(src),
             4,

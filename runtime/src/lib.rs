@@ -4,6 +4,7 @@
 //! (`geometry`, `kinematics`, `planner`, `motion`) is plain math on plain data; `emit` is the
 //! only code that knows NC text; `link` the only code that knows a controller protocol.
 
+pub mod compile;
 pub mod emit;
 pub mod eval;
 pub mod ext;
@@ -16,3 +17,5 @@ pub mod planner;
 pub mod program;
 pub mod raster;
 pub mod report;
+
+pub use compile::{Failure, Files, FsFiles, MemFiles, Recipe, compile};

@@ -2,9 +2,15 @@
 //! dialect. A flat list of operations in part coordinates (mm, s, rad, W), each carrying the
 //! recipe span that produced it so a planning error or a controller's complaint can point at
 //! the recipe line.
+//!
+//! [`ProcessProgram::validate`] holds the laser's limits (power, pulse rate) for every op: the
+//! one rule the evaluator applies while it runs and the pipeline applies again to the finished
+//! program, after any override of power or speed (the REPL's `:set`).
 
 use crate::machine::Machine;
 use lase_lang::Span;
+use lase_lang::units::{Dim, format_quantity};
+use miette::Diagnostic;
 use serde::{Deserialize, Serialize};
 
 /// A point in part coordinates, mm.
@@ -235,4 +241,255 @@ pub struct ProcessProgram {
     /// Where the spot is when the program starts (part coordinates).
     pub start: P3,
     pub ops: Vec<Op>,
+}
+
+/// An op that asks more of the machine's laser than it can give. The codes and wording are
+/// the evaluator's (it reports the same rule while it runs, as `EvalError`), so a recipe reads
+/// the same diagnostic whichever phase finds it.
+#[derive(Debug, Clone, PartialEq, thiserror::Error, Diagnostic)]
+pub enum LaserLimit {
+    #[error("laser power {value} is above the machine's {limit}")]
+    #[diagnostic(code(lase::eval::above_machine))]
+    Power {
+        value: String,
+        limit: String,
+        #[label("too high for this machine")]
+        span: Span,
+        #[help]
+        help: Option<String>,
+    },
+
+    #[error("pulse rate {rate} is above the laser's maximum {max}")]
+    #[diagnostic(code(lase::eval::pulse_rate))]
+    PulseRate {
+        rate: String,
+        max: String,
+        #[label("{label}")]
+        span: Span,
+        /// "at this speed" for pulses by distance (the evaluator's label in every case).
+        label: String,
+        #[help]
+        help: Option<String>,
+    },
+}
+
+impl LaserLimit {
+    pub fn span(&self) -> Span {
+        match self {
+            LaserLimit::Power { span, .. } | LaserLimit::PulseRate { span, .. } => *span,
+        }
+    }
+}
+
+/// Limits are met within this relative margin, so a value computed to equal the limit
+/// (`rate = feed / pitch` at the fastest allowed feed) passes.
+const LIMIT_MARGIN: f64 = 1e-12;
+
+/// Laser power `power_w` within what `machine`'s laser gives.
+pub fn check_power(power_w: f64, machine: &Machine, span: Span) -> Result<(), LaserLimit> {
+    let max = machine.laser.max_power_w;
+    if power_w > max * (1.0 + LIMIT_MARGIN) {
+        return Err(LaserLimit::Power {
+            value: format_quantity(power_w, Dim::POWER),
+            limit: format_quantity(max, Dim::POWER),
+            span,
+            help: Some(format!(
+                "`{}`'s laser gives at most {}",
+                machine.name,
+                format_quantity(max, Dim::POWER)
+            )),
+        });
+    }
+    Ok(())
+}
+
+/// A pulse rate within the laser's maximum: `rate_hz` is `feed / pitch` for pulses by distance
+/// (`pitch_mm` given: the help then names the fastest feed allowed) or `1 / period` by time.
+pub fn check_pulse_rate(
+    rate_hz: f64,
+    pitch_mm: Option<f64>,
+    machine: &Machine,
+    span: Span,
+) -> Result<(), LaserLimit> {
+    let max = machine.laser.max_pulse_rate_hz;
+    if rate_hz > max * (1.0 + LIMIT_MARGIN) {
+        let (label, help) = match pitch_mm {
+            Some(pitch) => (
+                "at this speed",
+                format!(
+                    "with pulses every {} the fastest allowed speed is {}",
+                    format_quantity(pitch, Dim::LENGTH),
+                    format_quantity(max * pitch, Dim::SPEED)
+                ),
+            ),
+            None => (
+                "pulses by time too close together",
+                format!(
+                    "`{}`'s laser fires at most {}: lower `rate`, or lengthen `interval`",
+                    machine.name,
+                    format_quantity(max, Dim::FREQUENCY)
+                ),
+            ),
+        };
+        return Err(LaserLimit::PulseRate {
+            rate: format_quantity(rate_hz, Dim::FREQUENCY),
+            max: format_quantity(max, Dim::FREQUENCY),
+            span,
+            label: label.into(),
+            help: Some(help),
+        });
+    }
+    Ok(())
+}
+
+impl Laser {
+    /// The pulse rate of this laser's pulses on a move at `feed_mm_s`, held to the laser's
+    /// maximum (no pulses, or pulses by time with no period yet: nothing to hold).
+    pub fn check_pulse_rate(
+        &self,
+        feed_mm_s: f64,
+        machine: &Machine,
+        span: Span,
+    ) -> Result<(), LaserLimit> {
+        match self.pulse.as_ref().map(|p| p.mode) {
+            Some(PulseMode::Distance { pitch_mm }) => {
+                check_pulse_rate(feed_mm_s / pitch_mm, Some(pitch_mm), machine, span)
+            }
+            Some(PulseMode::Time { period_s }) if period_s > 0.0 && period_s.is_finite() => {
+                check_pulse_rate(1.0 / period_s, None, machine, span)
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+impl ProcessProgram {
+    /// Holds every lit op to the machine's laser: power within its range, the pulse rate
+    /// (pulses by distance at the op's feed, by time, or a dot-mode fire window) within its
+    /// maximum. Each problem is reported once per recipe statement (the ops of one `follow`
+    /// share its span), at that statement.
+    pub fn validate(&self) -> Result<(), Vec<LaserLimit>> {
+        let m = &self.machine;
+        let mut errors: Vec<LaserLimit> = Vec::new();
+        let mut note = |e: LaserLimit| {
+            let same = |o: &LaserLimit| {
+                o.span() == e.span() && std::mem::discriminant(o) == std::mem::discriminant(&e)
+            };
+            if !errors.iter().any(same) {
+                errors.push(e);
+            }
+        };
+        for op in &self.ops {
+            let r = match &op.kind {
+                OpKind::Line {
+                    feed_mm_s,
+                    laser: Some(l),
+                    ..
+                }
+                | OpKind::Arc {
+                    feed_mm_s,
+                    laser: Some(l),
+                    ..
+                } => [
+                    check_power(l.power_w, m, op.span),
+                    l.check_pulse_rate(*feed_mm_s, m, op.span),
+                ],
+                OpKind::Fire {
+                    period_s, laser, ..
+                } => [
+                    check_power(laser.power_w, m, op.span),
+                    check_pulse_rate(1.0 / period_s, None, m, op.span),
+                ],
+                _ => continue,
+            };
+            for e in r.into_iter().filter_map(Result::err) {
+                note(e);
+            }
+        }
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn program(ops: Vec<Op>) -> ProcessProgram {
+        let m =
+            crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
+        ProcessProgram {
+            recipe: "t".into(),
+            limits: AxisLimit::of_machine(&m),
+            path_limits: PathLimits::default(),
+            planner: PlannerSettings {
+                ramp: m.ramp,
+                junction_deviation_mm: m.junction_deviation_mm,
+                arc_tolerance_mm: m.arc_tolerance_mm,
+                lookahead: None,
+                leadin: LeadIn::Auto,
+            },
+            start: [0.0; 3],
+            ops,
+            machine: m,
+        }
+    }
+
+    fn lit(power_w: f64, mode: PulseMode, feed_mm_s: f64, at: usize) -> Op {
+        Op {
+            kind: OpKind::Line {
+                to: [1.0, 0.0, 0.0],
+                feed_mm_s,
+                laser: Some(Laser {
+                    power_w,
+                    spot_mm: 0.05,
+                    pulse: Some(Pulse {
+                        mode,
+                        width_s: None,
+                        energy_j: None,
+                    }),
+                    couple: Coupling::None,
+                }),
+                orient: None,
+            },
+            span: Span::new(at, at + 1),
+        }
+    }
+
+    /// The xy_table: 100 W, 100 kHz. Each (span, problem) is reported once.
+    #[test]
+    fn validate_holds_every_lit_op_to_the_laser() {
+        let by_distance = PulseMode::Distance { pitch_mm: 0.001 };
+        let ok = program(vec![lit(100.0, by_distance, 100.0, 0)]);
+        assert_eq!(ok.validate(), Ok(()));
+        let bad = program(vec![
+            lit(100.0, by_distance, 101.0, 0),
+            lit(100.0, by_distance, 120.0, 0),
+            lit(150.0, PulseMode::Time { period_s: 5e-6 }, 1.0, 5),
+        ]);
+        let errs = bad.validate().unwrap_err();
+        let codes: Vec<String> = errs
+            .iter()
+            .map(|e| format!("{} {}", e.code().unwrap(), e.span().start))
+            .collect();
+        assert_eq!(
+            codes,
+            [
+                "lase::eval::pulse_rate 0",
+                "lase::eval::above_machine 5",
+                "lase::eval::pulse_rate 5"
+            ]
+        );
+        assert_eq!(
+            errs[0].to_string(),
+            "pulse rate 101000 Hz is above the laser's maximum 100000 Hz"
+        );
+        assert_eq!(
+            errs[1].to_string(),
+            "laser power 150 W is above the machine's 100 W"
+        );
+    }
 }

@@ -3,75 +3,32 @@
 //! diagnostic, deterministically (operation and size limits, no timing).
 
 use lase_lang::units::Dim;
-use lase_lang::{CheckError, Loader, SourceMap};
-use lase_runtime::eval::{EvalError, Evaluator, Host, Value};
-use lase_runtime::ext::{ExtError, Extensions};
-use std::collections::HashMap;
+use lase_lang::{CheckError, SourceMap};
+use lase_runtime::compile::{self, Failure, MemFiles};
+use lase_runtime::eval::{EvalError, Evaluator, Value};
+use lase_runtime::ext::ExtError;
 use std::f64::consts::{PI, TAU};
-
-/// Files by name, for imports and extensions.
-struct Files(HashMap<String, String>);
-
-impl Loader for Files {
-    fn load(&mut self, _: &str, path: &str) -> Result<(String, String), String> {
-        self.get(path)
-    }
-}
-
-impl Files {
-    fn get(&self, path: &str) -> Result<(String, String), String> {
-        self.0
-            .get(path)
-            .map(|t| (path.to_string(), t.clone()))
-            .ok_or_else(|| format!("no file {path}"))
-    }
-}
-
-impl Host for Files {
-    fn machine_file(&mut self, _: &str, path: &str) -> Result<(String, String), String> {
-        self.get(path)
-    }
-    fn extension_file(&mut self, _: &str, path: &str) -> Result<(String, String), String> {
-        self.get(path)
-    }
-}
 
 #[derive(Debug)]
 enum Fail {
-    Load(Vec<ExtError>),
-    Check(Vec<CheckError>),
+    /// Loading the recipe, its imports and its `use`s (the extension errors: `of::<ExtError>`).
+    Load(Failure),
+    Check(Failure),
     Eval(EvalError),
 }
 
-/// Loads, checks and evaluates `recipe` with `files` beside it; returns the evaluator (its
-/// variables hold the results) and the source map.
+/// Loads, checks and evaluates `recipe` with `files` beside it, through the pipeline `lase`
+/// runs; returns the evaluator (its variables hold the results) and the source map.
 #[allow(clippy::result_large_err)]
 fn run(recipe: &str, files: &[(&str, &str)]) -> Result<(Evaluator, SourceMap), (Fail, SourceMap)> {
-    let mut host = Files(
-        files
-            .iter()
-            .map(|(n, t)| (n.to_string(), t.to_string()))
-            .collect(),
-    );
-    let mut map = SourceMap::new();
-    let id = map.add("test.lase", recipe);
-    let (mut program, perr) = lase_lang::load(&mut map, id, &mut host);
-    assert!(perr.is_empty(), "{perr:?}");
-    let mut ext = Extensions::new();
-    let errs = ext.load_uses(&mut program, &mut map, &mut host);
-    if !errs.is_empty() {
-        return Err((Fail::Load(errs), map));
+    let mut files = MemFiles::new(files.iter().copied().chain([("test.lase", recipe)]));
+    let mut r = compile::load(&mut files, "test.lase").map_err(|(map, f)| (Fail::Load(f), map))?;
+    if let Err(f) = compile::check(&r) {
+        return Err((Fail::Check(f), r.map));
     }
-    let cerr = lase_lang::check_program(&program);
-    if !cerr.is_empty() {
-        return Err((Fail::Check(cerr), map));
-    }
-    let mut ev = Evaluator::new();
-    ev.set_extensions(ext);
-    let stmts = program.modules[0].stmts.clone();
-    match ev.run(&stmts, &program, &mut map, &mut host) {
-        Ok(()) => Ok((ev, map)),
-        Err(e) => Err((Fail::Eval(e), map)),
+    match compile::run(&mut r, &mut files) {
+        Ok(ev) => Ok((ev, r.map)),
+        Err(e) => Err((Fail::Eval(e), r.map)),
     }
 }
 
@@ -91,13 +48,8 @@ fn value(ev: &mut Evaluator, expr: &str) -> Value {
     let lase_lang::ast::StmtKind::Let { value, .. } = &program.modules[0].stmts[0].kind else {
         unreachable!()
     };
-    ev.eval_expr(
-        value,
-        &program,
-        &mut map,
-        &mut lase_runtime::eval::StdlibOnly,
-    )
-    .unwrap_or_else(|e| panic!("{e:?}"))
+    ev.eval_expr(value, &program, &mut map, &mut MemFiles::default())
+        .unwrap_or_else(|e| panic!("{e:?}"))
 }
 
 fn num(v: &Value, dim: Dim) -> f64 {
@@ -180,12 +132,13 @@ fn numbers_cross_in_internal_units_and_come_back_with_their_declared_dimension()
 
 #[test]
 fn the_checker_types_extension_calls_by_their_declared_signature() {
-    let Err((Fail::Check(errs), _)) = run(
+    let Err((Fail::Check(f), _)) = run(
         "use \"law.rhai\"\nlet h = my_lift(90 deg, 6 mm/s, 180 deg)\nlet s: speed = my_lift(1 deg, 1 mm, 2 deg)\nlet n = nope(1)",
         &[("law.rhai", LAW)],
     ) else {
         panic!("expected check errors")
     };
+    let errs = f.of::<CheckError>();
     let text: Vec<String> = errs.iter().map(|e| e.to_string()).collect();
     assert_eq!(errs.len(), 3, "{text:#?}");
     assert!(
@@ -196,9 +149,10 @@ fn the_checker_types_extension_calls_by_their_declared_signature() {
     assert!(text[1].contains("speed"), "{}", text[1]);
     assert!(text[2].contains("nope"), "{}", text[2]);
     // Without `use`, the function is unknown.
-    let Err((Fail::Check(errs), _)) = run("let h = my_lift(1 deg, 1 mm, 2 deg)", &[]) else {
+    let Err((Fail::Check(f), _)) = run("let h = my_lift(1 deg, 1 mm, 2 deg)", &[]) else {
         panic!()
     };
+    let errs = f.of::<CheckError>();
     assert!(errs[0].to_string().contains("my_lift"));
 }
 
@@ -448,12 +402,13 @@ fn presets_bind_values_with_units_and_can_be_overridden() {
     close(num(&value(&mut ev, "spot"), Dim::LENGTH), 4.0, 1e-12);
     close(num(&value(&mut ev, "step"), Dim::LENGTH), 0.5, 1e-12);
     // The checker knows their dimensions.
-    let Err((Fail::Check(errs), _)) = run(
+    let Err((Fail::Check(f), _)) = run(
         "use stdlib::presets::cam_hardening\nlet x: length = speed",
         &[],
     ) else {
         panic!()
     };
+    let errs = f.of::<CheckError>();
     assert!(errs[0].to_string().contains("speed"));
 }
 
@@ -541,9 +496,10 @@ fn extensions_have_no_file_access_and_no_eval() {
         ),
         ("/// lase: () -> number\nfn f() { eval(\"1 + 1\") }", "eval"),
     ] {
-        let Err((Fail::Load(errs), map)) = run("use \"bad.rhai\"", &[("bad.rhai", src)]) else {
+        let Err((Fail::Load(f), map)) = run("use \"bad.rhai\"", &[("bad.rhai", src)]) else {
             panic!("{word} was accepted")
         };
+        let errs = f.of::<ExtError>();
         let ExtError::Syntax { span, .. } = &errs[0] else {
             panic!("{:#?}", errs[0])
         };
@@ -575,7 +531,7 @@ fn script_errors_and_bad_results_point_into_the_module_and_at_the_call() {
 
 #[test]
 fn bad_signatures_and_syntax_are_load_errors_in_the_module() {
-    let Err((Fail::Load(errs), map)) = run(
+    let Err((Fail::Load(f), map)) = run(
         "use \"bad.rhai\"",
         &[(
             "bad.rhai",
@@ -584,13 +540,15 @@ fn bad_signatures_and_syntax_are_load_errors_in_the_module() {
     ) else {
         panic!()
     };
+    let errs = f.of::<ExtError>();
     assert!(errs[0].to_string().contains("lenght"), "{}", errs[0]);
     assert_eq!(map.describe(errs[0].span()), "bad.rhai:2:4");
-    let Err((Fail::Load(errs), map)) =
+    let Err((Fail::Load(f), map)) =
         run("use \"bad.rhai\"", &[("bad.rhai", "fn f(x) {\n  x +\n}\n")])
     else {
         panic!()
     };
+    let errs = f.of::<ExtError>();
     let ExtError::Syntax { span, .. } = &errs[0] else {
         panic!()
     };
@@ -599,8 +557,9 @@ fn bad_signatures_and_syntax_are_load_errors_in_the_module() {
         "{}",
         map.describe(*span)
     );
-    let Err((Fail::Load(errs), _)) = run("use stdlib::camz", &[]) else {
+    let Err((Fail::Load(f), _)) = run("use stdlib::camz", &[]) else {
         panic!()
     };
+    let errs = f.of::<ExtError>();
     assert!(format!("{:?}", errs[0]).contains("cams"), "{:?}", errs[0]);
 }

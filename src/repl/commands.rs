@@ -6,6 +6,7 @@ use super::{Amount, Session};
 use crate::driver::{self, Failure};
 use lase_lang::units::{self, Dim};
 use lase_lang::{SourceMap, Span};
+use lase_runtime::compile::{self, Files, FsFiles};
 use lase_runtime::emit::{Dialect, NcLine};
 use lase_runtime::link::{self, LinkUrl};
 use lase_runtime::machine::AxisKind;
@@ -270,8 +271,8 @@ impl Session {
             self.say_error("usage: :load FILE");
             return;
         };
-        match std::fs::read_to_string(path) {
-            Ok(text) => {
+        match FsFiles.read("", path) {
+            Ok((_, text)) => {
                 let before = self.eval.ops().len();
                 if self.input(&text, path) {
                     self.loaded = Some(path.into());
@@ -281,7 +282,7 @@ impl Session {
                     );
                 }
             }
-            Err(e) => self.say_error(&format!("cannot read {path}: {e}")),
+            Err(reason) => self.say_error(&format!("cannot read {reason}")),
         }
     }
 
@@ -294,11 +295,10 @@ impl Session {
                 return None;
             }
         };
-        if let Err(m) = self.apply_overrides(&mut program) {
-            self.say_error(&m);
+        if !self.apply_overrides(&self.map, &mut program) {
             return None;
         }
-        match driver::plan(program) {
+        match compile::plan(program) {
             Ok(j) => Some(j),
             Err(f) => {
                 self.report(&f);
@@ -307,8 +307,10 @@ impl Session {
         }
     }
 
-    fn apply_overrides(&self, program: &mut ProcessProgram) -> Result<(), String> {
-        let max = program.machine.laser.max_power_w;
+    /// Applies the overrides, then holds the program to the machine's laser again: a power
+    /// override can exceed its power, a speed override its pulse rate with pulses by distance.
+    /// Reports what fails (against `map`, the program's sources).
+    fn apply_overrides(&self, map: &SourceMap, program: &mut ProcessProgram) -> bool {
         for op in &mut program.ops {
             let (feed, laser) = match &mut op.kind {
                 OpKind::Line {
@@ -330,19 +332,25 @@ impl Session {
                     Some(Amount::Factor(k)) => l.power_w *= k,
                     None => {}
                 }
-                if l.power_w > max * (1.0 + 1e-9) {
-                    return Err(format!(
-                        "the power override gives {}, above the {} this machine's laser can give; `:set power` lower",
-                        units::format_quantity(l.power_w, Dim::POWER),
-                        units::format_quantity(max, Dim::POWER)
-                    ));
-                }
             }
         }
-        Ok(())
+        match compile::validate(program) {
+            Ok(()) => true,
+            Err(f) => {
+                self.report_in(map, &f);
+                let list = self.overrides_list();
+                if !list.is_empty() {
+                    self.say_error(&format!(
+                        "with the overrides ({list}) the job asks more than the laser can give: `:set` them lower"
+                    ));
+                }
+                false
+            }
+        }
     }
 
-    fn overrides_note(&self) -> String {
+    /// The overrides in force, `power 30 W, speed 50%`, or nothing.
+    fn overrides_list(&self) -> String {
         let fmt = |a: Amount, dim: Dim| match a {
             Amount::Value(v) => units::format_quantity(v, dim),
             Amount::Factor(k) => format!("{}%", units::format_number(k * 100.0)),
@@ -354,10 +362,15 @@ impl Session {
         if let Some(s) = self.overrides.speed {
             v.push(format!("speed {}", fmt(s, Dim::SPEED)));
         }
-        if v.is_empty() {
-            String::new()
+        v.join(", ")
+    }
+
+    fn overrides_note(&self) -> String {
+        let list = self.overrides_list();
+        if list.is_empty() {
+            list
         } else {
-            format!("overrides: {}", v.join(", "))
+            format!("overrides: {list}")
         }
     }
 
@@ -850,21 +863,23 @@ impl Session {
     }
 
     fn run_file(&mut self, path: &Path) {
-        let mut recipe = match driver::load(path) {
+        // The pipeline of `lase run`, with the session's overrides between evaluating and
+        // planning.
+        let mut recipe = match compile::load(&mut FsFiles, &path.to_string_lossy()) {
             Ok(r) => r,
             Err((map, f)) => return self.report_in(&map, &f),
         };
-        if let Err(f) = driver::check(&recipe) {
+        if let Err(f) = compile::check(&recipe) {
             return self.report_in(&recipe.map, &f);
         }
-        let mut program = match driver::evaluate(&mut recipe) {
+        let mut program = match compile::evaluate(&mut recipe, &mut FsFiles) {
             Ok(p) => p,
             Err(f) => return self.report_in(&recipe.map, &f),
         };
-        if let Err(m) = self.apply_overrides(&mut program) {
-            return self.say_error(&m);
+        if !self.apply_overrides(&recipe.map, &mut program) {
+            return;
         }
-        let job = match driver::plan(program) {
+        let job = match compile::plan(program) {
             Ok(j) => j,
             Err(f) => return self.report_in(&recipe.map, &f),
         };

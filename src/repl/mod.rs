@@ -15,9 +15,10 @@ mod commands;
 mod editor;
 mod machine;
 
-use crate::driver::{self, Failure, FsLoader};
+use crate::driver::{self, Failure};
 use lase_lang::parser::{ReplInput, is_incomplete, parse_repl};
 use lase_lang::{Checker, Program, SourceMap, Span};
+use lase_runtime::FsFiles;
 use lase_runtime::eval::Evaluator;
 use lase_runtime::link::LinkUrl;
 use std::io::{BufRead, IsTerminal};
@@ -126,37 +127,19 @@ impl Session {
         };
         let ok = match parsed {
             ReplInput::Stmts(stmts) => {
-                let mut errors = Vec::new();
-                lase_lang::resolve_imports(
+                // Imports, then `use` lines (their extension module or preset goes into the
+                // session before checking), as `lase` loads a recipe.
+                if let Err(f) = lase_runtime::compile::load_input(
                     &mut self.program,
                     &mut self.map,
                     id,
                     &stmts,
-                    &mut FsLoader,
-                    &mut errors,
-                    &mut vec![id],
-                );
-                if !errors.is_empty() {
-                    self.report(&Failure::many(errors));
+                    self.eval.extensions_mut(),
+                    &mut FsFiles,
+                ) {
+                    self.report(&f);
                     return false;
                 }
-                // `use` lines load their extension module or preset into the session before
-                // checking, as `lase` does for a recipe.
-                let mut with_input = self.program.clone();
-                with_input.modules.push(lase_lang::ast::Module {
-                    file: id,
-                    stmts: stmts.clone(),
-                });
-                let ext_errors = self.eval.extensions_mut().load_uses(
-                    &mut with_input,
-                    &mut self.map,
-                    &mut FsLoader,
-                );
-                if !ext_errors.is_empty() {
-                    self.report(&Failure::many(ext_errors));
-                    return false;
-                }
-                self.program.uses = with_input.uses;
                 self.checker.set_program(self.program.clone());
                 self.checker.check_stmts(&stmts);
                 let errs = self.checker.take_errors();
@@ -166,7 +149,7 @@ impl Session {
                 }
                 match self
                     .eval
-                    .run(&stmts, &self.program, &mut self.map, &mut FsLoader)
+                    .run(&stmts, &self.program, &mut self.map, &mut FsFiles)
                 {
                     Ok(()) => true,
                     Err(e) => {
@@ -184,7 +167,7 @@ impl Session {
                 }
                 match self
                     .eval
-                    .eval_expr(&e, &self.program, &mut self.map, &mut FsLoader)
+                    .eval_expr(&e, &self.program, &mut self.map, &mut FsFiles)
                 {
                     Ok(lase_runtime::eval::Value::Nothing) => true,
                     Ok(v) => {

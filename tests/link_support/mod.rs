@@ -4,9 +4,9 @@
 
 #![allow(dead_code)]
 
-use lase_lang::{Loader, SourceMap, Span};
+use lase_lang::{SourceMap, Span};
+use lase_runtime::FsFiles;
 use lase_runtime::emit::{EmitOptions, NcLine};
-use lase_runtime::eval::{Evaluator, Host};
 use lase_runtime::link::sim::{self, Recording, SimHandle, SimOptions};
 use lase_runtime::link::{AxisPos, ControllerAxes, MAX_AXES};
 use lase_runtime::machine::Machine;
@@ -19,42 +19,6 @@ pub fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-struct Fs;
-
-fn read(importer: &str, path: &str) -> Result<(String, String), String> {
-    let p = Path::new(path);
-    let full = if p.is_absolute() {
-        p.to_path_buf()
-    } else {
-        Path::new(importer)
-            .parent()
-            .map(|d| d.join(p))
-            .unwrap_or_else(|| p.to_path_buf())
-    };
-    let text = std::fs::read_to_string(&full).map_err(|e| e.to_string())?;
-    Ok((full.to_string_lossy().into_owned(), text))
-}
-
-impl Loader for Fs {
-    fn load(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
-        read(importer, path)
-    }
-}
-
-impl Host for Fs {
-    fn machine_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
-        read(importer, path)
-    }
-
-    fn data_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
-        read(importer, path)
-    }
-
-    fn extension_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
-        read(importer, path)
-    }
-}
-
 /// A compiled example: its planned job and its lines for the controller, as `lase run`
 /// sends them (the grbl dialect, or grblhal for machines with rotary axes).
 pub struct Compiled {
@@ -64,36 +28,9 @@ pub struct Compiled {
 }
 
 pub fn compile(path: &Path) -> Compiled {
-    let mut map = SourceMap::new();
-    let text = std::fs::read_to_string(path).unwrap();
-    let main = map.add(path.to_string_lossy(), text);
-    let (mut program, errors) = lase_lang::load(&mut map, main, &mut Fs);
-    assert!(errors.is_empty(), "{errors:?}");
-    // Rhai extensions (`use`) declare their functions before checking, as `lase` does.
-    let mut ext = lase_runtime::ext::Extensions::new();
-    let ext_errors = ext.load_uses(&mut program, &mut map, &mut Fs);
-    assert!(ext_errors.is_empty(), "{ext_errors:?}");
-    let check = lase_lang::check_program(&program);
-    assert!(check.is_empty(), "{check:?}");
-    let mut ev = Evaluator::new();
-    ev.set_extensions(ext);
-    let stmts = program.modules[0].stmts.clone();
-    let end = map.base(main) + map.text(main).len();
-    let name = path.file_name().unwrap().to_string_lossy().into_owned();
-    ev.run(&stmts, &program, &mut map, &mut Fs).unwrap();
-    let pp = ev.program(&name, Span::new(end, end)).unwrap();
-    let job = lase_runtime::motion::plan_program(pp).unwrap();
-    let locate = |s: Span| match map.locate(s) {
-        Some((f, lc)) => format!(
-            "{}:{}",
-            Path::new(map.name(f))
-                .file_name()
-                .unwrap()
-                .to_string_lossy(),
-            lc.line
-        ),
-        None => String::new(),
-    };
+    let (recipe, job) = lase_runtime::compile(&mut FsFiles, &path.to_string_lossy())
+        .unwrap_or_else(|(_, f)| panic!("{}: {f}", path.display()));
+    let locate = |s: Span| recipe.locate(s);
     let (lines, _) = lase_runtime::emit::emit_lines(
         &job,
         lase_runtime::link::live_dialect(&job.program.machine),
@@ -103,7 +40,11 @@ pub fn compile(path: &Path) -> Compiled {
         },
     )
     .unwrap();
-    Compiled { job, lines, map }
+    Compiled {
+        job,
+        lines,
+        map: recipe.map,
+    }
 }
 
 /// Every example recipe, sorted: GRBL runs the Cartesian ones, grblHAL those with rotary

@@ -535,6 +535,40 @@ impl From<crate::ext::ExtError> for EvalError {
     }
 }
 
+/// The laser's limits are one rule (`crate::program::check_power`, `check_pulse_rate`), which
+/// `ProcessProgram::validate` applies too; while running, the evaluator reports it as its own.
+impl From<crate::program::LaserLimit> for EvalError {
+    fn from(e: crate::program::LaserLimit) -> EvalError {
+        use crate::program::LaserLimit;
+        match e {
+            LaserLimit::Power {
+                value,
+                limit,
+                span,
+                help,
+            } => EvalError::AboveMachine {
+                what: "laser power".into(),
+                value,
+                limit,
+                span,
+                help,
+            },
+            LaserLimit::PulseRate {
+                rate,
+                max,
+                span,
+                help,
+                ..
+            } => EvalError::PulseRate {
+                rate,
+                max,
+                span,
+                help,
+            },
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -201,20 +201,7 @@ impl Evaluator {
                             None,
                         ));
                     }
-                    let m = self.need_machine(e.span)?;
-                    if p > m.laser.max_power_w * (1.0 + 1e-12) {
-                        return Err(EvalError::AboveMachine {
-                            what: "laser power".into(),
-                            value: format_quantity(p, Dim::POWER),
-                            limit: format_quantity(m.laser.max_power_w, Dim::POWER),
-                            span: e.span,
-                            help: Some(format!(
-                                "`{}`'s laser gives at most {}",
-                                m.name,
-                                format_quantity(m.laser.max_power_w, Dim::POWER)
-                            )),
-                        });
-                    }
+                    check_power(p, self.need_machine(e.span)?, e.span)?;
                     power = Some(p);
                 }
                 "standoff" => {
@@ -319,15 +306,7 @@ impl Evaluator {
                 "rate" => {
                     mode_set = true;
                     let f = positive(self.as_dim(&v, Dim::FREQUENCY, e.span, "`rate`")?)?;
-                    let m = self.need_machine(e.span)?;
-                    if f > m.laser.max_pulse_rate_hz * (1.0 + 1e-12) {
-                        return Err(EvalError::PulseRate {
-                            rate: format_quantity(f, Dim::FREQUENCY),
-                            max: format_quantity(m.laser.max_pulse_rate_hz, Dim::FREQUENCY),
-                            span: e.span,
-                            help: None,
-                        });
-                    }
+                    check_pulse_rate(f, None, self.need_machine(e.span)?, e.span)?;
                     pulse.mode = PulseMode::Time { period_s: 1.0 / f };
                 }
                 "width" => {
@@ -433,30 +412,17 @@ impl Evaluator {
         })
     }
 
+    /// Pulses by distance at `feed`, held to the laser's maximum rate at the speed's span
+    /// (pulses by time are held by `ProcessProgram::validate`, at the move).
     pub(super) fn check_pulse_rate(&self, laser: &Laser, feed: f64, span: Span) -> R<()> {
         let Some(Pulse {
-            mode: PulseMode::Distance { pitch_mm },
+            mode: PulseMode::Distance { .. },
             ..
         }) = &laser.pulse
         else {
             return Ok(());
         };
-        let m = self.need_machine(span)?;
-        let rate = feed / pitch_mm;
-        if rate > m.laser.max_pulse_rate_hz * (1.0 + 1e-12) {
-            let fastest = m.laser.max_pulse_rate_hz * pitch_mm;
-            return Err(EvalError::PulseRate {
-                rate: format_quantity(rate, Dim::FREQUENCY),
-                max: format_quantity(m.laser.max_pulse_rate_hz, Dim::FREQUENCY),
-                span,
-                help: Some(format!(
-                    "with pulses every {} the fastest allowed speed is {}",
-                    format_quantity(*pitch_mm, Dim::LENGTH),
-                    format_quantity(fastest, Dim::SPEED)
-                )),
-            });
-        }
-        Ok(())
+        Ok(laser.check_pulse_rate(feed, self.need_machine(span)?, span)?)
     }
 
     /// The planner settings in force (machine defaults, overridden by `planner`).
