@@ -74,13 +74,11 @@ proptest! {
     fn the_tracker_predicts_what_the_controller_executes(lines in prop::collection::vec(block(), 1..40)) {
         let mut gc = Gc::new([0.0; MAX_AXES], MAX_AXES);
         let mut tracker = Tracker::new([0.0; MAX_AXES]);
-        let mut accepted = 0;
         for line in &lines {
             // A line the controller refuses changes nothing, and a job never sends one on.
             let Ok(block) = gcode::execute(line.as_bytes(), &gc, true) else {
                 continue;
             };
-            accepted += 1;
             gc = block.next;
             tracker.apply(line).map_err(|e| TestCaseError::fail(format!("{line}: {e}")))?;
             for k in 0..MAX_AXES {
@@ -95,7 +93,31 @@ proptest! {
                 "after `{}`", line
             );
         }
-        // Most random blocks are valid: the comparison is not vacuous.
-        prop_assert!(accepted * 4 >= lines.len() || lines.len() < 4, "{} of {} accepted", accepted, lines.len());
     }
+}
+
+/// Most random blocks are valid, so the property above compares something. Counted over many
+/// programs from a fixed seed: one short program of refused blocks (`G90G91`, `M3M5`, `G1`
+/// with no feed) is a fair draw, not a sign of a vacuous test.
+#[test]
+fn most_random_blocks_are_accepted() {
+    use proptest::strategy::ValueTree;
+    let mut runner = proptest::test_runner::TestRunner::deterministic();
+    let programs = prop::collection::vec(block(), 1..40);
+    let (mut accepted, mut total) = (0usize, 0usize);
+    for _ in 0..200 {
+        let lines = programs.new_tree(&mut runner).unwrap().current();
+        let mut gc = Gc::new([0.0; MAX_AXES], MAX_AXES);
+        for line in &lines {
+            total += 1;
+            if let Ok(block) = gcode::execute(line.as_bytes(), &gc, true) {
+                accepted += 1;
+                gc = block.next;
+            }
+        }
+    }
+    assert!(
+        accepted * 2 >= total,
+        "{accepted} of {total} random blocks accepted"
+    );
 }

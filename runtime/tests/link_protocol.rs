@@ -432,6 +432,8 @@ proptest! {
         let mut chunks = vec![
             b"<Idle|MPos:0.000,0.000,0.000|FS:0,0>\r\n".to_vec(),
             b"[GC:G0 G54 G17 G21 G90 G94 M5 M9 T0 F0 S0]\r\nok\r\n".to_vec(),
+            // The answer to `$I`, which every connection asks.
+            b"[VER:1.1h.20190825:]\r\n[OPT:V,15,128]\r\nok\r\n".to_vec(),
         ];
         chunks.extend(noise);
         let mut link = GrblLink::connect(
