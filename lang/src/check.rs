@@ -36,20 +36,7 @@ impl Ty {
     /// "a length", "a list of points", ...
     pub fn describe(&self) -> String {
         match self {
-            Ty::Num(d) if d.is_none() => "a plain number".into(),
-            Ty::Num(d) => {
-                let n = d.name();
-                let article = if n.starts_with(['a', 'e', 'i', 'o', 'u']) {
-                    "an"
-                } else {
-                    "a"
-                };
-                if n.starts_with('[') {
-                    format!("a quantity in {}", d.base_unit())
-                } else {
-                    format!("{article} {n}")
-                }
-            }
+            Ty::Num(d) => d.describe(),
             Ty::Zero => "zero".into(),
             Ty::Bool => "a bool".into(),
             Ty::Str => "a string".into(),

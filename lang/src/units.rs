@@ -65,6 +65,24 @@ impl Dim {
         format!("[{}]", self.base_unit())
     }
 
+    /// The dimension with its article, as diagnostics and the reference name a value's type:
+    /// "a length", "an angular speed", "a quantity in mm^2", "a plain number".
+    pub fn describe(self) -> String {
+        if self.is_none() {
+            return "a plain number".into();
+        }
+        let n = self.name();
+        if n.starts_with('[') {
+            return format!("a quantity in {}", self.base_unit());
+        }
+        let article = if n.starts_with(['a', 'e', 'i', 'o', 'u']) {
+            "an"
+        } else {
+            "a"
+        };
+        format!("{article} {n}")
+    }
+
     /// The internal unit of this dimension, e.g. `mm/s^2`.
     pub fn base_unit(self) -> String {
         let parts = [
