@@ -3,9 +3,9 @@
 //! overrides), the soft-limit check, and the line's work fed into the bounded planner buffer
 //! (its `ok` waits until everything is in).
 
-use crate::link::sim::gcode::{self, Step};
 use super::record::{LineResult, MotionEffect, effect_of};
 use super::{Controller, PBlock, Pending, St, Work};
+use crate::link::sim::gcode::{self, Step};
 use crate::link::{AxisPos, MAX_AXES, Plane};
 use std::collections::VecDeque;
 

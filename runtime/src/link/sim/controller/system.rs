@@ -1,8 +1,8 @@
 //! The `$` system commands (`$$`, `$G`, `$#`, `$I`, `$C`, `$X`, `$H`, `$SLP`, `$J=`,
 //! `$RST=`, settings), jogging, and the `?` status report, as GRBL 1.1 and grblHAL answer them.
 
-use crate::link::sim::gcode::{self, Step};
 use super::{Controller, Firmware, St};
+use crate::link::sim::gcode::{self, Step};
 use crate::link::{AXIS_LETTERS, MotionMode, Spindle};
 
 impl Controller {
