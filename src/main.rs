@@ -313,16 +313,10 @@ fn parse_period(p: &str) -> Result<f64, (SourceMap, Failure)> {
             "bad --period `{p}`: give a time with a unit, e.g. 1ms or 0.5ms"
         ))
     };
-    let split = p
-        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == 'e' || c == '-'))
-        .ok_or_else(bad)?;
-    let (n, u) = p.split_at(split);
-    let n: f64 = n.trim().parse().map_err(|_| bad())?;
-    let unit = lase_lang::units::parse_unit(u.trim()).map_err(|_| bad())?;
-    if unit.dim != lase_lang::units::Dim::TIME || !(n > 0.0) {
-        return Err(bad());
+    match lase_lang::units::parse_quantity(p) {
+        Ok(q) if q.dim == lase_lang::units::Dim::TIME && q.value > 0.0 => Ok(q.value),
+        _ => Err(bad()),
     }
-    Ok(n * unit.factor)
 }
 
 fn cmd_plan(

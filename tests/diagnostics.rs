@@ -1,10 +1,42 @@
 //! Diagnostics tests: every `tests/err/*.lase` fails `lase check` with exit code 1, reports
 //! exactly the errors written inline in it (`// error: CODE` on the line where the error
 //! points), and renders as in its golden `tests/err/NAME.txt` (no colour, width 80).
+//!
+//! One trial per bad recipe (`err::fold_over`), so `cargo test --test diagnostics fold_over`
+//! runs one; see `common::cases`.
 
 mod common;
 
+use common::cases::{per_file, run, trial};
 use common::*;
+use std::path::Path;
+
+fn main() {
+    let files = lase_files(&root().join("tests/err"));
+    let mut trials = vec![
+        trial("ten_bad_recipes_or_more", || {
+            assert!(lase_files(&root().join("tests/err")).len() >= 10)
+        }),
+        trial(
+            "three_independent_mistakes_are_all_reported",
+            three_independent_mistakes_are_all_reported,
+        ),
+        trial(
+            "machine_file_errors_point_into_the_toml",
+            machine_file_errors_point_into_the_toml,
+        ),
+        trial(
+            "a_missing_file_is_a_clean_error",
+            a_missing_file_is_a_clean_error,
+        ),
+    ];
+    trials.extend(per_file(
+        "err",
+        &files,
+        bad_recipe_reports_exactly_its_errors,
+    ));
+    run(trials)
+}
 
 /// (code, line) pairs from miette's graphical output: the code heads each report and the
 /// first `╭─[file:line:col]` after it gives the line.
@@ -51,25 +83,21 @@ fn expected(src: &str) -> Vec<(String, usize)> {
     v
 }
 
-#[test]
-fn every_bad_recipe_reports_exactly_its_errors() {
-    let files = lase_files(&root().join("tests/err"));
-    assert!(files.len() >= 10);
-    for f in files {
-        let rel = relative(&f);
-        let (code, _out, err) = lase(&["check", &rel]);
-        assert_eq!(code, 1, "{rel} must fail with exit code 1:\n{err}");
-        assert!(!err.contains("panicked"), "{rel} panicked:\n{err}");
-        let src = std::fs::read_to_string(&f).unwrap();
-        let want = expected(&src);
-        if !want.is_empty() {
-            assert_eq!(reported(&err), want, "{rel}: reported errors differ\n{err}");
-        }
-        golden(&f.with_extension("txt"), &err);
+/// The bad recipe fails `lase check` with exit code 1, reports exactly the errors written
+/// inline in it, and renders as its golden `NAME.txt`.
+fn bad_recipe_reports_exactly_its_errors(f: &Path) {
+    let rel = relative(f);
+    let (code, _out, err) = lase(&["check", &rel]);
+    assert_eq!(code, 1, "{rel} must fail with exit code 1:\n{err}");
+    assert!(!err.contains("panicked"), "{rel} panicked:\n{err}");
+    let src = std::fs::read_to_string(f).unwrap();
+    let want = expected(&src);
+    if !want.is_empty() {
+        assert_eq!(reported(&err), want, "{rel}: reported errors differ\n{err}");
     }
+    golden(&f.with_extension("txt"), &err);
 }
 
-#[test]
 fn three_independent_mistakes_are_all_reported() {
     let (code, _, err) = lase(&["check", "tests/err/three_mistakes.lase"]);
     assert_eq!(code, 1);
@@ -84,7 +112,6 @@ fn three_independent_mistakes_are_all_reported() {
     assert!(err.contains("write `5 mm`"), "{err}");
 }
 
-#[test]
 fn machine_file_errors_point_into_the_toml() {
     let (code, _, err) = lase(&["check", "tests/err/bad_machine_file.lase"]);
     assert_eq!(code, 1);
@@ -92,7 +119,6 @@ fn machine_file_errors_point_into_the_toml() {
     assert!(err.contains("unknown unit `ss`"), "{err}");
 }
 
-#[test]
 fn a_missing_file_is_a_clean_error() {
     let (code, _, err) = lase(&["check", "tests/err/does_not_exist.lase"]);
     assert_eq!(code, 1);

@@ -32,12 +32,8 @@ pub enum PTy {
 impl PTy {
     pub fn describe(self) -> String {
         match self {
-            PTy::Dim(d) => crate::check::Ty::Num(d).describe(),
-            PTy::Either(a, b) => format!(
-                "{} or {}",
-                crate::check::Ty::Num(a).describe(),
-                crate::check::Ty::Num(b).describe()
-            ),
+            PTy::Dim(d) => d.describe(),
+            PTy::Either(a, b) => format!("{} or {}", a.describe(), b.describe()),
             PTy::AnyNum => "a number".into(),
             PTy::Point => "a point".into(),
             PTy::Profile => "a profile".into(),

@@ -65,6 +65,24 @@ impl Dim {
         format!("[{}]", self.base_unit())
     }
 
+    /// The dimension with its article, as diagnostics and the reference name a value's type:
+    /// "a length", "an angular speed", "a quantity in mm^2", "a plain number".
+    pub fn describe(self) -> String {
+        if self.is_none() {
+            return "a plain number".into();
+        }
+        let n = self.name();
+        if n.starts_with('[') {
+            return format!("a quantity in {}", self.base_unit());
+        }
+        let article = if n.starts_with(['a', 'e', 'i', 'o', 'u']) {
+            "an"
+        } else {
+            "a"
+        };
+        format!("{article} {n}")
+    }
+
     /// The internal unit of this dimension, e.g. `mm/s^2`.
     pub fn base_unit(self) -> String {
         let parts = [
@@ -249,6 +267,74 @@ pub fn parse_unit(text: &str) -> Result<Unit, UnknownUnit> {
     Ok(Unit { dim, factor })
 }
 
+/// A number with its unit, as written outside recipes: in machine files (`v_max = "200
+/// mm/s"`), process presets (`power = "1.2 kW"`), REPL commands (`:set power 1.1kW`) and
+/// command-line options (`--period 0.5ms`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Quantity {
+    /// The value in internal units (mm, s, rad, W).
+    pub value: f64,
+    /// Its dimension; [`Dim::NONE`] for a bare number.
+    pub dim: Dim,
+    /// No unit was written. Callers that need a unit say so; a dimensionless unit such as
+    /// `mm/mm` is not bare.
+    pub bare: bool,
+}
+
+/// Why a text is not a [`Quantity`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum QuantityError {
+    /// It does not start with a number.
+    #[error("`{0}` is not a number with a unit")]
+    NotANumber(String),
+    /// The number is followed by something that is not a unit.
+    #[error("unknown unit `{}`", .0.atom)]
+    UnknownUnit(UnknownUnit),
+    /// The value overflows (`1e999 mm`) once scaled to internal units.
+    #[error("`{0}` is not a finite number")]
+    NotFinite(String),
+}
+
+/// Parses a number with an optional unit: `12 mm/s`, `900 deg/s^2`, `1.5kW`, `-5 mm`,
+/// `1e-3 s`, `2E3 Hz`, `90°`, or a bare `3`. The one parser for quantities written outside
+/// recipes (recipe literals go through the grammar).
+///
+/// The syntax, the union of what machine files, presets, the REPL and the command line
+/// accepted before they shared this parser: surrounding whitespace is ignored; the number is
+/// the longest prefix of digits, `.`, `+`, `-`, `e` and `E` and must parse as a Rust `f64`
+/// (so `inf` and `nan` are not numbers); a space between number and unit is optional; the
+/// unit is anything [`parse_unit`] resolves. A percentage is not a quantity: the REPL reads
+/// `80%` as an override factor itself.
+pub fn parse_quantity(text: &str) -> Result<Quantity, QuantityError> {
+    let t = text.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '+' | '-' | 'e' | 'E')))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let number: f64 = number
+        .parse()
+        .map_err(|_| QuantityError::NotANumber(t.to_string()))?;
+    let unit = unit.trim();
+    let q = if unit.is_empty() {
+        Quantity {
+            value: number,
+            dim: Dim::NONE,
+            bare: true,
+        }
+    } else {
+        let u = parse_unit(unit).map_err(QuantityError::UnknownUnit)?;
+        Quantity {
+            value: number * u.factor,
+            dim: u.dim,
+            bare: false,
+        }
+    };
+    if !q.value.is_finite() {
+        return Err(QuantityError::NotFinite(t.to_string()));
+    }
+    Ok(q)
+}
+
 /// The candidate closest to `name` by edit distance, if it is close enough to be a likely typo.
 pub fn suggest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> Option<&'a str> {
     let mut best: Option<(f64, &str)> = None;
@@ -335,5 +421,49 @@ mod tests {
         assert_eq!(Dim::new(2, 0, 0, 0).name(), "[mm^2]");
         assert_eq!(Dim::new(1, -4, 0, 0).base_unit(), "mm/s^4");
         assert_eq!(format_quantity(std::f64::consts::PI, Dim::ANGLE), "180 deg");
+    }
+
+    #[test]
+    fn quantities_accept_every_written_form() {
+        let q = |t: &str| parse_quantity(t).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
+        // Machine files and presets: a space before the unit.
+        let v = q("12 mm/s");
+        assert_eq!((v.value, v.dim, v.bare), (12.0, Dim::SPEED, false));
+        let v = q("900 deg/s^2");
+        assert!(close(v.value, 900f64.to_radians()) && v.dim == Dim::ANGULAR_ACCEL);
+        let v = q("0.6 m/min");
+        assert!(close(v.value, 10.0) && v.dim == Dim::SPEED);
+        // The REPL and the command line: no space, signs, exponents.
+        let v = q("1.5kW");
+        assert_eq!((v.value, v.dim), (1500.0, Dim::POWER));
+        assert_eq!(q("-5 mm").value, -5.0);
+        assert_eq!(q("+5mm").value, 5.0);
+        assert!(close(q("1e-3 s").value, 1e-3));
+        assert_eq!(q("2E3 Hz").value, 2000.0);
+        assert!(close(q("0.5ms").value, 5e-4));
+        assert!(close(q("90°").value, std::f64::consts::FRAC_PI_2));
+        assert_eq!(q(" .5 mm ").value, 0.5);
+        // A bare number is dimensionless and says so; a unit that cancels is not bare.
+        let v = q("3");
+        assert_eq!((v.value, v.dim, v.bare), (3.0, Dim::NONE, true));
+        let v = q("3 mm/mm");
+        assert_eq!((v.dim, v.bare), (Dim::NONE, false));
+    }
+
+    #[test]
+    fn malformed_quantities_say_why() {
+        let e = |t: &str| parse_quantity(t).unwrap_err();
+        assert_eq!(e("mm"), QuantityError::NotANumber("mm".into()));
+        assert_eq!(e("  "), QuantityError::NotANumber("".into()));
+        assert_eq!(e("inf mm"), QuantityError::NotANumber("inf mm".into()));
+        assert_eq!(e("1-2 mm"), QuantityError::NotANumber("1-2 mm".into()));
+        match e("100 mm/ss") {
+            QuantityError::UnknownUnit(u) => assert_eq!(u.atom, "ss"),
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(e("12 Wt").to_string(), "unknown unit `Wt`");
+        assert_eq!(e("1e999 mm"), QuantityError::NotFinite("1e999 mm".into()));
+        assert_eq!(e("1e308 m"), QuantityError::NotFinite("1e308 m".into()));
     }
 }

@@ -5,7 +5,7 @@
 //! here; every error points at the offending TOML span.
 
 use lase_lang::Span;
-use lase_lang::units::{self, Dim};
+use lase_lang::units::{self, Dim, QuantityError};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -262,44 +262,35 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             label,
             help: Some(help),
         };
-        let text = s.get_ref().trim();
-        let split = text
-            .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+' || c == 'e'))
-            .unwrap_or(text.len());
-        let (num, unit) = text.split_at(split);
-        let value: f64 = num.trim().parse().map_err(|_| {
-            bad(
+        let q = units::parse_quantity(s.get_ref()).map_err(|e| match e {
+            QuantityError::NotANumber(_) => bad(
                 "expected a number with a unit".into(),
                 format!("write it like \"200 mm/s\"; {what} is {}", want[0]),
-            )
-        })?;
-        let unit = unit.trim();
-        if unit.is_empty() {
-            if want.contains(&Dim::NONE) {
-                return Ok(value);
-            }
-            return Err(bad(
-                "no unit".into(),
-                format!(
-                    "{what} is {}; give a unit, e.g. \"{value} {}\"",
-                    want[0],
-                    want[0].base_unit()
-                ),
-            ));
-        }
-        let u = units::parse_unit(unit).map_err(|e| {
-            bad(
+            ),
+            QuantityError::UnknownUnit(e) => bad(
                 format!("unknown unit `{}`", e.atom),
                 e.suggestion
                     .map(|s| format!("did you mean `{s}`?"))
                     .unwrap_or_else(|| {
                         "units are written as in recipes: mm, deg, mm/s, m/s^2".into()
                     }),
-            )
+            ),
+            QuantityError::NotFinite(_) => bad("not finite".into(), "use a finite value".into()),
         })?;
-        if !want.contains(&u.dim) {
+        if q.bare && !want.contains(&Dim::NONE) {
             return Err(bad(
-                format!("this is {}", u.dim),
+                "no unit".into(),
+                format!(
+                    "{what} is {}; give a unit, e.g. \"{} {}\"",
+                    want[0],
+                    q.value,
+                    want[0].base_unit()
+                ),
+            ));
+        }
+        if !want.contains(&q.dim) {
+            return Err(bad(
+                format!("this is {}", q.dim),
                 format!(
                     "{what} must be {}",
                     want.iter()
@@ -309,11 +300,7 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
                 ),
             ));
         }
-        let v = value * u.factor;
-        if !v.is_finite() {
-            return Err(bad("not finite".into(), "use a finite value".into()));
-        }
-        Ok(v)
+        Ok(q.value)
     };
     let positive = |v: f64, s: &toml::Spanned<String>, what: &str| -> Result<f64, MachineError> {
         if v > 0.0 {

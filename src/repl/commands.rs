@@ -151,30 +151,20 @@ fn parse_typed(text: &str) -> Result<Typed, String> {
             .map(|v| Typed::Percent(v / 100.0))
             .map_err(|_| format!("`{t}` is not a percentage"));
     }
-    let split = t
-        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == '+' || c == 'e'))
-        .unwrap_or(t.len());
-    let (n, u) = t.split_at(split);
-    let v: f64 = n
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{t}` is not a number with a unit (e.g. 1.1 kW)"))?;
-    if !v.is_finite() {
-        return Err(format!("`{t}` is not a finite number"));
-    }
-    let u = u.trim();
-    if u.is_empty() {
-        return Ok(Typed::Bare(v));
-    }
-    match units::parse_unit(u) {
-        Ok(unit) => Ok(Typed::Quantity(v * unit.factor, unit.dim)),
-        Err(e) => Err(format!(
+    match units::parse_quantity(t) {
+        Ok(q) if q.bare => Ok(Typed::Bare(q.value)),
+        Ok(q) => Ok(Typed::Quantity(q.value, q.dim)),
+        Err(units::QuantityError::NotANumber(_)) => {
+            Err(format!("`{t}` is not a number with a unit (e.g. 1.1 kW)"))
+        }
+        Err(units::QuantityError::UnknownUnit(e)) => Err(format!(
             "unknown unit `{}`{}",
             e.atom,
             e.suggestion
                 .map(|s| format!(" (did you mean `{s}`?)"))
                 .unwrap_or_default()
         )),
+        Err(e @ units::QuantityError::NotFinite(_)) => Err(e.to_string()),
     }
 }
 

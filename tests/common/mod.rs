@@ -5,6 +5,8 @@
 #[path = "rs274.rs"]
 mod rs274;
 
+pub mod cases;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

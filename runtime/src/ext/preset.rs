@@ -10,7 +10,7 @@
 //! ```
 
 use crate::eval::Value;
-use lase_lang::units::{Dim, parse_unit};
+use lase_lang::units::{self, Dim, QuantityError};
 
 /// A parsed preset: its doc line and its values, in file order.
 #[derive(Debug, Clone, Default)]
@@ -63,23 +63,13 @@ pub(crate) fn parse(text: &str) -> Result<Preset, PresetError> {
     })
 }
 
-/// `"1200 W"` → 1200 W in internal units.
+/// `"1200 W"` → 1200 W in internal units; a bare `"3"` is a plain number.
 fn quantity(s: &str) -> Result<Value, String> {
-    let s = s.trim();
-    let split = s
-        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | '-' | '+' | 'e' | 'E')))
-        .unwrap_or(s.len());
-    let (n, u) = s.split_at(split);
-    let x: f64 = n
-        .trim()
-        .parse()
-        .map_err(|_| format!("\"{s}\" is not a number with a unit"))?;
-    let u = u.trim();
-    if u.is_empty() {
-        return Ok(Value::Num(x, Dim::NONE));
+    match units::parse_quantity(s) {
+        Ok(q) => Ok(Value::Num(q.value, q.dim)),
+        Err(QuantityError::NotANumber(t)) => Err(format!("\"{t}\" is not a number with a unit")),
+        Err(e) => Err(e.to_string()),
     }
-    let unit = parse_unit(u).map_err(|e| format!("unknown unit `{}`", e.atom))?;
-    Ok(Value::Num(x * unit.factor, unit.dim))
 }
 
 fn key_span(text: &str, key: &str) -> std::ops::Range<usize> {

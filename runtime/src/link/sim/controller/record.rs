@@ -1,0 +1,142 @@
+//! What the simulated controller did, for tests to read: each line with its result and
+//! effect (modal changes, motion, dwell, program flow), each executed block, laser switching,
+//! overflows and alarms.
+
+use crate::link::sim::gcode::Gc;
+use crate::link::{AxisPos, MotionMode};
+
+/// A line the controller received, with what became of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LineRecord {
+    /// 1-based count of lines received since power-up.
+    pub seq: u64,
+    /// Which connection delivered its line end (1 = the first).
+    pub connection: u32,
+    /// As received, without the line end.
+    pub text: String,
+    pub result: LineResult,
+    /// What the line did, for G-code lines that were accepted.
+    pub effect: Option<Effect>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum LineResult {
+    Ok,
+    Error(u32),
+    Alarm(u32),
+    /// A `$` system command.
+    System,
+}
+
+/// What an accepted G-code line did: modal changes (other than the motion mode), motion,
+/// dwell, program flow. Two lines with equal effects did the same thing.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Effect {
+    pub changes: Vec<String>,
+    pub motion: Option<MotionEffect>,
+    pub dwell_s: Option<f64>,
+    pub flow: Option<&'static str>,
+}
+
+impl Effect {
+    /// The line changed nothing (comments, repeated modal words, zero-length moves).
+    pub fn is_noop(&self) -> bool {
+        self.changes.is_empty()
+            && self.motion.is_none()
+            && self.dwell_s.is_none()
+            && self.flow.is_none()
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct MotionEffect {
+    pub mode: MotionMode,
+    pub target: AxisPos,
+    pub center: Option<AxisPos>,
+    pub laser_s: f64,
+    /// The move's own time in inverse-time mode (G93's F is the block's, not modal state).
+    pub inverse_time_s: Option<f64>,
+}
+
+/// A block the machine finished moving.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExecutedBlock {
+    /// The line (`LineRecord::seq`) it came from.
+    pub seq: u64,
+    pub from: AxisPos,
+    pub to: AxisPos,
+    pub rapid: bool,
+    /// Laser power (S) during the move, 0 when dark.
+    pub laser_s: f64,
+    /// Simulated time at its end, s.
+    pub t_end: f64,
+    /// How long it moved, s (at the feed, or its share of a G93 block's time).
+    pub duration: f64,
+}
+
+/// The laser output changed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LaserEvent {
+    pub t: f64,
+    pub power_s: f64,
+    pub pos: AxisPos,
+}
+
+/// What the simulated controller did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Recording {
+    pub lines: Vec<LineRecord>,
+    pub blocks: Vec<ExecutedBlock>,
+    pub laser: Vec<LaserEvent>,
+    /// Dwells run: line, seconds.
+    pub dwells: Vec<(u64, f64)>,
+    /// Bytes that arrived with the RX buffer full: a client flow-control bug.
+    pub rx_overflows: u64,
+    pub overflow_log: Vec<String>,
+    pub alarms: Vec<u32>,
+    pub resets: u32,
+    pub holds: u32,
+    pub connections: u32,
+    pub max_rx_fill: usize,
+    pub max_planner_fill: usize,
+    pub bytes_received: u64,
+}
+
+/// The modal changes between two parser states, as an [`Effect`].
+pub(super) fn effect_of(before: &Gc, after: &Gc) -> Effect {
+    let (b, a) = (&before.modal, &after.modal);
+    let mut changes = Vec::new();
+    let mut diff = |name: &str, x: String, y: String| {
+        if x != y {
+            changes.push(format!("{name}={y}"));
+        }
+    };
+    diff("units", format!("{}", b.inches), format!("{}", a.inches));
+    diff(
+        "incremental",
+        format!("{}", b.incremental),
+        format!("{}", a.incremental),
+    );
+    diff(
+        "inverse_time",
+        format!("{}", b.inverse_time),
+        format!("{}", a.inverse_time),
+    );
+    diff("plane", format!("{:?}", b.plane), format!("{:?}", a.plane));
+    diff(
+        "spindle",
+        format!("{:?}", b.spindle),
+        format!("{:?}", a.spindle),
+    );
+    diff("flood", format!("{}", b.flood), format!("{}", a.flood));
+    diff("mist", format!("{}", b.mist), format!("{}", a.mist));
+    // In G93 the F word is the block's own (its move's time, in the motion effect).
+    if !a.inverse_time {
+        diff("F", format!("{}", b.feed), format!("{}", a.feed));
+    }
+    diff("S", format!("{}", b.s), format!("{}", a.s));
+    Effect {
+        changes,
+        ..Effect::default()
+    }
+}
