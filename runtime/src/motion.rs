@@ -362,7 +362,16 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
             min,
             max,
         } => {
-            let unit = |v: f64| format!("{} mm", lase_lang::units::format_number(v));
+            // In the unit the machine file and the NC program use for this axis: deg for a
+            // rotary one.
+            let kind = program.machine.axes[axis].kind;
+            let unit = |v: f64| {
+                format!(
+                    "{} {}",
+                    lase_lang::units::format_number(crate::axes::to_external(kind, v)),
+                    crate::axes::external_unit(kind)
+                )
+            };
             MotionError::Travel {
                 axis: program.machine.axes[axis].name.clone(),
                 value: unit(value),
