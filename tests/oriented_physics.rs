@@ -10,18 +10,18 @@
 mod common;
 
 use common::*;
+use lase_runtime::axes::Axes;
 use lase_runtime::geometry::{Profile, V2};
 use lase_runtime::kinematics::{self, Kinematics};
 use lase_runtime::machine::{AxisKind, Machine, parse_machine};
-use lase_runtime::planner::MAX_AXES;
 use std::f64::consts::{PI, TAU};
 
 /// One motion block of the program: axis positions after it (internal units: mm, rad), its
 /// inverse-time F (1/min) when in G93, and whether the beam is on during it.
 #[derive(Debug, Clone)]
 struct Block {
-    q: [f64; MAX_AXES],
-    prev: [f64; MAX_AXES],
+    q: Axes,
+    prev: Axes,
     inverse_time: Option<f64>,
     lit: bool,
 }
@@ -33,7 +33,7 @@ fn machine(name: &str) -> Machine {
 /// Reads a LinuxCNC or grblHAL program back into blocks (LinuxCNC: M62/M63 switch the beam at
 /// the next motion; grblHAL: M3/M4 and M5 in laser mode, without a stop).
 fn blocks(ngc: &str, m: &Machine) -> Vec<Block> {
-    let mut q = [0.0; MAX_AXES];
+    let mut q = Axes::ZERO;
     let mut g93 = false;
     let mut lit = false;
     let mut out = Vec::new();

@@ -4,6 +4,7 @@
 //! (`geometry`, `kinematics`, `planner`, `motion`) is plain math on plain data; `emit` is the
 //! only code that knows NC text; `link` the only code that knows a controller protocol.
 
+pub mod axes;
 pub mod compile;
 pub mod emit;
 pub mod eval;

@@ -5,6 +5,10 @@
 //! Nothing is planned unless every point of the program is reachable: a job never starts if
 //! it could fail halfway.
 //!
+//! Poses are computed here once: the [`Job`] carries the kinematics (built once, by
+//! `kinematics::for_machine`) and the axis values every op ends at ([`Job::op_axes`]), and
+//! `emit`, `report` and `link` read those instead of running the inverse again.
+//!
 //! Before lowering, [`leadin`] adds lead-ins and lead-outs around every lit section (PROCESS.md
 //! §4's transition points), so the beam is only on at the programmed speed; [`power`] computes
 //! the per-block power of a lit move whose power follows the speed (PROCESS.md §1, eq. 1).
@@ -14,10 +18,12 @@ pub mod power;
 
 pub use leadin::{Lead, LeadKind, LitSection};
 
-use crate::kinematics::{self, KinError, ToolPose};
-use crate::planner::{self, Axes, AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind};
+use crate::axes::{Axes, MAX_AXES};
+use crate::kinematics::{self, KinError, Kinematics, ToolPose};
+use crate::planner::{self, AxisLimits, Move, Plan, PlannerConfig, ProfileKind};
 use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp};
 use lase_lang::Span;
+use std::sync::Arc;
 
 /// Planning errors that point at the recipe.
 #[derive(Debug, Clone, thiserror::Error, miette::Diagnostic, PartialEq)]
@@ -97,8 +103,14 @@ pub enum MotionError {
 #[derive(Debug, Clone)]
 pub struct Job {
     pub program: ProcessProgram,
+    /// The machine's kinematics, built once for the job from `program.machine`.
+    pub kin: Arc<dyn Kinematics>,
     /// Axis positions at the start.
     pub start: Axes,
+    /// Axis positions each op of `program.ops` leaves the machine at: a motion op's end
+    /// through the inverse kinematics (continuous with the solution before it, inside travel),
+    /// any other op the position before it. The one place poses are computed.
+    pub op_axes: Vec<Axes>,
     /// The moves handed to the planner; `tag` is the index of the op that produced each.
     pub moves: Vec<Move>,
     /// Standstill before the first move (dwells and events ahead of any motion), s.
@@ -136,15 +148,15 @@ impl Job {
 
     /// Where the spot is, part coordinates, when the axes stand at `q` on the move tagged
     /// `tag`: forward kinematics at that move's standoff.
-    pub fn spot(&self, kin: &dyn kinematics::Kinematics, q: &Axes, tag: u32) -> [f64; 3] {
+    pub fn spot(&self, q: &Axes, tag: u32) -> [f64; 3] {
         // A flat bed has no standoff in its ops: skip the search (this runs per trace sample
         // and per pulse).
-        let standoff = if kin.oriented() {
+        let standoff = if self.kin.oriented() {
             self.standoff_of(tag)
         } else {
             0.0
         };
-        let s = kin.forward_at(q, standoff).spot;
+        let s = self.kin.forward_at(q, standoff).spot;
         [s.x, s.y, s.z]
     }
 }
@@ -164,13 +176,13 @@ pub(crate) fn tool_pose(p: P3, orient: Option<Orient>) -> ToolPose {
 
 /// Adds leads, lowers and plans a program.
 pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
-    let kin = kinematics::for_machine(&program.machine);
+    let kin: Arc<dyn Kinematics> = Arc::from(kinematics::for_machine(&program.machine));
     let n_axes = kin.axis_count();
     let start_span = program.ops.first().map(|o| o.span).unwrap_or_default();
     // A machine that orients the beam starts from its axis zero (its home); a flat bed from
     // the spot position the program starts at.
     let start = if kin.oriented() {
-        let q = [0.0; MAX_AXES];
+        let q = Axes::ZERO;
         kin.check(&q)
             .map_err(|e| kin_error(e, start_span, &program))?;
         q
@@ -221,6 +233,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     let mut q_prev = start;
     let mut lit_prev = false;
     let mut orient: Option<Orient> = None;
+    let mut op_axes: Vec<Axes> = Vec::with_capacity(program.ops.len());
     for (i, op) in program.ops.iter().enumerate() {
         orient = op.orient().or(orient);
         let tag = i as u32;
@@ -280,6 +293,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         if op.target().is_some() {
             lit_prev = lit;
         }
+        op_axes.push(q_prev);
     }
     let plan = planner::plan(start, &moves, &limits, &cfg).map_err(|e| {
         let span = planner_error_move(&e)
@@ -295,7 +309,9 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     })?;
     Ok(Job {
         program,
+        kin,
         start,
+        op_axes,
         moves,
         initial_dwell_s,
         plan,
@@ -314,7 +330,7 @@ fn planner_error_move(e: &planner::PlanError) -> Option<usize> {
 
 /// Axis positions for spot `p` with beam `orient`, continuous with `prev`, inside travel.
 fn inverse(
-    kin: &dyn kinematics::Kinematics,
+    kin: &dyn Kinematics,
     p: P3,
     orient: Option<Orient>,
     prev: Option<&Axes>,
@@ -346,7 +362,16 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
             min,
             max,
         } => {
-            let unit = |v: f64| format!("{} mm", lase_lang::units::format_number(v));
+            // In the unit the machine file and the NC program use for this axis: deg for a
+            // rotary one.
+            let kind = program.machine.axes[axis].kind;
+            let unit = |v: f64| {
+                format!(
+                    "{} {}",
+                    lase_lang::units::format_number(crate::axes::to_external(kind, v)),
+                    crate::axes::external_unit(kind)
+                )
+            };
             MotionError::Travel {
                 axis: program.machine.axes[axis].name.clone(),
                 value: unit(value),

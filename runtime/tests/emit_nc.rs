@@ -217,6 +217,33 @@ fn arcs_of(text: &str) -> Vec<ArcBlock> {
 
 // ------------------------------------------------------------------ content
 
+/// Axis words are the plan's (`Job::op_axes`), not a second run of the kinematics: what
+/// motion recorded for an op is what its block says.
+#[test]
+fn axis_words_are_the_planned_axes() {
+    let mut j = job(
+        "xy_table",
+        vec![
+            rapid(1, [10.0, 10.0, 0.0]),
+            line(2, [30.0, 10.0, 0.0], 20.0, lit(50.0)),
+        ],
+    );
+    assert_eq!(j.op_axes.len(), j.program.ops.len());
+    let i = j
+        .program
+        .ops
+        .iter()
+        .position(|o| matches!(o.kind, OpKind::Rapid { .. }))
+        .expect("a rapid");
+    j.op_axes[i][0] = 12.5;
+    let nc = emit_to_string(&j, Dialect::LinuxCnc).unwrap();
+    assert!(
+        nc.lines()
+            .any(|l| l.starts_with("G0") && l.contains("X12.5")),
+        "{nc}"
+    );
+}
+
 #[test]
 fn dialect_names_round_trip() {
     for d in Dialect::ALL {

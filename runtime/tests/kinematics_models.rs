@@ -105,7 +105,7 @@ fn rotary_angles_stay_continuous_around_a_full_turn() {
         );
         let q = k.inverse(&p, prev.as_ref()).unwrap();
         if let Some(pq) = prev {
-            let pq: [f64; 6] = pq;
+            let pq: [f64; 6] = pq.0;
             assert!(
                 (q[1] - pq[1]).abs() < 0.01,
                 "C jumped at step {i}: {} -> {}",

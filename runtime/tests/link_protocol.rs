@@ -114,8 +114,8 @@ fn a_rotary_machine_gets_a_six_axis_grblhal_that_times_g93_blocks() {
         axes: vec![lase_runtime::link::AxisNeed {
             letter,
             rotary: true,
-            v_mm_min: v,
-            a_mm_s2: a,
+            v_per_min: v,
+            a_per_s2: a,
             v_span: Default::default(),
             a_span: Default::default(),
         }],
@@ -168,8 +168,8 @@ fn a_grbl_controller_is_refused_for_a_job_that_moves_c() {
         axes: vec![lase_runtime::link::AxisNeed {
             letter: 'C',
             rotary: true,
-            v_mm_min: 600.0,
-            a_mm_s2: 100.0,
+            v_per_min: 600.0,
+            a_per_s2: 100.0,
             v_span: Default::default(),
             a_span: Default::default(),
         }],

@@ -9,7 +9,7 @@ use lase_runtime::planner::{
 const INF: f64 = f64::INFINITY;
 
 fn at(x: f64, y: f64, z: f64) -> Axes {
-    [x, y, z, 0.0, 0.0, 0.0]
+    Axes([x, y, z, 0.0, 0.0, 0.0])
 }
 
 fn limits(v: f64, a: f64, j: f64) -> AxisLimits {

@@ -147,7 +147,7 @@ fn zero_and_infinite_deviation_keep_their_meaning() {
     // this circle is the path speed limit.
     let (moves, _, phi) = circle(5.0, 0.002, 2);
     let moves = &moves[1..moves.len() - 1];
-    let start = moves[0].target;
+    let start = moves[0].target.0;
     let moves = &moves[1..];
     let stop = PlannerConfig {
         junction_deviation: 0.0,

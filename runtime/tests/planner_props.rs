@@ -98,7 +98,7 @@ fn case() -> impl Strategy<Value = Case> {
 }
 
 fn build_moves(c: &Case) -> Vec<Move> {
-    let mut q: Axes = [0.0; 6];
+    let mut q = Axes::ZERO;
     let mut last_dir = [1.0, 0.0, 0.0];
     let mut moves = Vec::new();
     for (k, s) in c.specs.iter().enumerate() {

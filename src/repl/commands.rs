@@ -598,7 +598,7 @@ impl Session {
             (
                 Dim::ANGLE,
                 Dim::ANGULAR_SPEED,
-                180.0 / std::f64::consts::PI,
+                lase_runtime::axes::external_scale(AxisKind::Rotary),
                 "deg",
             )
         } else {

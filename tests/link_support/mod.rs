@@ -6,6 +6,7 @@
 
 use lase_lang::{SourceMap, Span};
 use lase_runtime::FsFiles;
+use lase_runtime::axes::Axes;
 use lase_runtime::emit::{EmitOptions, NcLine};
 use lase_runtime::link::sim::{self, Recording, SimHandle, SimOptions};
 use lase_runtime::link::{AxisPos, ControllerAxes, MAX_AXES};
@@ -60,9 +61,9 @@ pub fn examples() -> Vec<PathBuf> {
 }
 
 /// Machine axes in a controller's position: X Y Z A B C by letter, rotary axes in degrees.
-pub fn to_controller(m: &Machine) -> impl Fn(&[f64]) -> AxisPos {
+pub fn to_controller(m: &Machine) -> impl Fn(&Axes) -> AxisPos {
     let axes = ControllerAxes::of(m);
-    move |q: &[f64]| axes.to_controller(q)
+    move |q: &Axes| axes.to_controller(q)
 }
 
 fn dist(a: AxisPos, b: AxisPos) -> f64 {

@@ -8,15 +8,19 @@
 //! preceded by the post's power line when the value changes; LinuxCNC's immediate `M68`
 //! becomes the motion-synchronized `M67` there, so the change lands at the start of its
 //! sub-block and does not break blending.
+//!
+//! Axis words come from the planned job: a whole move ends at the axes motion computed for its
+//! op (`Job::op_axes`), and a sub-block (power steps, pulse gates) ends on the block it is cut
+//! from as the controller runs it ([`part_way`]), so nothing here runs the kinematics. Rotary
+//! words are degrees through `axes::to_external`, the one conversion.
 
 use super::format::{self, LaserWords};
 use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
-use crate::kinematics::{self, Kinematics};
+use crate::axes::{self, Axes, MAX_AXES};
 use crate::machine::AxisKind;
 use crate::motion::{Job, arc_sweep, power};
-use crate::planner::{Axes, MAX_AXES};
-use crate::program::{Coupling, Op, OpKind, Orient, P3};
+use crate::program::{Coupling, Op, OpKind, P3};
 use std::io;
 
 mod pulse;
@@ -75,14 +79,12 @@ struct Modal {
     words: Vec<Option<String>>,
     /// Where the spot is, part coordinates.
     pos: P3,
-    /// Axis positions of `pos`.
+    /// Axis positions of `pos`: the planned axes of the last block written.
     q: Axes,
     laser_on: bool,
     power_w: f64,
     /// Last traceability comment.
     location: String,
-    /// The beam orientation in force (machines that orient the beam).
-    orient: Option<Orient>,
     /// Feed moves are in inverse time (G93): on machines whose moves mix linear and rotary
     /// axes, F is 1 / block time, so the controller holds the spot's surface speed.
     inverse_time: bool,
@@ -98,7 +100,6 @@ pub(super) fn write(
     let program = &job.program;
     let machine = &program.machine;
     let post = checked.post;
-    let kin = kinematics::for_machine(machine);
     let mut out = Out {
         sink,
         dialect,
@@ -141,10 +142,9 @@ pub(super) fn write(
         laser_on: false,
         power_w: 0.0,
         location: String::new(),
-        orient: None,
         inverse_time: false,
     };
-    let oriented = kin.oriented();
+    let oriented = job.kin.oriented();
     let arc_axes = validate::arc_axes(machine);
     let mut train = pulse::Train::default();
     // What pulse lowering needs of this program (the same for every op).
@@ -152,7 +152,7 @@ pub(super) fn write(
         dialect,
         post,
         machine,
-        kin: &*kin,
+        op_axes: &job.op_axes,
         arc_axes,
         words: &words,
     };
@@ -245,11 +245,11 @@ pub(super) fn write(
                 if let Some(pitch) = gated {
                     pulse::write_gated(ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag)?;
                 } else if blocks.is_empty() {
-                    let line = motion_line(op, &mut m, &*kin, machine, arc_axes);
+                    let line = motion_line(op, job.op_axes[i], &mut m, machine, arc_axes);
                     out.put(&line, tag)?;
                     out.stats.motion_blocks += 1;
                 } else {
-                    let from = m.pos;
+                    let (from, from_q) = (m.pos, m.q);
                     let total = blocks.last().map_or(0.0, |b| b.s_end);
                     for (k, b) in blocks.iter().enumerate() {
                         let changed = post.power.first().is_some_and(|t| {
@@ -267,8 +267,8 @@ pub(super) fn write(
                         } else {
                             b.s_end / total
                         };
-                        let sub = sub_op(op, from, m.orient, f);
-                        let line = motion_line(&sub, &mut m, &*kin, machine, arc_axes);
+                        let (sub, q) = part_way(op, (from, &from_q), &job.op_axes[i], f, arc_axes);
+                        let line = motion_line(&sub, q, &mut m, machine, arc_axes);
                         out.put(&line, tag)?;
                         out.stats.motion_blocks += 1;
                     }
@@ -367,33 +367,30 @@ fn synchronized(dialect: Dialect, line: &str) -> String {
     }
 }
 
-/// The part of motion op `op` (starting at `from`, beam as `from_orient`) from its start to
-/// fraction `f` of its length: a shorter line (the beam turned by the same fraction), or an arc
-/// about the same center ending at `f` of the sweep.
-fn sub_op(op: &Op, from: P3, from_orient: Option<Orient>, f: f64) -> Op {
+/// Block `op` (from spot `from` at axes `from_q`, to its planned axes `to_q`) cut at fraction
+/// `f` of its length: the shorter op, and the axes where the controller is then.
+///
+/// The axes are the point of the block as the controller runs it, so a sub-block never leaves
+/// the move the planner timed: a line's axes interpolate straight (`from_q → to_q`, what
+/// the controller does between two block ends), an arc's plane axes lie on its circle (the
+/// part point: arcs are written only on machines whose X and Y move part x and y, validated)
+/// and its other axes interpolate. On a Cartesian machine these are exactly the inverse
+/// kinematics of the cut point.
+fn part_way(
+    op: &Op,
+    (from, from_q): (P3, &Axes),
+    to_q: &Axes,
+    f: f64,
+    arc_axes: Option<(usize, usize, Option<usize>)>,
+) -> (Op, Axes) {
     let mut sub = op.clone();
     if f >= 1.0 {
-        return sub;
+        return (sub, *to_q);
     }
-    let lerp = |to: P3| {
-        [
-            from[0] + f * (to[0] - from[0]),
-            from[1] + f * (to[1] - from[1]),
-            from[2] + f * (to[2] - from[2]),
-        ]
-    };
+    let mut q = from_q.lerp(to_q, f);
     match &mut sub.kind {
-        OpKind::Rapid { to, orient } | OpKind::Line { to, orient, .. } => {
-            *to = lerp(*to);
-            if let (Some(a), Some(b)) = (from_orient, orient.as_mut()) {
-                let beam: [f64; 3] =
-                    std::array::from_fn(|k| a.beam[k] + f * (b.beam[k] - a.beam[k]));
-                let n = (beam[0].powi(2) + beam[1].powi(2) + beam[2].powi(2)).sqrt();
-                if n > 1e-12 {
-                    b.beam = beam.map(|c| c / n);
-                }
-                b.standoff_mm = a.standoff_mm + f * (b.standoff_mm - a.standoff_mm);
-            }
+        OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
+            *to = std::array::from_fn(|k| from[k] + f * (to[k] - from[k]));
         }
         OpKind::Arc {
             to, center, ccw, ..
@@ -404,10 +401,14 @@ fn sub_op(op: &Op, from: P3, from_orient: Option<Orient>, f: f64) -> Op {
             let a = a0 + f * arc_sweep(a0, a1, *ccw, from, *to);
             let z = from[2] + f * (to[2] - from[2]);
             *to = [center[0] + r * a.cos(), center[1] + r * a.sin(), z];
+            if let Some((x, y, _)) = arc_axes {
+                q[x] = to[0];
+                q[y] = to[1];
+            }
         }
         _ => {}
     }
-    sub
+    (sub, q)
 }
 
 /// Whether a motion op moves the spot (a zero-length line is written as nothing, since G0/G1
@@ -430,10 +431,11 @@ fn next_move_lit(rest: &[Op], pos: P3) -> bool {
         .is_some_and(|o| o.laser().is_some())
 }
 
+/// The block that moves to axes `q` (planned: see [`part_way`]) as `op` says.
 fn motion_line(
     op: &Op,
+    q: Axes,
     m: &mut Modal,
-    kin: &dyn Kinematics,
     machine: &crate::machine::Machine,
     arc_axes: Option<(usize, usize, Option<usize>)>,
 ) -> String {
@@ -445,11 +447,6 @@ fn motion_line(
         } => (if *ccw { "G3" } else { "G2" }, *to, Some(*feed_mm_s)),
         _ => unreachable!("motion_line is called for motion ops only"),
     };
-    let orient = op.orient().or(m.orient);
-    // Validated reachable by planning; keep the last position if a hand-built job is not.
-    let q = kin
-        .inverse(&crate::motion::tool_pose(to, orient), Some(&m.q))
-        .unwrap_or(m.q);
     // One buffer, words appended with a separating space: this runs once per NC block, and
     // a million-spot raster writes millions of them.
     let mut line = String::with_capacity(16 * (MAX_AXES + 3));
@@ -473,7 +470,7 @@ fn motion_line(
     for (k, axis) in machine.axes.iter().enumerate() {
         let v = match axis.kind {
             AxisKind::Linear => format::number(q[k]),
-            AxisKind::Rotary => format::degrees(q[k].to_degrees()),
+            AxisKind::Rotary => format::degrees(axes::to_external(axis.kind, q[k])),
         };
         let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
         if forced || m.words[k].as_deref() != Some(v.as_str()) {
@@ -515,6 +512,5 @@ fn motion_line(
     }
     m.pos = to;
     m.q = q;
-    m.orient = orient;
     line
 }

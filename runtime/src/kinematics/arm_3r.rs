@@ -8,8 +8,8 @@
 //! link 1 points at A, link 2 at A + B, the beam at A + B + C.
 
 use super::{KinError, Kinematics, ToolPose, check_travel, unwrap_near};
+use crate::axes::Axes;
 use crate::machine::Machine;
-use crate::planner::{Axes, MAX_AXES};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 #[derive(Debug, Clone)]
@@ -148,7 +148,7 @@ impl Kinematics for Arm3r {
             a = unwrap_near(a, 0.0);
             c = unwrap_near(c, 0.0);
         }
-        let mut q = [0.0; MAX_AXES];
+        let mut q = Axes::ZERO;
         q[0] = pose.spot.z;
         q[1] = a;
         q[2] = b;

@@ -11,9 +11,9 @@
 //! the previous solution, never special-cased by quadrant.
 
 use super::{KinError, Kinematics, ToolPose, check_travel, unwrap_near};
+use crate::axes::Axes;
 use crate::geometry::toolpath::chord_stations;
 use crate::machine::Machine;
-use crate::planner::{Axes, MAX_AXES};
 use nalgebra::{Rotation2, Vector2, Vector3};
 use std::f64::consts::PI;
 
@@ -64,7 +64,7 @@ impl Kinematics for CamXwb {
         } else {
             b = unwrap_near(b, 0.0);
         }
-        let mut out = [0.0; MAX_AXES];
+        let mut out = Axes::ZERO;
         out[0] = self.head_x - r;
         out[1] = omega;
         out[2] = b;

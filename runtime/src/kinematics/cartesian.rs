@@ -2,8 +2,8 @@
 //! coordinate; the beam always points down.
 
 use super::{KinError, Kinematics, ToolPose, check_travel};
+use crate::axes::Axes;
 use crate::machine::Machine;
-use crate::planner::Axes;
 use nalgebra::{Matrix3xX, Vector3};
 
 #[derive(Debug, Clone)]
@@ -57,7 +57,7 @@ impl Kinematics for Cartesian {
                 )));
             }
         }
-        let mut q = [0.0; crate::planner::MAX_AXES];
+        let mut q = Axes::ZERO;
         for (i, &k) in self.map.iter().enumerate() {
             q[i] = pose.spot[k];
         }

@@ -3,7 +3,9 @@
 //! One trait for every machine model (one file each), as Klipper gives each kinematics one
 //! interface. A tool pose is the spot on the part plus the beam direction. The motion core
 //! calls `inverse` for every point it plans and `check` for every axis position before
-//! anything is emitted.
+//! anything is emitted; the planned `motion::Job` carries the model ([`for_machine`], the one
+//! constructor) and every op's axis values, so later stages never run the inverse again.
+//! Axis values are [`Axes`] (machine order, mm and rad), from the neutral `axes` module.
 
 mod arm_3r;
 mod cam_xwb;
@@ -13,8 +15,8 @@ pub use arm_3r::Arm3r;
 pub use cam_xwb::CamXwb;
 pub use cartesian::Cartesian;
 
+use crate::axes::{Axes, MAX_AXES};
 use crate::machine::{KinematicsKind, Machine};
-use crate::planner::{Axes, MAX_AXES};
 use nalgebra::Vector3;
 
 /// Where the spot is on the part, which way the beam points (unit vector, from the lens
@@ -57,7 +59,9 @@ pub enum KinError {
     Unreachable(String),
 }
 
-pub trait Kinematics: std::fmt::Debug {
+/// A machine model. `Send + Sync` so that a planned job (which carries one) can go to the
+/// thread that streams it.
+pub trait Kinematics: std::fmt::Debug + Send + Sync {
     /// Number of machine axes (≤ [`MAX_AXES`]).
     fn axis_count(&self) -> usize;
     /// Axis positions that put the spot and beam at `pose`. `prev` is the previous solution
@@ -96,7 +100,8 @@ pub trait Kinematics: std::fmt::Debug {
     fn check(&self, q: &Axes) -> Result<(), KinError>;
 }
 
-/// The kinematics model a machine declares.
+/// The kinematics model a machine declares: the one constructor (motion builds it once per
+/// job; the evaluator asks it whether the machine orients the beam).
 pub fn for_machine(m: &Machine) -> Box<dyn Kinematics> {
     match m.kinematics {
         KinematicsKind::Cartesian => Box::new(Cartesian::new(m)),

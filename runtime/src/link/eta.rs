@@ -35,7 +35,7 @@ impl Eta {
         let plan = &job.plan;
         let t0 = job.initial_dwell_s;
         let axes = ControllerAxes::of(&job.program.machine);
-        let map = |q: &[f64]| axes.to_controller(q);
+        let map = |q: &crate::axes::Axes| axes.to_controller(q);
         let mut op_end = vec![f64::NAN; job.program.ops.len()];
         let mut segs = Vec::with_capacity(plan.segments().len());
         for (i, s) in plan.segments().iter().enumerate() {

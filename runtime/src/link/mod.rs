@@ -53,8 +53,8 @@ pub const MAX_AXES: usize = 6;
 pub const AXIS_LETTERS: [char; MAX_AXES] = ['X', 'Y', 'Z', 'A', 'B', 'C'];
 
 /// A controller position: mm for X, Y, Z, degrees for rotary A, B, C; axes a controller
-/// lacks stay 0.
-pub type AxisPos = [f64; MAX_AXES];
+/// lacks stay 0. The neutral [`crate::axes::ControllerPos`], under the link's name.
+pub type AxisPos = crate::axes::ControllerPos;
 
 /// Where an axis letter is in a controller's position (`X` 0 … `C` 5).
 pub fn axis_index(letter: char) -> Option<usize> {
@@ -64,12 +64,9 @@ pub fn axis_index(letter: char) -> Option<usize> {
 
 /// A machine axis's controller unit per internal unit: 1 for mm, degrees per radian for a
 /// rotary axis (GRBL-family controllers take rotary positions, rates and accelerations in
-/// degrees).
+/// degrees): the external units of [`crate::axes`].
 pub fn controller_scale(kind: crate::machine::AxisKind) -> f64 {
-    match kind {
-        crate::machine::AxisKind::Rotary => 180.0 / std::f64::consts::PI,
-        crate::machine::AxisKind::Linear => 1.0,
-    }
+    crate::axes::external_scale(kind)
 }
 
 /// How a machine's axes sit in a GRBL-family controller's position: by letter (X Y Z A B C),
@@ -77,8 +74,8 @@ pub fn controller_scale(kind: crate::machine::AxisKind) -> f64 {
 /// dialect check refuses such machines before anything is sent).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ControllerAxes {
-    /// Per machine axis: its index in a controller position and its unit scale.
-    slots: Vec<Option<(usize, f64)>>,
+    /// Per machine axis: its index in a controller position and its kind (for its unit).
+    slots: Vec<Option<(usize, crate::machine::AxisKind)>>,
     letters: Vec<char>,
 }
 
@@ -97,7 +94,7 @@ impl ControllerAxes {
                 (a.name.chars().count() == 1)
                     .then(|| axis_index(l))
                     .flatten()
-                    .map(|i| (i, controller_scale(a.kind)))
+                    .map(|i| (i, a.kind))
             })
             .collect();
         ControllerAxes { slots, letters }
@@ -109,11 +106,11 @@ impl ControllerAxes {
     }
 
     /// Machine axis positions (mm, rad) as a controller position (mm, degrees).
-    pub fn to_controller(&self, q: &[f64]) -> AxisPos {
+    pub fn to_controller(&self, q: &crate::axes::Axes) -> AxisPos {
         let mut p = [0.0; MAX_AXES];
-        for (slot, v) in self.slots.iter().zip(q) {
-            if let Some((i, scale)) = slot {
-                p[*i] = v * scale;
+        for (slot, v) in self.slots.iter().zip(q.iter()) {
+            if let Some((i, kind)) = slot {
+                p[*i] = crate::axes::to_external(*kind, *v);
             }
         }
         p
@@ -121,11 +118,11 @@ impl ControllerAxes {
 
     /// A controller position (mm, degrees; missing axes 0) as machine axis positions (mm,
     /// rad).
-    pub fn from_controller(&self, p: &[f64]) -> crate::planner::Axes {
-        let mut q = [0.0; crate::planner::MAX_AXES];
+    pub fn from_controller(&self, p: &[f64]) -> crate::axes::Axes {
+        let mut q = crate::axes::Axes::ZERO;
         for (k, slot) in self.slots.iter().enumerate().take(q.len()) {
-            if let Some((i, scale)) = slot {
-                q[k] = p.get(*i).copied().unwrap_or(0.0) / scale;
+            if let Some((i, kind)) = slot {
+                q[k] = crate::axes::from_external(*kind, p.get(*i).copied().unwrap_or(0.0));
             }
         }
         q

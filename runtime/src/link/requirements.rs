@@ -22,17 +22,19 @@ pub struct SettingMismatch {
     pub help: String,
 }
 
-/// One axis's needs.
+/// One axis's needs, in the axis's external unit (`axes::external_unit`: mm for a linear
+/// axis, deg for a rotary one), per minute and per second² as controller settings take them.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AxisNeed {
     /// The NC address letter.
     pub letter: char,
     /// A rotary axis: its rate and acceleration are in degrees.
     pub rotary: bool,
-    /// Peak speed, mm/min or deg/min for a rotary axis (the unit of controller rate settings).
-    pub v_mm_min: f64,
-    /// Peak acceleration, mm/s² (deg/s² for a rotary axis).
-    pub a_mm_s2: f64,
+    /// Peak speed, units per minute: mm/min, or deg/min for a rotary axis (the unit of
+    /// controller rate settings).
+    pub v_per_min: f64,
+    /// Peak acceleration, units per s²: mm/s², or deg/s² for a rotary axis.
+    pub a_per_s2: f64,
     /// Where the peak speed and the peak acceleration are reached.
     pub v_span: Span,
     pub a_span: Span,
@@ -89,8 +91,9 @@ impl Requirements {
             axes.push(AxisNeed {
                 letter: controller.letters()[k],
                 rotary: axis.kind == crate::machine::AxisKind::Rotary,
-                v_mm_min: peaks.v_max * 60.0,
-                a_mm_s2: peaks.a_max,
+                // The summary's peaks are in external units already.
+                v_per_min: peaks.v_max * 60.0,
+                a_per_s2: peaks.a_max,
                 v_span: best_v.1,
                 a_span: best_a.1,
             });

@@ -35,8 +35,9 @@
 //! rapid back to the section's end is inserted before it.
 
 use super::{MotionError, arc_points, dist};
+use crate::axes::{Axes, MAX_AXES};
 use crate::kinematics::Kinematics;
-use crate::planner::{self, Axes, AxisLimits, MAX_AXES, PlannerConfig};
+use crate::planner::{self, AxisLimits, PlannerConfig};
 use crate::program::{Laser, Op, OpKind, Orient, P3};
 use lase_lang::units::format_number;
 

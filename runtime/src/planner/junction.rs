@@ -70,7 +70,10 @@
 //! moves' full speed. The path acceleration limit (`path_a`) bounds `s̈`, which is continuous
 //! through the blend, so it does not enter the per-axis caps.
 
-use super::{Axes, MAX_AXES};
+use super::MAX_AXES;
+
+/// A unit direction (or rate per unit path) in axis space, machine order.
+type Dir = [f64; MAX_AXES];
 
 /// Tolerance on the cosine for "straight through" and "full reversal".
 const COS_TOL: f64 = 1e-9;
@@ -110,7 +113,7 @@ pub(crate) struct CornerModel {
     /// Junction deviation δ.
     pub delta: f64,
     /// `1 / a_i` per axis (0 for an unlimited axis).
-    pub inv_a: Axes,
+    pub inv_a: [f64; MAX_AXES],
     /// Path acceleration limit.
     pub path_a: f64,
     pub n_axes: usize,
@@ -127,8 +130,8 @@ impl CornerModel {
     #[inline]
     pub(crate) fn corner(
         &self,
-        prev: &Axes,
-        next: &Axes,
+        prev: &Dir,
+        next: &Dir,
         a_prev: f64,
         a_next: f64,
         len_prev: f64,
@@ -197,8 +200,8 @@ impl CornerModel {
     #[inline]
     pub(crate) fn corner_per_axis(
         &self,
-        u: &Axes,
-        w: &Axes,
+        u: &Dir,
+        w: &Dir,
         a_prev: f64,
         a_next: f64,
         len_prev: f64,
@@ -228,7 +231,7 @@ impl CornerModel {
 mod tests {
     use super::*;
 
-    fn dir(x: f64, y: f64) -> Axes {
+    fn dir(x: f64, y: f64) -> Dir {
         let n = (x * x + y * y).sqrt();
         [x / n, y / n, 0.0, 0.0, 0.0, 0.0]
     }
@@ -243,7 +246,7 @@ mod tests {
     }
 
     /// Junction-deviation speed with long moves (the centripetal cap does not bind).
-    fn jd_speed(prev: &Axes, next: &Axes, a: f64, delta: f64) -> f64 {
+    fn jd_speed(prev: &Dir, next: &Dir, a: f64, delta: f64) -> f64 {
         model(a, delta).corner(prev, next, a, a, 1e9, 1e9).v2.sqrt()
     }
 
@@ -338,7 +341,7 @@ mod tests {
     }
 
     /// The move's path acceleration, as `move_limits` derives it.
-    fn path_a(m: &CornerModel, u: &Axes) -> f64 {
+    fn path_a(m: &CornerModel, u: &Dir) -> f64 {
         (0..m.n_axes)
             .filter(|&k| u[k] != 0.0)
             .map(|k| 1.0 / (m.inv_a[k] * u[k].abs()))
@@ -387,7 +390,7 @@ mod tests {
                 .min(8.0 * 0.01 / (a_u.min(a_w) * worst * worst))
         );
         assert!(c.v2.sqrt() > 50.0, "{}", c.v2.sqrt());
-        let unit = |x: &Axes| {
+        let unit = |x: &Dir| {
             let n = x.iter().map(|v| v * v).sum::<f64>().sqrt();
             x.map(|v| v / n)
         };

@@ -44,11 +44,8 @@ pub use plan::{Plan, Sample, Segment};
 
 use lookahead::Kin;
 
-/// Most machine axes one plan can carry (X Y Z A B C). Unused axes stay at zero.
-pub const MAX_AXES: usize = 6;
-
-/// A position or a per-axis quantity, in machine units (mm for linear axes, rad for rotary).
-pub type Axes = [f64; MAX_AXES];
+/// Positions and per-axis quantities are machine axes in internal units (mm, rad).
+pub use crate::axes::{Axes, MAX_AXES};
 
 /// Which velocity profile every move gets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -64,9 +61,9 @@ pub enum ProfileKind {
 /// `f64::INFINITY` means unlimited.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AxisLimits {
-    pub v: Axes,
-    pub a: Axes,
-    pub j: Axes,
+    pub v: [f64; MAX_AXES],
+    pub a: [f64; MAX_AXES],
+    pub j: [f64; MAX_AXES],
 }
 
 /// How to plan.
@@ -129,9 +126,9 @@ pub struct Move {
 
 impl Move {
     /// A move to `target` over `length` at `feed`, without stop or dwell, tag 0.
-    pub fn new(target: Axes, length: f64, feed: f64) -> Move {
+    pub fn new(target: impl Into<Axes>, length: f64, feed: f64) -> Move {
         Move {
-            target,
+            target: target.into(),
             length,
             feed,
             stop_after: false,
@@ -141,7 +138,8 @@ impl Move {
     }
 
     /// A move whose length is the Euclidean distance in axis space from `from`.
-    pub fn linear(from: Axes, target: Axes, feed: f64) -> Move {
+    pub fn linear(from: impl Into<Axes>, target: impl Into<Axes>, feed: f64) -> Move {
+        let (from, target) = (from.into(), target.into());
         let mut d2 = 0.0;
         for i in 0..MAX_AXES {
             d2 += (target[i] - from[i]) * (target[i] - from[i]);
@@ -171,7 +169,7 @@ pub fn speed_change_distance(v_from: f64, v_to: f64, a: f64, j: f64) -> f64 {
 // One index over the parallel axis arrays.
 #[allow(clippy::needless_range_loop)]
 pub fn move_limits(
-    dq: &Axes,
+    dq: &[f64; MAX_AXES],
     length: f64,
     feed: f64,
     limits: &AxisLimits,
@@ -242,11 +240,12 @@ const EUCLIDEAN_TOL: f64 = 1e-9;
 /// and their start points) and one compact scratch vector (`lookahead::Kin`, 40 bytes a move);
 /// nothing per move.
 pub fn plan(
-    start: Axes,
+    start: impl Into<Axes>,
     moves: &[Move],
     limits: &AxisLimits,
     cfg: &PlannerConfig,
 ) -> Result<Plan, PlanError> {
+    let start = start.into();
     validate(start, limits, cfg)?;
     if u32::try_from(moves.len()).is_err() {
         return Err(PlanError::TooManyMoves { count: moves.len() });
@@ -372,7 +371,7 @@ fn prepare(
     let mut q = start;
     // The previous move ends at a stop point (or there is none yet).
     let mut prev_stop = true;
-    let mut prev_dir: Axes = [0.0; MAX_AXES];
+    let mut prev_dir = Axes::ZERO;
     let mut prev_euclidean = true;
     // Centripetal cap (v²) and rounding-circle reach of the previous move's entry corner.
     let mut prev_corner = junction::Corner::AT_REST;
@@ -414,7 +413,7 @@ fn prepare(
                 "must be finite and >= 0",
             ));
         }
-        let mut dq = [0.0; MAX_AXES];
+        let mut dq = Axes::ZERO;
         let mut norm2 = 0.0;
         for axis in 0..MAX_AXES {
             dq[axis] = mv.target[axis] - q[axis];
@@ -484,7 +483,7 @@ fn prepare(
         let euclidean = (norm - mv.length).abs() <= EUCLIDEAN_TOL * mv.length;
         let scale = if euclidean { norm } else { mv.length };
         // Only the axes in use move (checked above): the others stay 0.
-        let mut dir = [0.0; MAX_AXES];
+        let mut dir = Axes::ZERO;
         for axis in 0..n_axes {
             dir[axis] = dq[axis] / scale;
         }

@@ -221,10 +221,10 @@ impl Plan {
     /// Axis motion per unit path of segment `i`, `u = Δq / length` (zero for a standstill).
     pub fn direction(&self, i: usize) -> Axes {
         let Some(seg) = self.segments.get(i) else {
-            return [0.0; MAX_AXES];
+            return Axes::ZERO;
         };
         let (q0, q1) = (self.segment_start(i), self.segment_target(i));
-        let mut u = [0.0; MAX_AXES];
+        let mut u = Axes::ZERO;
         if seg.length > 0.0 {
             for k in 0..MAX_AXES {
                 u[k] = (q1[k] - q0[k]) / seg.length;
@@ -282,9 +282,9 @@ impl Plan {
             a,
             j,
             pos: q0,
-            vel: [0.0; MAX_AXES],
-            acc: [0.0; MAX_AXES],
-            jerk: [0.0; MAX_AXES],
+            vel: Axes::ZERO,
+            acc: Axes::ZERO,
+            jerk: Axes::ZERO,
             dwelling,
         };
         if seg.length > 0.0 {
@@ -316,9 +316,9 @@ impl Plan {
             a: 0.0,
             j: 0.0,
             pos: self.start,
-            vel: [0.0; MAX_AXES],
-            acc: [0.0; MAX_AXES],
-            jerk: [0.0; MAX_AXES],
+            vel: Axes::ZERO,
+            acc: Axes::ZERO,
+            jerk: Axes::ZERO,
             dwelling: false,
         }
     }

@@ -7,7 +7,6 @@
 //! uniformly in time instead.
 
 use super::{dwell_lit, segment_is_rapid, segment_laser};
-use crate::kinematics;
 use crate::motion::Job;
 use std::fmt::{self, Write};
 
@@ -58,7 +57,6 @@ struct Pt {
 /// The toolpath and the speed profile of `job` as an SVG document.
 pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
     let machine = &job.program.machine;
-    let kin = kinematics::for_machine(machine);
     let has_y = machine
         .axes
         .iter()
@@ -81,7 +79,7 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
     };
     let point = |i: usize, t_local: f64| {
         let s = plan.sample_segment(i, t_local);
-        let spot = job.spot(&*kin, &s.pos, s.tag);
+        let spot = job.spot(&s.pos, s.tag);
         Pt {
             t: t0 + s.t,
             h: spot[0],
@@ -129,7 +127,7 @@ pub fn plot_svg(job: &Job) -> Result<String, fmt::Error> {
     let v_max = pts.iter().map(|p| p.v).fold(0.0, f64::max);
 
     // Top panel geometry: equal aspect, the window grown around the path to fit the panel.
-    let start = job.spot(&*kin, &plan.start(), 0);
+    let start = job.spot(&plan.start(), 0);
     let (mut h0, mut h1, mut w0, mut w1) = (start[0], start[0], start[plane_w], start[plane_w]);
     for p in &pts {
         h0 = h0.min(p.h);

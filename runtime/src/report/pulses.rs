@@ -4,7 +4,6 @@
 //! the plan's closed-form path law, to 1e-12 s.
 
 use super::{dwell_lit, segment_laser};
-use crate::kinematics::{self, Kinematics};
 use crate::motion::Job;
 use crate::planner::Segment;
 use crate::program::{OpKind, P3, Pulse, PulseMode};
@@ -87,13 +86,11 @@ pub(super) fn sections(job: &Job) -> Vec<Section> {
 /// The pulses of a job, in time order. Lazy: a texturing job's millions of pulses are never
 /// stored (dot-mode windows, which need an op each, are).
 pub fn pulse_events(job: &Job) -> PulseEvents<'_> {
-    let kin = kinematics::for_machine(&job.program.machine);
     PulseEvents {
         job,
-        fires: fire_events(job, &*kin),
+        fires: fire_events(job),
         fire: 0,
         pending: None,
-        kin,
         sections: sections(job),
         section: 0,
         k: 0,
@@ -127,7 +124,7 @@ pub fn write_pulses(job: &Job, out: &mut dyn std::io::Write) -> std::io::Result<
 /// Pulses of dot-mode fire windows (`OpKind::Fire`): the window opens when the motion before
 /// it has ended and the standstills between (dwells, events, earlier windows) have passed;
 /// pulse k fires `k · period_s` later, where the spot stands.
-pub(super) fn fire_events(job: &Job, kin: &dyn Kinematics) -> Vec<PulseEvent> {
+pub(super) fn fire_events(job: &Job) -> Vec<PulseEvent> {
     let ops = &job.program.ops;
     let segs = job.plan.segments();
     let stand = |i: usize| match &ops[i].kind {
@@ -164,7 +161,7 @@ pub(super) fn fire_events(job: &Job, kin: &dyn Kinematics) -> Vec<PulseEvent> {
             None => (0.0, 0.0, job.start, 0, 0),
         };
         let t0 = t0 + (after..i).map(stand).sum::<f64>();
-        let pos = job.spot(kin, &q, tag);
+        let pos = job.spot(&q, tag);
         for k in 0..*count {
             out.push(PulseEvent {
                 t: t0 + f64::from(k) * period_s,
@@ -186,7 +183,6 @@ pub struct PulseEvents<'j> {
     fire: usize,
     /// The next pulse of the lit sections, taken but not yet returned.
     pending: Option<PulseEvent>,
-    kin: Box<dyn Kinematics>,
     sections: Vec<Section>,
     section: usize,
     /// Index of the next pulse in the current section.
@@ -255,7 +251,7 @@ impl PulseEvents<'_> {
                 }
             };
             let sample = self.job.plan.sample_segment(i, t_local);
-            let spot = self.job.spot(&*self.kin, &sample.pos, sample.tag);
+            let spot = self.job.spot(&sample.pos, sample.tag);
             return Some(PulseEvent {
                 t: self.job.initial_dwell_s + sample.t,
                 s: sample.s,

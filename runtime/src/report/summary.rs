@@ -3,7 +3,7 @@
 
 use super::pulses::sections;
 use super::{dwell_lit, round_sig, segment_is_rapid, segment_laser};
-use crate::machine::AxisKind;
+use crate::axes::to_external;
 use crate::motion::Job;
 use crate::program::Ramp;
 use serde::Serialize;
@@ -109,16 +109,13 @@ pub fn summarize(job: &Job) -> Summary {
         .iter()
         .enumerate()
         .map(|(k, axis)| {
-            let unit = match axis.kind {
-                AxisKind::Linear => 1.0,
-                AxisKind::Rotary => 1f64.to_degrees(),
-            };
+            let ext = |x: f64| round_sig(to_external(axis.kind, x));
             (
                 axis.name.clone(),
                 AxisPeaks {
-                    v_max: round_sig(v[k] * unit),
-                    a_max: round_sig(a[k] * unit),
-                    j_max: scurve.then(|| round_sig(j[k] * unit)),
+                    v_max: ext(v[k]),
+                    a_max: ext(a[k]),
+                    j_max: scurve.then(|| ext(j[k])),
                 },
             )
         })

@@ -2,8 +2,7 @@
 
 use super::pulses::pulse_events;
 use super::{beam_at, fixed6};
-use crate::kinematics;
-use crate::machine::AxisKind;
+use crate::axes;
 use crate::motion::Job;
 use std::io::{self, Write};
 
@@ -25,7 +24,6 @@ pub fn write_trace(job: &Job, period_s: f64, out: &mut dyn Write) -> io::Result<
         ));
     }
     let machine = &job.program.machine;
-    let kin = kinematics::for_machine(machine);
     let mut row = String::from("t");
     for a in &machine.axes {
         row.push(',');
@@ -51,16 +49,12 @@ pub fn write_trace(job: &Job, period_s: f64, out: &mut dyn Write) -> io::Result<
             pulses.next();
             fired += 1;
         }
-        let spot = job.spot(&*kin, &sample.pos, sample.tag);
+        let spot = job.spot(&sample.pos, sample.tag);
         row.clear();
         row.push_str(&fixed6(t));
         for (i, a) in machine.axes.iter().enumerate() {
-            let q = match a.kind {
-                AxisKind::Linear => sample.pos[i],
-                AxisKind::Rotary => sample.pos[i].to_degrees(),
-            };
             row.push(',');
-            row.push_str(&fixed6(q));
+            row.push_str(&fixed6(axes::to_external(a.kind, sample.pos[i])));
         }
         for x in [spot[0], spot[1], spot[2], sample.v, sample.a] {
             row.push(',');

@@ -25,9 +25,9 @@
 //! last spot, so they never meet this case).
 
 use super::super::format::{self, LaserWords};
-use super::{Modal, Out, immediate, motion_line, sub_op};
+use super::{Modal, Out, immediate, motion_line, part_way};
+use crate::axes::Axes;
 use crate::emit::Dialect;
-use crate::kinematics::Kinematics;
 use crate::machine::{DialectPost, Machine};
 use crate::program::{Op, OpKind, P3, Pulse, PulseMode};
 use std::io;
@@ -124,7 +124,8 @@ pub(super) struct Gate<'a> {
     pub dialect: Dialect,
     pub post: &'a DialectPost,
     pub machine: &'a Machine,
-    pub kin: &'a dyn Kinematics,
+    /// The planned axes each op ends at (`Job::op_axes`).
+    pub op_axes: &'a [Axes],
     pub arc_axes: Option<(usize, usize, Option<usize>)>,
     pub words: &'a dyn Fn(f64) -> LaserWords,
 }
@@ -152,8 +153,7 @@ pub(super) fn write_gated(
     tag: Option<u32>,
 ) -> io::Result<()> {
     let op = &ops[i];
-    let from = m.pos;
-    let from_orient = m.orient;
+    let (from, from_q) = (m.pos, m.q);
     let len = op_length(op, from);
     let laser = op.laser();
     let power = laser.map_or(0.0, |l| l.power_w);
@@ -200,8 +200,8 @@ pub(super) fn write_gated(
     let mut trigger = train.trigger;
     for (s, high) in cuts {
         let f = if len > 0.0 { s / len } else { 1.0 };
-        let sub = sub_op(op, from, from_orient, f);
-        let line = motion_line(&sub, m, g.kin, g.machine, g.arc_axes);
+        let (sub, q) = part_way(op, (from, &from_q), &g.op_axes[i], f, g.arc_axes);
+        let line = motion_line(&sub, q, m, g.machine, g.arc_axes);
         if high != trigger {
             write_edge(out, g, high, power, line, tag)?;
             trigger = high;

@@ -105,16 +105,16 @@ pub fn compare(
             ("mm/min", "mm/s²")
         };
         let rate = 110 + k;
-        if !get(rate).is_some_and(|v| at_least(v, axis.v_mm_min)) {
+        if !get(rate).is_some_and(|v| at_least(v, axis.v_per_min)) {
             out.push(SettingMismatch {
                 setting: format!("${rate} ({} max rate, {per_min})", axis.letter),
                 found: found(rate),
-                needed: format!("at least {}", show(axis.v_mm_min)),
+                needed: format!("at least {}", show(axis.v_per_min)),
                 span: axis.v_span,
                 label: format!(
                     "{} reaches {} {per_min} here",
                     axis.letter,
-                    show(axis.v_mm_min)
+                    show(axis.v_per_min)
                 ),
                 help: format!(
                     "raise `${rate}` to the machine file's v_max, or lower the speed in the recipe's `limits`; the controller would run slower than the plan"
@@ -122,16 +122,16 @@ pub fn compare(
             });
         }
         let acc = 120 + k;
-        if !get(acc).is_some_and(|v| at_least(v, axis.a_mm_s2)) {
+        if !get(acc).is_some_and(|v| at_least(v, axis.a_per_s2)) {
             out.push(SettingMismatch {
                 setting: format!("${acc} ({} acceleration, {per_s2})", axis.letter),
                 found: found(acc),
-                needed: format!("at least {}", show(axis.a_mm_s2)),
+                needed: format!("at least {}", show(axis.a_per_s2)),
                 span: axis.a_span,
                 label: format!(
                     "{} accelerates at {} {per_s2} here",
                     axis.letter,
-                    show(axis.a_mm_s2)
+                    show(axis.a_per_s2)
                 ),
                 help: format!(
                     "raise `${acc}` to the machine file's a_max, or lower the acceleration in the recipe's `limits`"
@@ -155,8 +155,8 @@ mod tests {
             axes: vec![AxisNeed {
                 letter: 'Y',
                 rotary: false,
-                v_mm_min: 12000.0,
-                a_mm_s2: 2000.0,
+                v_per_min: 12000.0,
+                a_per_s2: 2000.0,
                 v_span: Span::new(3, 4),
                 a_span: Span::new(5, 6),
             }],
@@ -181,8 +181,8 @@ mod tests {
             axes: vec![AxisNeed {
                 letter: 'C',
                 rotary: true,
-                v_mm_min: 3600.0,
-                a_mm_s2: 100.0,
+                v_per_min: 3600.0,
+                a_per_s2: 100.0,
                 v_span: Span::new(7, 9),
                 a_span: Span::new(7, 9),
             }],
