@@ -88,15 +88,35 @@ pub enum MotionError {
         help: String,
     },
 
-    #[error("{message}")]
-    #[diagnostic(code(lase::plan::planner))]
-    Planner {
-        message: String,
-        #[label("this move")]
-        span: Span,
-        #[help]
-        help: Option<String>,
-    },
+    /// The planner refused a move: its own diagnostic (code and help), placed at the op.
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Planner(PlannerFailure),
+}
+
+/// A planner diagnostic with the recipe span of the move it names: the code and help stay the
+/// planner's own (`lase::plan::bad_move`, …), so a reader can look them up.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{error}")]
+pub struct PlannerFailure {
+    pub error: planner::PlanError,
+    pub span: Span,
+}
+
+impl miette::Diagnostic for PlannerFailure {
+    fn code<'a>(&'a self) -> Option<Box<dyn std::fmt::Display + 'a>> {
+        miette::Diagnostic::code(&self.error)
+    }
+
+    fn help<'a>(&'a self) -> Option<Box<dyn std::fmt::Display + 'a>> {
+        miette::Diagnostic::help(&self.error)
+    }
+
+    fn labels(&self) -> Option<Box<dyn Iterator<Item = miette::LabeledSpan> + '_>> {
+        Some(Box::new(std::iter::once(
+            miette::LabeledSpan::new_with_span(Some("this move".into()), self.span),
+        )))
+    }
 }
 
 /// A program lowered to machine moves and planned.
@@ -301,11 +321,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
             .and_then(|m| program.ops.get(m.tag as usize))
             .map(|o: &Op| o.span)
             .unwrap_or(start_span);
-        MotionError::Planner {
-            message: e.to_string(),
-            span,
-            help: miette::Diagnostic::help(&e).map(|h| h.to_string()),
-        }
+        MotionError::Planner(PlannerFailure { error: e, span })
     })?;
     Ok(Job {
         program,
