@@ -14,8 +14,16 @@
 //! A low-level module on purpose: `kinematics`, `planner`, `motion`, `emit`, `report` and
 //! `link` all import from here, and it imports nothing of theirs.
 
-use crate::machine::AxisKind;
+use serde::{Deserialize, Serialize};
 use std::ops::{Deref, DerefMut};
+
+/// Whether an axis moves in mm or turns in rad (deg outside lase).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AxisKind {
+    Linear,
+    Rotary,
+}
 
 /// Most machine axes one plan can carry (X Y Z A B C). Unused axes stay at zero.
 pub const MAX_AXES: usize = 6;

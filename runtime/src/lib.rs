@@ -10,6 +10,7 @@ pub mod emit;
 pub mod eval;
 pub mod ext;
 pub mod geometry;
+pub mod host;
 pub mod kinematics;
 pub mod link;
 pub mod machine;
@@ -18,5 +19,6 @@ pub mod planner;
 pub mod program;
 pub mod raster;
 pub mod report;
+pub mod value;
 
 pub use compile::{Failure, Files, FsFiles, MemFiles, Recipe, compile};

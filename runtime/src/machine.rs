@@ -34,11 +34,14 @@ impl MachineError {
     }
 }
 
+pub use crate::axes::AxisKind;
+
+/// Velocity profile shape.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
-pub enum AxisKind {
-    Linear,
-    Rotary,
+pub enum Ramp {
+    Trapezoid,
+    Scurve,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -136,7 +139,7 @@ pub struct Machine {
     pub geometry: Geometry,
     pub axes: Vec<Axis>,
     pub laser: LaserSpec,
-    pub ramp: crate::program::Ramp,
+    pub ramp: Ramp,
     pub junction_deviation_mm: f64,
     pub arc_tolerance_mm: f64,
     pub post: BTreeMap<String, DialectPost>,
@@ -204,7 +207,7 @@ struct FileLaser {
 #[derive(Debug, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct FilePlanner {
-    ramp: Option<crate::program::Ramp>,
+    ramp: Option<Ramp>,
     junction_deviation: Option<toml::Spanned<String>>,
     arc_tolerance: Option<toml::Spanned<String>>,
 }
@@ -403,11 +406,11 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             j_max,
         });
     }
-    if axes.is_empty() || axes.len() > crate::planner::MAX_AXES {
+    if axes.is_empty() || axes.len() > crate::axes::MAX_AXES {
         return Err(MachineError::Invalid {
             message: format!(
                 "a machine has 1 to {} axes, this one has {}",
-                crate::planner::MAX_AXES,
+                crate::axes::MAX_AXES,
                 axes.len()
             ),
             span: Span::new(base, base),
@@ -573,7 +576,7 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         geometry,
         axes,
         laser,
-        ramp: file.planner.ramp.unwrap_or(crate::program::Ramp::Scurve),
+        ramp: file.planner.ramp.unwrap_or(Ramp::Scurve),
         junction_deviation_mm,
         arc_tolerance_mm,
         post,

@@ -21,7 +21,7 @@ pub use leadin::{Lead, LeadKind, LitSection};
 use crate::axes::{Axes, MAX_AXES};
 use crate::kinematics::{self, KinError, Kinematics, ToolPose};
 use crate::planner::{self, AxisLimits, Move, Plan, PlannerConfig, ProfileKind};
-use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp};
+use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp, dist};
 use lase_lang::Span;
 use std::sync::Arc;
 
@@ -398,10 +398,6 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
         }
         KinError::Unreachable(reason) => MotionError::Unreachable { reason, span },
     }
-}
-
-pub(crate) fn dist(a: P3, b: P3) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 fn push_line(moves: &mut Vec<Move>, from: Axes, to: Axes, length: f64, feed: f64, tag: u32) {

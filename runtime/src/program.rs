@@ -16,6 +16,11 @@ use serde::{Deserialize, Serialize};
 /// A point in part coordinates, mm.
 pub type P3 = [f64; 3];
 
+/// Straight-line distance between two spots, mm.
+pub fn dist(a: P3, b: P3) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
 /// Laser state of a lit move.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Laser {
@@ -156,13 +161,7 @@ impl Op {
     }
 }
 
-/// Velocity profile shape.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Ramp {
-    Trapezoid,
-    Scurve,
-}
+pub use crate::machine::Ramp;
 
 /// Planner settings in force for the program (machine defaults, overridden by `planner`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

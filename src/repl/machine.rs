@@ -301,12 +301,7 @@ impl Station {
     ) -> R<String> {
         let link = self.link(machine)?;
         // Distance and rate in the controller's units: mm, or degrees for a rotary axis.
-        let line = format!(
-            "$J=G91 G21 {}{} F{}",
-            axis.to_ascii_uppercase(),
-            fmt3(dist),
-            fmt3(feed_per_min)
-        );
+        let line = lase_runtime::emit::reapproach::grbl_jog(axis, dist, feed_per_min);
         let reply = link.send(&line)?;
         if let lase_runtime::link::Reply::Error { code, message } = reply {
             let why = match code {
@@ -686,10 +681,4 @@ fn placeholder_machine() -> R<Machine> {
     let text = lase_stdlib::machine("xy_table").unwrap_or_default();
     lase_runtime::machine::parse_machine(text, 0)
         .map_err(|_| Trouble::Say("the stock machine `xy_table` does not load".into()))
-}
-
-fn fmt3(v: f64) -> String {
-    let s = format!("{v:.3}");
-    let s = s.trim_end_matches('0').trim_end_matches('.');
-    if s == "-0" { "0".into() } else { s.into() }
 }

@@ -94,6 +94,26 @@ pub fn with_motion_word(motion: MotionMode, line: &str) -> String {
     format!("{} {line}", motion.word())
 }
 
+/// A GRBL-family jog (`$J=`): `dist` along `axis`, relative and in millimetres (degrees for a
+/// rotary axis, which G21 leaves alone), at `feed_per_min`; to a micrometre, as a person jogs.
+pub fn grbl_jog(axis: char, dist: f64, feed_per_min: f64) -> String {
+    let um = |v: f64| {
+        let s = format!("{v:.3}");
+        let s = s.trim_end_matches('0').trim_end_matches('.');
+        if s == "-0" {
+            "0".to_string()
+        } else {
+            s.to_string()
+        }
+    };
+    format!(
+        "$J=G91 G21 {}{} F{}",
+        axis.to_ascii_uppercase(),
+        um(dist),
+        um(feed_per_min)
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -486,7 +486,7 @@ fn motion_line(
     match feed {
         Some(f) if m.inverse_time => {
             // G93: F is the inverse of the block's time in minutes, written on every block.
-            let len = crate::motion::dist(m.pos, to);
+            let len = crate::program::dist(m.pos, to);
             let minutes = if len > 1e-9 {
                 len / f / 60.0
             } else {

@@ -15,11 +15,10 @@ mod profiles;
 mod scan;
 mod sheet;
 mod stmt;
-mod value;
 
+pub use crate::value::Value;
 pub use error::EvalError;
 use error::Kind;
-pub use value::Value;
 
 use crate::geometry::toolpath::HeadSide;
 use crate::geometry::{GeomError, V2};
@@ -31,37 +30,7 @@ use lase_lang::{Program, SourceMap, Span, schema};
 use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
-/// Where machine files and data files (lift tables, DXF drawings) come from: the standard
-/// library, or a path next to the recipe.
-pub trait Host {
-    /// Reads a machine file given by path, relative to the file `importer`. Returns the
-    /// resolved name and the text.
-    fn machine_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String>;
-    /// Reads a data file (a cam lift table, a DXF drawing) given by path, relative to the file
-    /// `importer`. Returns the resolved name and the text.
-    fn data_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
-        let _ = importer;
-        Err(format!("data files are not available here (\"{path}\")"))
-    }
-    /// Reads an extension module (`use "file.rhai"`) or a preset (`use "file.toml"`) given by
-    /// path, relative to the file `importer`. Returns the resolved name and the text.
-    fn extension_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
-        let _ = importer;
-        Err(format!(
-            "extension files are not available here (\"{path}\")"
-        ))
-    }
-}
-
-/// A host with no file system: stock machines only.
-#[derive(Debug, Default)]
-pub struct StdlibOnly;
-
-impl Host for StdlibOnly {
-    fn machine_file(&mut self, _importer: &str, path: &str) -> Result<(String, String), String> {
-        Err(format!("machine files are not available here (\"{path}\")"))
-    }
-}
+pub use crate::host::{Host, StdlibOnly};
 
 /// Statements executed before the recipe is stopped as runaway.
 const STEP_BUDGET: u64 = 200_000_000;

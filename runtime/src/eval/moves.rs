@@ -274,7 +274,7 @@ impl Evaluator {
             return Ok(());
         };
         let (p0, o0) = pose(first);
-        if crate::motion::dist(p0, self.pos) > 1e-9 || self.orient != Some(o0) {
+        if crate::program::dist(p0, self.pos) > 1e-9 || self.orient != Some(o0) {
             // Going to the start of a path, beam already along its normal: a rapid, laser off.
             self.push(
                 OpKind::Rapid {
@@ -286,7 +286,7 @@ impl Evaluator {
         }
         for st in &stations[1..] {
             let (p, o) = pose(st);
-            if crate::motion::dist(p, self.pos) <= 1e-12 {
+            if crate::program::dist(p, self.pos) <= 1e-12 {
                 continue;
             }
             self.push(

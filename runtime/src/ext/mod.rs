@@ -60,7 +60,8 @@ pub use error::ExtError;
 pub use preset::Preset;
 pub use sig::describe;
 
-use crate::eval::{Host, Value};
+use crate::host::Host;
+use crate::value::Value;
 use error::{FileText, LimitText};
 use lase_lang::ast::{Stmt, StmtKind, StrLit};
 use lase_lang::units::Dim;

@@ -9,7 +9,7 @@
 //! spot = "4 mm"
 //! ```
 
-use crate::eval::Value;
+use crate::value::Value;
 use lase_lang::units::{self, Dim, QuantityError};
 
 /// A parsed preset: its doc line and its values, in file order.

@@ -115,7 +115,7 @@ fn op_length(op: &Op, from: P3) -> f64 {
             let dz = to[2] - from[2];
             (r * sweep).hypot(dz)
         }
-        _ => crate::motion::dist(from, op.target().unwrap_or(from)),
+        _ => crate::program::dist(from, op.target().unwrap_or(from)),
     }
 }
 

@@ -195,10 +195,6 @@ pub fn documented_feedback(kind: &str) -> bool {
         "HOME",
         "TLO",
         "TLR",
-        "G28",
-        "G30",
-        "G92",
-        "G51",
         "T",
         "PARAM",
         "AXS",
@@ -234,10 +230,12 @@ pub fn documented_feedback(kind: &str) -> bool {
         "HOSTNAME",
         "KEYPAD",
     ];
-    KINDS.contains(&kind)
-        || kind
-            .strip_prefix('G')
-            .is_some_and(|n| n.starts_with('5') && n.len() >= 2 && n.len() <= 4)
+    // `$#` reports coordinate systems and offsets by their G number: G54…G59.3, G28, G30,
+    // G92, and G51 (scaling) on grblHAL.
+    let coordinates = kind.strip_prefix('G').is_some_and(|n| {
+        !n.is_empty() && n.len() <= 4 && n.bytes().all(|b| b.is_ascii_digit() || b == b'.')
+    });
+    KINDS.contains(&kind) || coordinates
 }
 
 fn code(s: &str) -> Option<u32> {
