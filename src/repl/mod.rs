@@ -72,6 +72,16 @@ impl Session {
         }
     }
 
+    /// Reports what the checker found in the line just checked; true when it found nothing.
+    fn checked_clean(&mut self) -> bool {
+        let errs = self.checker.take_errors();
+        if errs.is_empty() {
+            return true;
+        }
+        self.report(&Failure::many(errs));
+        false
+    }
+
     fn report(&self, f: &Failure) {
         self.report_in(&self.map, f);
     }
@@ -142,9 +152,7 @@ impl Session {
                 }
                 self.checker.set_program(self.program.clone());
                 self.checker.check_stmts(&stmts);
-                let errs = self.checker.take_errors();
-                if !errs.is_empty() {
-                    self.report(&Failure::many(errs));
+                if !self.checked_clean() {
                     return false;
                 }
                 match self
@@ -160,9 +168,7 @@ impl Session {
             }
             ReplInput::Expr(e) => {
                 self.checker.check_expr_stmt(&e);
-                let errs = self.checker.take_errors();
-                if !errs.is_empty() {
-                    self.report(&Failure::many(errs));
+                if !self.checked_clean() {
                     return false;
                 }
                 match self

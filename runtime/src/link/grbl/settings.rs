@@ -104,39 +104,39 @@ pub fn compare(
         } else {
             ("mm/min", "mm/s²")
         };
-        let rate = 110 + k;
-        if !get(rate).is_some_and(|v| at_least(v, axis.v_per_min)) {
-            out.push(SettingMismatch {
-                setting: format!("${rate} ({} max rate, {per_min})", axis.letter),
-                found: found(rate),
-                needed: format!("at least {}", show(axis.v_per_min)),
-                span: axis.v_span,
-                label: format!(
-                    "{} reaches {} {per_min} here",
-                    axis.letter,
-                    show(axis.v_per_min)
-                ),
-                help: format!(
-                    "raise `${rate}` to the machine file's v_max, or lower the speed in the recipe's `limits`; the controller would run slower than the plan"
-                ),
-            });
-        }
-        let acc = 120 + k;
-        if !get(acc).is_some_and(|v| at_least(v, axis.a_per_s2)) {
-            out.push(SettingMismatch {
-                setting: format!("${acc} ({} acceleration, {per_s2})", axis.letter),
-                found: found(acc),
-                needed: format!("at least {}", show(axis.a_per_s2)),
-                span: axis.a_span,
-                label: format!(
-                    "{} accelerates at {} {per_s2} here",
-                    axis.letter,
-                    show(axis.a_per_s2)
-                ),
-                help: format!(
-                    "raise `${acc}` to the machine file's a_max, or lower the acceleration in the recipe's `limits`"
-                ),
-            });
+        // $110+k (max rate) and $120+k (acceleration) against what the plan needs of axis k.
+        let checks = [
+            (
+                110 + k,
+                "max rate",
+                per_min,
+                axis.v_per_min,
+                axis.v_span,
+                "reaches",
+                "the machine file's v_max, or lower the speed in the recipe's `limits`; the \
+                 controller would run slower than the plan",
+            ),
+            (
+                120 + k,
+                "acceleration",
+                per_s2,
+                axis.a_per_s2,
+                axis.a_span,
+                "accelerates at",
+                "the machine file's a_max, or lower the acceleration in the recipe's `limits`",
+            ),
+        ];
+        for (id, what, unit, need, span, verb, remedy) in checks {
+            if !get(id).is_some_and(|v| at_least(v, need)) {
+                out.push(SettingMismatch {
+                    setting: format!("${id} ({} {what}, {unit})", axis.letter),
+                    found: found(id),
+                    needed: format!("at least {}", show(need)),
+                    span,
+                    label: format!("{} {verb} {} {unit} here", axis.letter, show(need)),
+                    help: format!("raise `${id}` to {remedy}"),
+                });
+            }
         }
     }
     out
