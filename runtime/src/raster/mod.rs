@@ -63,13 +63,13 @@ impl Frame {
     }
 
     /// Local coordinates (along u, along v) of a part point.
-    pub fn to_local(&self, p: V2) -> V2 {
+    pub fn to_local(self, p: V2) -> V2 {
         let d = p - self.origin;
         V2::new(d.dot(&self.u()), d.dot(&self.v()))
     }
 
     /// The part point at local coordinates (x along u, y along v).
-    pub fn to_part(&self, x: f64, y: f64) -> V2 {
+    pub fn to_part(self, x: f64, y: f64) -> V2 {
         self.origin + self.u() * x + self.v() * y
     }
 }
@@ -165,8 +165,6 @@ pub enum RasterError {
     OpenRegion { index: usize },
     /// Insetting a region failed (it vanishes or folds over).
     Inset { index: usize, error: GeomError },
-    /// The region holds no spot or line.
-    Empty,
 }
 
 impl std::fmt::Display for RasterError {
@@ -181,7 +179,6 @@ impl std::fmt::Display for RasterError {
             RasterError::Inset { index, error } => {
                 write!(f, "cannot inset region profile {index}: {error}")
             }
-            RasterError::Empty => f.write_str("the region holds nothing to scan"),
         }
     }
 }
@@ -232,25 +229,6 @@ impl Region {
             profiles: out,
             polys,
         })
-    }
-
-    /// The borders after the inset.
-    pub fn profiles(&self) -> &[Profile] {
-        &self.profiles
-    }
-
-    /// Whether a part point lies inside (border included within [`BORDER_TOL_MM`]).
-    pub fn contains(&self, p: V2) -> bool {
-        let n = self
-            .polys
-            .iter()
-            .filter(|poly| inside_poly(poly, p))
-            .count();
-        n % 2 == 1
-            || self
-                .polys
-                .iter()
-                .any(|poly| dist_to_poly(poly, p) <= BORDER_TOL_MM)
     }
 
     /// The exact bounding box in `frame`'s local coordinates: (min, max).
@@ -359,23 +337,6 @@ fn inside_poly(poly: &[V2], p: V2) -> bool {
         }
     }
     inside
-}
-
-fn dist_to_poly(poly: &[V2], p: V2) -> f64 {
-    let n = poly.len();
-    (0..n)
-        .map(|i| {
-            let a = poly[i];
-            let b = poly[(i + 1) % n];
-            let ab = b - a;
-            let t = if ab.norm_squared() > 0.0 {
-                ((p - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            (a + ab * t - p).norm()
-        })
-        .fold(f64::INFINITY, f64::min)
 }
 
 // ------------------------------------------------------------------ rows
@@ -626,6 +587,7 @@ fn family_pass(fam: &Family, opts: &PathOptions, out: &mut Vec<Step>) {
 }
 
 /// Length of the moves with the beam off (travel and idle) from `start` along `steps`, mm.
+#[cfg(test)]
 pub fn idle_length(start: V2, steps: &[Step]) -> f64 {
     let mut pos = start;
     let mut idle = 0.0;
