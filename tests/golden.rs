@@ -120,7 +120,8 @@ fn linuxcnc_interpreter_accepts_the_example(ex: &Path) {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success() && !text.contains("Unknown") && !text.contains("error"),
-        "rs274 rejected {rel}:\n{text}\n{}",
+        "rs274 rejected {rel} ({}):\n{text}\n{}",
+        out.status,
         String::from_utf8_lossy(&out.stderr)
     );
     // The interpreter ran the whole program.
