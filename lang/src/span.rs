@@ -176,6 +176,9 @@ impl SourceCode for SourceMap {
             .ok_or(miette::MietteError::OutOfBounds)?;
         let f = &self.files[id.0 as usize];
         let local = SourceSpan::new((span.offset() - f.base).into(), span.len());
+        if let Some(window) = long_line_window(f, local.offset(), local.len()) {
+            return Ok(window);
+        }
         let inner = f
             .text
             .read_span(&local, context_lines_before, context_lines_after)?;
@@ -191,4 +194,59 @@ impl SourceCode for SourceMap {
             inner.line_count(),
         )))
     }
+}
+
+/// How many bytes of a line a diagnostic shows. A generated recipe may hold a whole program on
+/// one line; shown whole, it floods the terminal, and a label thousands of columns in is more
+/// than the renderer can pad (it panics past 65 535).
+const MAX_SHOWN_LINE: usize = 160;
+
+/// For a span on (or next to) a line longer than [`MAX_SHOWN_LINE`]: that part of its line
+/// around the span's start, without context lines, still numbered by its true line and column.
+fn long_line_window<'a>(
+    f: &'a SourceFile,
+    start: usize,
+    len: usize,
+) -> Option<Box<dyn SpanContents<'a> + 'a>> {
+    let text = &f.text;
+    let start = start.min(text.len());
+    let line_start = text[..start].rfind('\n').map_or(0, |i| i + 1);
+    let line_end = text[start..].find('\n').map_or(text.len(), |i| start + i);
+    // A long neighbour would be shown as context: that counts as long too.
+    let prev = text[..line_start.saturating_sub(1)]
+        .rfind('\n')
+        .map_or(0, |i| i + 1);
+    let next_end = text[(line_end + 1).min(text.len())..]
+        .find('\n')
+        .map_or(text.len(), |i| line_end + 1 + i);
+    if line_end - line_start <= MAX_SHOWN_LINE
+        && line_start.saturating_sub(prev) <= MAX_SHOWN_LINE + 1
+        && next_end.saturating_sub(line_end) <= MAX_SHOWN_LINE + 1
+    {
+        return None;
+    }
+    let floor = |mut i: usize| {
+        while !text.is_char_boundary(i) {
+            i -= 1;
+        }
+        i
+    };
+    let from = floor(start.saturating_sub(MAX_SHOWN_LINE / 4).max(line_start));
+    let to = floor(
+        (from + MAX_SHOWN_LINE)
+            .min(line_end)
+            .max(start + len.min(MAX_SHOWN_LINE)),
+    )
+    .min(line_end);
+    let line = text[..line_start].matches('\n').count();
+    // miette takes the header's `line:col` from these: the span's own column, not the window's.
+    let column = text[line_start..start].chars().count();
+    Some(Box::new(MietteSpanContents::new_named(
+        f.name.clone(),
+        &text.as_bytes()[from..to],
+        SourceSpan::new((f.base + from).into(), to - from),
+        line,
+        column,
+        1,
+    )))
 }
