@@ -954,6 +954,43 @@ mod tests {
     }
 
     #[test]
+    fn the_pulse_block_takes_interval_as_a_key() {
+        let m = parse("pulse { interval 50 us, width 100 ns, energy 1 mJ }\npulse interval 2 mm");
+        let keys = |s: &Stmt| match &s.kind {
+            StmtKind::Pulse(PulseStmt::Settings(set)) => {
+                set.iter().map(|s| s.key.name.clone()).collect::<Vec<_>>()
+            }
+            k => panic!("{k:?}"),
+        };
+        assert_eq!(keys(&m.stmts[0]), ["interval", "width", "energy"]);
+        assert_eq!(keys(&m.stmts[1]), ["interval"]);
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped_and_spans_stay_true() {
+        let e = parse_recipe("\u{feff}let = 3", crate::FileId(0), 0).unwrap_err();
+        assert_eq!(e.span().start, 3 + 4);
+        assert_eq!(parse("\u{feff}machine xy_table").stmts.len(), 1);
+    }
+
+    #[test]
+    fn expressions_deeper_than_the_limit_are_refused_at_the_operator() {
+        let ok = format!("let a = 1{}", " + 1".repeat(MAX_EXPR_DEPTH - 1));
+        assert!(parse_recipe(&ok, crate::FileId(0), 0).is_ok());
+        let deep = format!("let a = 1{}", " + 1".repeat(MAX_EXPR_DEPTH));
+        let e = parse_recipe(&deep, crate::FileId(0), 0).unwrap_err();
+        assert!(matches!(e, ParseError::TooDeep { limit: 500, .. }), "{e:?}");
+        // The last `+`: `let a = 1` then 4 bytes per ` + 1`.
+        assert_eq!(e.span().start as usize, 9 + (MAX_EXPR_DEPTH - 1) * 4 + 1);
+        // Field and index suffixes count too, brackets or not.
+        for suffix in [".x", "[0]"] {
+            let chain = format!("let a = p{}", suffix.repeat(MAX_EXPR_DEPTH + 5));
+            let e = parse_recipe(&chain, crate::FileId(0), 0).unwrap_err();
+            assert!(matches!(e, ParseError::TooDeep { .. }), "{e:?}");
+        }
+    }
+
+    #[test]
     fn incomplete_input_is_detected() {
         assert!(is_incomplete("fn f() {"));
         assert!(is_incomplete("let a = [1,"));
