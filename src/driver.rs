@@ -36,17 +36,29 @@ pub fn render(map: &SourceMap, failure: &Failure, color: bool) -> String {
     let handler = GraphicalReportHandler::new_themed(theme).with_width(80);
     let mut out = String::new();
     let n = failure.diagnostics.len();
-    for d in &failure.diagnostics {
+    for d in failure.diagnostics.iter().take(MAX_SHOWN) {
         let with_src = WithSource { inner: &**d, map };
         if handler.render_report(&mut out, &with_src).is_err() {
             let _ = writeln!(out, "error: {d}");
         }
+    }
+    if n > MAX_SHOWN {
+        let _ = writeln!(
+            out,
+            "… and {} more errors not shown (only the first {MAX_SHOWN} are)",
+            n - MAX_SHOWN
+        );
     }
     if n > 1 {
         let _ = writeln!(out, "{n} errors");
     }
     out
 }
+
+/// How many diagnostics are rendered. Rendering one locates its line from the start of its
+/// file, so rendering all of a generated recipe's thousands would take quadratic time, and
+/// nobody reads past the first screenfuls: the rest are counted.
+pub const MAX_SHOWN: usize = 50;
 
 /// A diagnostic viewed with the recipe's source map attached.
 struct WithSource<'a> {

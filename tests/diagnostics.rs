@@ -29,6 +29,18 @@ fn main() {
             "a_missing_file_is_a_clean_error",
             a_missing_file_is_a_clean_error,
         ),
+        trial(
+            "long_operator_chains_are_refused_at_the_operator_too_deep",
+            long_operator_chains_are_refused_at_the_operator_too_deep,
+        ),
+        trial(
+            "a_byte_order_mark_is_accepted_in_recipes_imports_and_machine_files",
+            a_byte_order_mark_is_accepted_in_recipes_imports_and_machine_files,
+        ),
+        trial(
+            "thousands_of_errors_show_the_first_fifty_and_count_the_rest",
+            thousands_of_errors_show_the_first_fifty_and_count_the_rest,
+        ),
     ];
     trials.extend(per_file(
         "err",
@@ -123,4 +135,111 @@ fn a_missing_file_is_a_clean_error() {
     let (code, _, err) = lase(&["check", "tests/err/does_not_exist.lase"]);
     assert_eq!(code, 1);
     assert!(err.contains("cannot read"), "{err}");
+}
+
+/// A scratch file for generated recipes, under cargo's per-test-target directory.
+fn scratch(name: &str, bytes: &[u8]) -> String {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("diagnostics");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).unwrap();
+    path.to_string_lossy().into_owned()
+}
+
+/// `[file:line:col]` of the first report.
+fn first_location(stderr: &str) -> String {
+    let rest = stderr
+        .split("╭─[")
+        .nth(1)
+        .unwrap_or_else(|| panic!("{stderr}"));
+    let loc = &rest[..rest.find(']').unwrap()];
+    let mut parts = loc.rsplitn(3, ':');
+    let col = parts.next().unwrap();
+    let line = parts.next().unwrap();
+    format!("{line}:{col}")
+}
+
+/// 30 000 chained `+`, unary `-` or `not` once overflowed the stack (exit 134) while the tree
+/// was cloned or dropped; now the parser refuses the operator that makes the expression deeper
+/// than `MAX_EXPR_DEPTH` (500), on one long line as on many short ones.
+fn long_operator_chains_are_refused_at_the_operator_too_deep() {
+    let limit = lase_lang::parser::MAX_EXPR_DEPTH;
+    let prefix = "machine xy_table\nlet a = ";
+    let cases = [
+        // The 500th `+` builds the 501st level (the first operand is level one).
+        (" + 1 mm".repeat(30_000), "1 mm", 4 + (limit - 1) * 7 + 2),
+        ("-".repeat(30_000), "1 mm", 30_000 - limit + 1),
+        ("not ".repeat(30_000), "true", (30_000 - limit) * 4 + 1),
+    ];
+    for (i, (chain, leaf, col)) in cases.into_iter().enumerate() {
+        let text = if i == 0 {
+            format!("{prefix}{leaf}{chain}\n")
+        } else {
+            format!("{prefix}{chain}{leaf}\n")
+        };
+        let path = scratch(&format!("chain{i}.lase"), text.as_bytes());
+        let (code, _, err) = lase(&["check", &path]);
+        assert_eq!(code, 1, "{err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(err.contains("lase::parse::too_deep"), "{err}");
+        assert!(err.contains("nests more than 500 operators deep"), "{err}");
+        // The column of the operator (plus `let a = `), and the long line shown only in part.
+        assert_eq!(first_location(&err), format!("2:{}", col + 8), "{err}");
+        assert!(err.lines().all(|l| l.chars().count() < 200), "{err}");
+    }
+    // One level less is a valid recipe.
+    let ok = format!("{prefix}1 mm{}\n", " + 1 mm".repeat(limit - 1));
+    let (code, out, err) = lase(&["check", &scratch("chain_ok.lase", ok.as_bytes())]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("ok"), "{out}");
+}
+
+/// Windows editors start files with a UTF-8 byte-order mark; it once was a syntax error at 1:1.
+fn a_byte_order_mark_is_accepted_in_recipes_imports_and_machine_files() {
+    const BOM: &str = "\u{feff}";
+    let machine = std::fs::read_to_string(root().join("stdlib/machines/xy_table.toml")).unwrap();
+    scratch("bom_machine.toml", format!("{BOM}{machine}").as_bytes());
+    scratch("bom_lib.lase", format!("{BOM}let q = 2 mm\n").as_bytes());
+    let main = scratch(
+        "bom_main.lase",
+        format!(
+            "{BOM}machine \"bom_machine.toml\"\nimport \"bom_lib.lase\"\nmove to (q, q) rapid\n"
+        )
+        .as_bytes(),
+    );
+    let (code, out, err) = lase(&["check", &main]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("ok — 1 ops"), "{out}");
+    // An error after a mark still points at its line and column.
+    let bad = scratch(
+        "bom_bad.lase",
+        format!("{BOM}machine xy_table\nlet = 3\n").as_bytes(),
+    );
+    let (code, _, err) = lase(&["check", &bad]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("lase::parse::syntax"), "{err}");
+    assert_eq!(first_location(&err), "2:5", "{err}");
+}
+
+/// 20 000 unit errors: all are found and counted, the first 50 rendered (rendering all took
+/// quadratic time: each locates its line from the start of the file).
+fn thousands_of_errors_show_the_first_fifty_and_count_the_rest() {
+    let mut text = String::from("machine xy_table\n");
+    for i in 0..20_000 {
+        text.push_str(&format!("let a{i} = 1 mm + 1 s\n"));
+    }
+    let (code, _, err) = lase(&["check", &scratch("many_errors.lase", text.as_bytes())]);
+    assert_eq!(code, 1);
+    assert!(!err.contains("panicked"), "{err}");
+    let rendered = err
+        .lines()
+        .filter(|l| l.trim() == "lase::check::unit_mismatch")
+        .count();
+    assert_eq!(rendered, 50);
+    assert_eq!(first_location(&err), "2:10");
+    assert!(
+        err.contains("… and 19950 more errors not shown (only the first 50 are)"),
+        "{err}"
+    );
+    assert!(err.trim_end().ends_with("20000 errors"), "{err}");
 }

@@ -42,3 +42,106 @@ fn doc_prints_every_kind_of_topic() {
     assert_eq!(code, 1);
     assert!(err.contains("offset"), "{err}");
 }
+
+/// The statements the docs show (the inline examples and every ```lase block) check clean, so
+/// the docs and the language cannot drift apart again (README's own `pulse { interval 50 us,
+/// width 100 ns, energy 1 mJ }` once was a syntax error).
+///
+/// A fenced block preceded by `<!-- lase: fragment -->` is not checked; one preceded by
+/// `<!-- lase: error CODE -->` must fail with that diagnostic. Inline examples are the code
+/// spans that start with a process statement; those with placeholders (`PATH`, `P`, `...`) or
+/// naming a file of the reader's own (`machine "my.toml"`) are fragments.
+#[test]
+fn every_lase_snippet_in_the_docs_checks_clean() {
+    let mut checked = 0;
+    for doc in ["README.md", "docs/reference.md"] {
+        let text = std::fs::read_to_string(root().join(doc)).unwrap();
+        for (i, (marker, block)) in fenced_lase_blocks(&text).into_iter().enumerate() {
+            let (code, _, err) = check_snippet(&format!("{doc}-block{i}"), &block);
+            match marker.as_deref() {
+                Some("fragment") => continue,
+                Some(m) if m.starts_with("error ") => {
+                    assert_eq!(code, 1, "{doc} block {i} should fail:\n{block}");
+                    assert!(err.contains(&m[6..]), "{doc} block {i}:\n{err}");
+                }
+                _ => assert_eq!(code, 0, "{doc} block {i}:\n{block}\n{err}"),
+            }
+            checked += 1;
+        }
+        for (i, snippet) in inline_statements(&text).into_iter().enumerate() {
+            // `swing_right` is an event of the notcher's machine file.
+            let machine = if snippet.starts_with("event ") {
+                "notcher"
+            } else {
+                "xy_table"
+            };
+            let recipe = format!("machine {machine}\n{snippet}\n");
+            let (code, _, err) = check_snippet(&format!("{doc}-inline{i}"), &recipe);
+            assert_eq!(code, 0, "{doc}: `{snippet}`\n{err}");
+            checked += 1;
+        }
+    }
+    // The README's recipe, its statement table (pulse forms included) and the reference's
+    // statement examples.
+    assert!(checked >= 30, "only {checked} snippets found");
+}
+
+/// Each ```lase block, with the `<!-- lase: ... -->` marker on the line before it, if any.
+fn fenced_lase_blocks(text: &str) -> Vec<(Option<String>, String)> {
+    let mut out = Vec::new();
+    let mut prev = "";
+    let mut lines = text.lines();
+    while let Some(line) = lines.next() {
+        if line.trim() == "```lase" {
+            let marker = prev
+                .trim()
+                .strip_prefix("<!-- lase:")
+                .and_then(|m| m.strip_suffix("-->"))
+                .map(|m| m.trim().to_string());
+            let body: Vec<&str> = lines.by_ref().take_while(|l| l.trim() != "```").collect();
+            out.push((marker, body.join("\n") + "\n"));
+        }
+        prev = line;
+    }
+    out
+}
+
+/// Inline code spans that are whole process statements, without placeholders.
+fn inline_statements(text: &str) -> Vec<String> {
+    const STATEMENTS: &[&str] = &[
+        "machine", "limits", "planner", "laser", "pulse", "follow", "move", "dwell", "mcode",
+        "event", "use", "scan",
+    ];
+    let mut out: Vec<String> = Vec::new();
+    for line in text.lines() {
+        for (k, span) in line.split('`').enumerate() {
+            if k % 2 == 0 || out.iter().any(|s| s == span) {
+                continue;
+            }
+            let Some((first, _)) = span.split_once(' ') else {
+                continue;
+            };
+            // Upper-case words are placeholders (`PATH`, `P`), except the units W and J.
+            let placeholder = span.contains("...")
+                || span.split(|c: char| !c.is_alphanumeric()).any(|w| {
+                    !w.is_empty()
+                        && w.chars().all(|c| c.is_ascii_uppercase())
+                        && w != "W"
+                        && w != "J"
+                });
+            let readers_file = [".toml\"", ".rhai\""].iter().any(|e| span.contains(e));
+            if STATEMENTS.contains(&first) && !placeholder && !readers_file {
+                out.push(span.to_string());
+            }
+        }
+    }
+    out
+}
+
+fn check_snippet(name: &str, recipe: &str) -> (i32, String, String) {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("doc_snippets");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(format!("{}.lase", name.replace(['/', '.'], "_")));
+    std::fs::write(&path, recipe).unwrap();
+    lase(&["check", &path.to_string_lossy()])
+}

@@ -261,3 +261,19 @@ follow profile line((0, 0), (10 mm, 0)) at 60 mm/s
     assert!(!out.contains("repl: done"), "{out}");
     assert_eq!(out.matches(" ops, cycle time ").count(), 3, "{out}");
 }
+
+/// A 1 MB input line of chained operators once overflowed the REPL's stack (exit 134); now it
+/// is one diagnostic, shown in part with its line:col, and the session goes on.
+#[test]
+fn a_megabyte_line_of_operators_is_a_diagnostic_and_the_session_goes_on() {
+    let line = format!("let a = 1 mm{}\n", " + 1 mm".repeat(150_000));
+    assert!(line.len() > 1_000_000);
+    let (code, out, err) = session(&format!("{line}let b = 2 mm\nb * 3\n"));
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(code == 0 || code == 1, "exit {code}");
+    assert!(err.contains("lase::parse::too_deep"), "{err}");
+    // `let a = ` and the first operand, then 499 ` + 1 mm`: the 500th `+`.
+    assert!(err.contains("<repl:1>:1:3507]"), "{err}");
+    assert!(err.lines().all(|l| l.chars().count() < 200));
+    assert!(out.contains("6 mm"), "{out}");
+}

@@ -108,7 +108,33 @@ fn deep_recursion_is_a_diagnostic_on_a_small_stack() {
     };
     // 120 levels parse, check, evaluate and plan; 300 are refused by the parser's nesting
     // limit (a diagnostic, not pest running out of stack).
-    for (src, want) in [(recursive, 2), (nested(120), 4), (nested(300), 0)] {
+    // Operator chains build trees as deep as they are long, with no bracket: at the parser's
+    // expression depth limit they still get all the way (the tree is cloned, checked,
+    // evaluated and dropped); past it they are refused. Once 30 000 overflowed the stack.
+    let depth = lase_lang::parser::MAX_EXPR_DEPTH;
+    let chain = |n: usize, op: &str, leaf: &str| {
+        format!(
+            "machine xy_table\nlet y = {}{leaf}\nmove to (y, y) at 5 mm/s\n",
+            op.repeat(n)
+        )
+    };
+    let sum = |n: usize| {
+        format!(
+            "machine xy_table\nlet y = 0 mm{}\nmove to (y, y) at 5 mm/s\n",
+            " + 0.01 mm".repeat(n)
+        )
+    };
+    let cases = [
+        (recursive, 2),
+        (nested(120), 4),
+        (nested(300), 0),
+        (sum(depth - 1), 4),
+        (chain(depth - 1, "-", "1 mm"), 4),
+        (sum(30_000), 0),
+        (chain(30_000, "-", "1 mm"), 0),
+        (chain(30_000, "not ", "true"), 0),
+    ];
+    for (src, want) in cases {
         let got = std::thread::Builder::new()
             .stack_size(512 * 1024)
             .spawn(move || pipeline(&src))

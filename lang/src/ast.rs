@@ -156,10 +156,22 @@ pub enum ForIter {
     Expr(Expr),
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct Expr {
     pub kind: ExprKind,
     pub span: Span,
+}
+
+/// Cloning recurses as deep as the tree ([`crate::parser::MAX_EXPR_DEPTH`] levels at most),
+/// and a debug build's clone frames are large: near the end of the stack it continues on a
+/// new segment, as the checker and evaluator do.
+impl Clone for Expr {
+    fn clone(&self) -> Expr {
+        stacker::maybe_grow(crate::STACK_RED_ZONE, crate::STACK_SEGMENT, || Expr {
+            kind: self.kind.clone(),
+            span: self.span,
+        })
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

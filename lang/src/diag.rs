@@ -46,6 +46,19 @@ pub enum ParseError {
         #[label("this import closes the cycle")]
         span: Span,
     },
+
+    #[error("expression nests more than {limit} operators deep")]
+    #[diagnostic(
+        code(lase::parse::too_deep),
+        help(
+            "split the expression: name partial results with `let`, or build a list and sum it in a `for` loop"
+        )
+    )]
+    TooDeep {
+        limit: usize,
+        #[label("this operator is one level too many")]
+        span: Span,
+    },
 }
 
 /// Name, unit and type errors found by the checker before anything is evaluated.
@@ -238,7 +251,8 @@ impl ParseError {
         match self {
             ParseError::Syntax { span, .. }
             | ParseError::Import { span, .. }
-            | ParseError::ImportCycle { span, .. } => *span,
+            | ParseError::ImportCycle { span, .. }
+            | ParseError::TooDeep { span, .. } => *span,
         }
     }
 }

@@ -16,16 +16,18 @@ type P<'a> = Pair<'a, Rule>;
 
 /// Parses one file. `base` is the file's global offset in the source map.
 pub fn parse_recipe(text: &str, file: crate::FileId, base: usize) -> Result<Module, ParseError> {
+    let (text, base) = skip_bom(text, base);
     check_nesting(text, base)?;
     let mut pairs = on_parse_stack(|| RecipeParser::parse(Rule::recipe, text))
         .map_err(|e| syntax_error(e, text, base))?;
-    let b = Builder { base };
+    let b = Builder::new(base);
     let recipe = pairs.next().expect("recipe rule always produces one pair");
     let stmts = recipe
         .into_inner()
         .filter(|p| p.as_rule() != Rule::EOI)
         .map(|p| b.stmt(p))
         .collect();
+    b.finish()?;
     Ok(Module { file, stmts })
 }
 
@@ -38,20 +40,35 @@ pub enum ReplInput {
 
 /// Parses REPL input: statements, or one expression whose value is to be shown.
 pub fn parse_repl(text: &str, base: usize) -> Result<ReplInput, ParseError> {
+    let (text, base) = skip_bom(text, base);
     check_nesting(text, base)?;
     let mut pairs = on_parse_stack(|| RecipeParser::parse(Rule::repl_input, text))
         .map_err(|e| syntax_error(e, text, base))?;
-    let b = Builder { base };
+    let b = Builder::new(base);
     let input = pairs.next().expect("repl_input always produces one pair");
     let mut stmts = Vec::new();
     for p in input.into_inner() {
         match p.as_rule() {
             Rule::EOI => {}
-            Rule::expr => return Ok(ReplInput::Expr(b.expr(p))),
+            Rule::expr => {
+                let e = b.expr(p);
+                b.finish()?;
+                return Ok(ReplInput::Expr(e));
+            }
             _ => stmts.push(b.stmt(p)),
         }
     }
+    b.finish()?;
     Ok(ReplInput::Stmts(stmts))
+}
+
+/// The text after a UTF-8 byte-order mark, and its offset. Some Windows editors start every
+/// file with one; it is no part of the recipe.
+fn skip_bom(text: &str, base: usize) -> (&str, usize) {
+    match text.strip_prefix('\u{feff}') {
+        Some(rest) => (rest, base + '\u{feff}'.len_utf8()),
+        None => (text, base),
+    }
 }
 
 /// True when `text` ends inside an open bracket, brace or string, so the REPL should read
@@ -125,11 +142,49 @@ fn check_nesting(text: &str, base: usize) -> Result<(), ParseError> {
     }
 }
 
+/// How deep one expression may nest: every operator, call, index, list and point between its
+/// root and its deepest leaf counts one level. Brackets alone are limited by [`MAX_NESTING`],
+/// but `1 mm + 1 mm + …` or `- - - x` build a tree as deep as the chain is long, and every
+/// phase after the parser (checker, evaluator, and the derived `Clone`, `Drop` and `Debug` of
+/// the tree) walks it recursively. A human recipe stays below a few dozen levels; the limit
+/// keeps the deepest tree well inside a 512 KiB thread's stack in a debug build.
+pub const MAX_EXPR_DEPTH: usize = 500;
+
 struct Builder {
     base: usize,
+    /// The first expression found nesting deeper than [`MAX_EXPR_DEPTH`]. The builder cannot
+    /// fail midway (pest has already accepted the text), so it records the error, stops
+    /// deepening that tree and reports it when done.
+    too_deep: std::cell::RefCell<Option<ParseError>>,
 }
 
 impl Builder {
+    fn new(base: usize) -> Builder {
+        Builder {
+            base,
+            too_deep: Default::default(),
+        }
+    }
+
+    fn finish(&self) -> Result<(), ParseError> {
+        self.too_deep.borrow_mut().take().map_or(Ok(()), Err)
+    }
+
+    /// True when a node of `height` levels would exceed [`MAX_EXPR_DEPTH`]; records the first
+    /// such node, at `at` (its operator or bracket).
+    fn too_deep(&self, height: usize, at: Span) -> bool {
+        if height <= MAX_EXPR_DEPTH {
+            return false;
+        }
+        self.too_deep
+            .borrow_mut()
+            .get_or_insert(ParseError::TooDeep {
+                limit: MAX_EXPR_DEPTH,
+                span: at,
+            });
+        true
+    }
+
     fn span(&self, p: &P) -> Span {
         let s = p.as_span();
         // pest's optional tails may have skipped trailing blanks and comments, which a label
@@ -365,20 +420,31 @@ impl Builder {
     /// builder continues on a new segment instead of overflowing it (a debug build's frames
     /// are large; pest's own parse stops with an error before it runs out).
     fn expr(&self, p: P) -> Expr {
+        self.expr_h(p).0
+    }
+
+    /// The expression and its height (levels from it to its deepest leaf).
+    fn expr_h(&self, p: P) -> (Expr, usize) {
         stacker::maybe_grow(crate::STACK_RED_ZONE, crate::STACK_SEGMENT, || {
             self.expr_here(p)
         })
     }
 
-    fn expr_here(&self, p: P) -> Expr {
+    fn expr_here(&self, p: P) -> (Expr, usize) {
         let span = self.span(&p);
+        let leaf = |kind| (Expr { kind, span }, 1);
         match p.as_rule() {
-            Rule::expr => self.expr(p.into_inner().next().expect("expr has one child")),
+            Rule::expr => self.expr_h(p.into_inner().next().expect("expr has one child")),
             Rule::or_expr | Rule::and_expr | Rule::sum | Rule::product | Rule::cmp_expr => {
                 let mut it = p.into_inner();
-                let mut lhs = self.expr(it.next().expect("binary chain has a first operand"));
+                let (mut lhs, mut h) =
+                    self.expr_h(it.next().expect("binary chain has a first operand"));
                 while let Some(op) = it.next() {
-                    let rhs = self.expr(it.next().expect("operator has a right operand"));
+                    let (rhs, rh) = self.expr_h(it.next().expect("operator has a right operand"));
+                    if self.too_deep(1 + h.max(rh), self.span(&op)) {
+                        break;
+                    }
+                    h = 1 + h.max(rh);
                     let op = match op.as_str() {
                         "+" => BinOp::Add,
                         "-" => BinOp::Sub,
@@ -404,13 +470,17 @@ impl Builder {
                         span,
                     };
                 }
-                lhs
+                (lhs, h)
             }
             Rule::unary => {
                 let children: Vec<P> = p.into_inner().collect();
                 let (ops, operand) = children.split_at(children.len() - 1);
-                let mut e = self.expr(operand[0].clone());
+                let (mut e, mut h) = self.expr_h(operand[0].clone());
                 for op in ops.iter().rev() {
+                    if self.too_deep(h + 1, self.span(op)) {
+                        break;
+                    }
+                    h += 1;
                     let op = if op.as_str() == "-" {
                         UnOp::Neg
                     } else {
@@ -424,86 +494,72 @@ impl Builder {
                         span,
                     };
                 }
-                e
+                (e, h)
             }
             Rule::postfix => {
                 let mut it = p.into_inner();
-                let mut e = self.expr(it.next().expect("postfix has a primary"));
+                let (mut e, mut h) = self.expr_h(it.next().expect("postfix has a primary"));
                 for suffix in it {
                     let s_span = e.span.to(self.span(&suffix));
                     let inner = suffix.clone().into_inner().next().expect("suffix body");
-                    e = match suffix.as_rule() {
-                        Rule::field => Expr {
-                            kind: ExprKind::Field {
-                                expr: Box::new(e),
-                                field: self.ident(inner),
-                            },
-                            span: s_span,
+                    let (index, ih) = match suffix.as_rule() {
+                        Rule::field => (None, 0),
+                        _ => {
+                            let (i, ih) = self.expr_h(inner.clone());
+                            (Some(i), ih)
+                        }
+                    };
+                    if self.too_deep(1 + h.max(ih), self.span(&suffix)) {
+                        break;
+                    }
+                    h = 1 + h.max(ih);
+                    let expr = Box::new(e);
+                    let kind = match index {
+                        None => ExprKind::Field {
+                            expr,
+                            field: self.ident(inner),
                         },
-                        _ => Expr {
-                            kind: ExprKind::Index {
-                                expr: Box::new(e),
-                                index: Box::new(self.expr(inner)),
-                            },
-                            span: s_span,
+                        Some(i) => ExprKind::Index {
+                            expr,
+                            index: Box::new(i),
                         },
                     };
+                    e = Expr { kind, span: s_span };
                 }
-                e
+                (e, h)
             }
             Rule::quantity => {
                 let mut it = p.into_inner();
                 let n = it.next().expect("quantity has a number");
                 let u = it.next().expect("quantity has a unit");
-                Expr {
-                    kind: ExprKind::Number {
-                        value: parse_number(n.as_str()),
-                        unit: Some((u.as_str().to_string(), self.span(&u))),
-                    },
-                    span,
-                }
+                leaf(ExprKind::Number {
+                    value: parse_number(n.as_str()),
+                    unit: Some((u.as_str().to_string(), self.span(&u))),
+                })
             }
-            Rule::number => Expr {
-                kind: ExprKind::Number {
-                    value: parse_number(p.as_str()),
-                    unit: None,
-                },
-                span,
-            },
-            Rule::kw_true => Expr {
-                kind: ExprKind::Bool(true),
-                span,
-            },
-            Rule::kw_false => Expr {
-                kind: ExprKind::Bool(false),
-                span,
-            },
-            Rule::string => Expr {
-                kind: ExprKind::Str(self.string(p).value),
-                span,
-            },
-            Rule::ident => Expr {
-                kind: ExprKind::Var(p.as_str().to_string()),
-                span,
-            },
+            Rule::number => leaf(ExprKind::Number {
+                value: parse_number(p.as_str()),
+                unit: None,
+            }),
+            Rule::kw_true => leaf(ExprKind::Bool(true)),
+            Rule::kw_false => leaf(ExprKind::Bool(false)),
+            Rule::string => leaf(ExprKind::Str(self.string(p).value)),
+            Rule::ident => leaf(ExprKind::Var(p.as_str().to_string())),
             Rule::paren => {
-                let mut items: Vec<Expr> = p.into_inner().map(|e| self.expr(e)).collect();
+                let (mut items, h) = self.exprs_h(p.into_inner());
                 if items.len() == 1 {
                     // Parentheses only group; keep the outer span for diagnostics.
                     let mut e = items.remove(0);
                     e.span = span;
-                    e
+                    (e, h)
                 } else {
-                    Expr {
-                        kind: ExprKind::Point(items),
-                        span,
-                    }
+                    self.node(ExprKind::Point(items), span, h + 1)
                 }
             }
-            Rule::list => Expr {
-                kind: ExprKind::List(p.into_inner().map(|e| self.expr(e)).collect()),
-                span,
-            },
+            Rule::list => {
+                let (items, h) = self.exprs_h(p.into_inner());
+                self.node(ExprKind::List(items), span, h + 1)
+            }
             Rule::call => {
                 let mut it = p.into_inner();
                 let callee = it.next().expect("call has a callee");
@@ -511,53 +567,78 @@ impl Builder {
                     name: callee.as_str().to_string(),
                     span: self.span(&callee),
                 };
-                let args = self.args(it.next().expect("call has arguments"));
-                Expr {
-                    kind: ExprKind::Call { callee, args },
-                    span,
-                }
+                let (args, h) = self.args(it.next().expect("call has arguments"));
+                self.node(ExprKind::Call { callee, args }, span, h + 1)
             }
             Rule::profile_expr => {
                 let mut it = p.into_inner().filter(|c| c.as_rule() != Rule::kw_profile);
                 let kind = self.ident(it.next().expect("profile has a kind"));
                 let mut args = Vec::new();
                 let mut flags = Vec::new();
+                let mut h = 0;
                 for c in it {
                     match c.as_rule() {
-                        Rule::call_args => args = self.args(c),
+                        Rule::call_args => (args, h) = self.args(c),
                         Rule::profile_flag => flags.push(self.ident(c)),
-                        _ => args.push(Arg {
-                            name: None,
-                            value: self.expr(c),
-                        }),
+                        _ => {
+                            let (value, vh) = self.expr_h(c);
+                            h = vh;
+                            args.push(Arg { name: None, value });
+                        }
                     }
                 }
-                Expr {
-                    kind: ExprKind::Profile { kind, args, flags },
-                    span,
-                }
+                self.node(ExprKind::Profile { kind, args, flags }, span, h + 1)
             }
             other => unreachable!("not an expression rule: {other:?}"),
         }
     }
 
-    fn args(&self, p: P) -> Vec<Arg> {
-        p.into_inner()
+    /// A node holding other expressions, `height` levels high; a placeholder when that is too
+    /// deep (the error is recorded, and the tree must not grow past the limit meanwhile).
+    fn node(&self, kind: ExprKind, span: Span, height: usize) -> (Expr, usize) {
+        if self.too_deep(height, span) {
+            return (
+                Expr {
+                    kind: ExprKind::Bool(false),
+                    span,
+                },
+                1,
+            );
+        }
+        (Expr { kind, span }, height)
+    }
+
+    /// The expressions and the greatest of their heights.
+    fn exprs_h<'a>(&self, items: impl Iterator<Item = P<'a>>) -> (Vec<Expr>, usize) {
+        let mut h = 0;
+        let v = items
+            .map(|p| {
+                let (e, eh) = self.expr_h(p);
+                h = h.max(eh);
+                e
+            })
+            .collect();
+        (v, h)
+    }
+
+    /// The arguments and the greatest of their heights.
+    fn args(&self, p: P) -> (Vec<Arg>, usize) {
+        let mut h = 0;
+        let args = p
+            .into_inner()
             .map(|a| {
                 let mut it = a.into_inner();
                 let first = it.next().expect("arg has content");
-                match it.next() {
-                    Some(value) => Arg {
-                        name: Some(self.ident(first)),
-                        value: self.expr(value),
-                    },
-                    None => Arg {
-                        name: None,
-                        value: self.expr(first),
-                    },
-                }
+                let (name, value) = match it.next() {
+                    Some(value) => (Some(self.ident(first)), value),
+                    None => (None, first),
+                };
+                let (value, vh) = self.expr_h(value);
+                h = h.max(vh);
+                Arg { name, value }
             })
-            .collect()
+            .collect();
+        (args, h)
     }
 }
 
@@ -773,109 +854,4 @@ fn syntax_error(e: pest::error::Error<Rule>, text: &str, base: usize) -> ParseEr
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn parse(src: &str) -> Module {
-        parse_recipe(src, crate::FileId(0), 0).unwrap_or_else(|e| panic!("{e:?}"))
-    }
-
-    #[test]
-    fn sketch_from_the_brief_parses() {
-        let m = parse(
-            "machine xy_table
-             limits { x: v 200 mm/s, a 2 m/s^2; y: v 200 mm/s, a 2 m/s^2 }
-             let pitch = 0.2 mm
-             let part = profile polyline [(0, 0), (40 mm, 0), (40 mm, 20 mm), (0, 20 mm)] closed
-             let path = offset(part, 1.5 mm)
-             laser { power 40 W, spot 50 um }
-             follow path at 20 mm/s
-             for i in 0..3 { move to (0, i * pitch) rapid }",
-        );
-        assert_eq!(m.stmts.len(), 8);
-        match &m.stmts[1].kind {
-            StmtKind::Limits(g) => {
-                assert_eq!(g.len(), 2);
-                assert_eq!(g[0].axis.name, "x");
-                assert_eq!(g[0].settings[1].key.name, "a");
-            }
-            k => panic!("{k:?}"),
-        }
-        match &m.stmts[3].kind {
-            StmtKind::Let { value, .. } => match &value.kind {
-                ExprKind::Profile { kind, args, flags } => {
-                    assert_eq!(kind.name, "polyline");
-                    assert_eq!(args.len(), 1);
-                    assert_eq!(flags[0].name, "closed");
-                }
-                k => panic!("{k:?}"),
-            },
-            k => panic!("{k:?}"),
-        }
-    }
-
-    #[test]
-    fn a_unit_must_share_the_line_with_its_number() {
-        let m = parse("let n = 3\nlaser { power 40 W }");
-        assert_eq!(m.stmts.len(), 2);
-        match &m.stmts[0].kind {
-            StmtKind::Let { value, .. } => {
-                assert_eq!(
-                    value.kind,
-                    ExprKind::Number {
-                        value: 3.0,
-                        unit: None
-                    }
-                )
-            }
-            k => panic!("{k:?}"),
-        }
-    }
-
-    #[test]
-    fn precedence_and_spans() {
-        let m = parse("let x = 1 mm + 2 mm * 3");
-        let StmtKind::Let { value, .. } = &m.stmts[0].kind else {
-            panic!()
-        };
-        let ExprKind::Binary { op, rhs, .. } = &value.kind else {
-            panic!()
-        };
-        assert_eq!(*op, BinOp::Add);
-        assert_eq!((rhs.span.start, rhs.span.end), (15, 23));
-    }
-
-    #[test]
-    fn brackets_nested_too_deep_are_refused_at_the_first_one() {
-        let n = MAX_NESTING as usize;
-        let ok = format!("let y = {}1{}", "(".repeat(n), ")".repeat(n));
-        assert!(parse_recipe(&ok, crate::FileId(0), 0).is_ok());
-        let deep = format!("let y = {}1{}", "(".repeat(n + 5), ")".repeat(n + 5));
-        let e = parse_recipe(&deep, crate::FileId(0), 10).unwrap_err();
-        let ParseError::Syntax { message, span, .. } = e else {
-            panic!()
-        };
-        assert!(message.contains("nest more than 128"), "{message}");
-        assert_eq!(span.start as usize, 10 + 8 + n);
-        // Brackets in strings and comments do not count.
-        let quoted = format!("let s = \"{}\" // {}", "(".repeat(n + 1), "[".repeat(n + 1));
-        assert!(brackets(&quoted).too_deep.is_none());
-    }
-
-    #[test]
-    fn syntax_errors_name_what_was_expected() {
-        let e = parse_recipe("let = 3", crate::FileId(0), 0).unwrap_err();
-        let ParseError::Syntax { message, span, .. } = e else {
-            panic!()
-        };
-        assert!(message.contains("expected a name"), "{message}");
-        assert_eq!(span.start, 4);
-    }
-
-    #[test]
-    fn incomplete_input_is_detected() {
-        assert!(is_incomplete("fn f() {"));
-        assert!(is_incomplete("let a = [1,"));
-        assert!(!is_incomplete("let a = [1, 2] // [ "));
-    }
-}
+mod tests;

@@ -431,7 +431,7 @@ pub const FOLLOW_SETTINGS: &[SettingSpec] = &[
         L,
         "Scan step on machines that orient the beam: the path is resampled at this constant \
          arc length (shortened until the chord error is within the planner's `tolerance`), \
-         one pose per point (default: `planner { step }`, else 1 mm).",
+         one pose per point (default: the planner's `step`, else 1 mm).",
     ),
 ];
 

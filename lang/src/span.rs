@@ -55,6 +55,12 @@ struct SourceFile {
     name: String,
     text: String,
     base: usize,
+    /// Byte offset of each line's first byte, so [`SourceMap::locate`] takes a binary search
+    /// instead of a scan from the start of the file (emitting locates every op: a scan made
+    /// a large recipe's emit quadratic).
+    line_starts: Vec<usize>,
+    /// Whether the text is ASCII: then a column is a byte difference, not a count of chars.
+    ascii: bool,
 }
 
 /// All source text of one recipe: the main file and its imports.
@@ -83,10 +89,16 @@ impl SourceMap {
             .last()
             .map(|f| f.base + f.text.len() + 1)
             .unwrap_or(0);
+        let text: String = text.into();
+        let line_starts = std::iter::once(0)
+            .chain(text.match_indices('\n').map(|(i, _)| i + 1))
+            .collect();
         self.files.push(SourceFile {
             name: name.into(),
-            text: text.into(),
+            ascii: text.is_ascii(),
+            text,
             base,
+            line_starts,
         });
         FileId(self.files.len() as u32 - 1)
     }
@@ -144,14 +156,16 @@ impl SourceMap {
         let id = self.file_of(span.start as usize)?;
         let f = &self.files[id.0 as usize];
         let local = span.start as usize - f.base;
-        let before = &f.text[..local.min(f.text.len())];
-        let line = before.matches('\n').count() + 1;
-        let col = before
-            .rsplit('\n')
-            .next()
-            .map(|l| l.chars().count())
-            .unwrap_or(0)
-            + 1;
+        let local = local.min(f.text.len());
+        let line = f.line_starts.partition_point(|&start| start <= local);
+        let line_start = f.line_starts[line - 1];
+        let col = if f.ascii {
+            local - line_start
+        } else {
+            f.text
+                .get(line_start..local)
+                .map_or(local - line_start, |l| l.chars().count())
+        } + 1;
         Some((id, LineCol { line, col }))
     }
 
@@ -176,6 +190,9 @@ impl SourceCode for SourceMap {
             .ok_or(miette::MietteError::OutOfBounds)?;
         let f = &self.files[id.0 as usize];
         let local = SourceSpan::new((span.offset() - f.base).into(), span.len());
+        if let Some(window) = long_line_window(f, local.offset(), local.len()) {
+            return Ok(window);
+        }
         let inner = f
             .text
             .read_span(&local, context_lines_before, context_lines_after)?;
@@ -190,5 +207,91 @@ impl SourceCode for SourceMap {
             inner.column(),
             inner.line_count(),
         )))
+    }
+}
+
+/// How many bytes of a line a diagnostic shows. A generated recipe may hold a whole program on
+/// one line; shown whole, it floods the terminal, and a label thousands of columns in is more
+/// than the renderer can pad (it panics past 65 535).
+const MAX_SHOWN_LINE: usize = 160;
+
+/// For a span on (or next to) a line longer than [`MAX_SHOWN_LINE`]: that part of its line
+/// around the span's start, without context lines, still numbered by its true line and column.
+fn long_line_window<'a>(
+    f: &'a SourceFile,
+    start: usize,
+    len: usize,
+) -> Option<Box<dyn SpanContents<'a> + 'a>> {
+    let text = &f.text;
+    let start = start.min(text.len());
+    let line_start = text[..start].rfind('\n').map_or(0, |i| i + 1);
+    let line_end = text[start..].find('\n').map_or(text.len(), |i| start + i);
+    // A long neighbour would be shown as context: that counts as long too.
+    let prev = text[..line_start.saturating_sub(1)]
+        .rfind('\n')
+        .map_or(0, |i| i + 1);
+    let next_end = text[(line_end + 1).min(text.len())..]
+        .find('\n')
+        .map_or(text.len(), |i| line_end + 1 + i);
+    if line_end - line_start <= MAX_SHOWN_LINE
+        && line_start.saturating_sub(prev) <= MAX_SHOWN_LINE + 1
+        && next_end.saturating_sub(line_end) <= MAX_SHOWN_LINE + 1
+    {
+        return None;
+    }
+    let floor = |mut i: usize| {
+        while !text.is_char_boundary(i) {
+            i -= 1;
+        }
+        i
+    };
+    let from = floor(start.saturating_sub(MAX_SHOWN_LINE / 4).max(line_start));
+    let to = floor(
+        (from + MAX_SHOWN_LINE)
+            .min(line_end)
+            .max(start + len.min(MAX_SHOWN_LINE)),
+    )
+    .min(line_end);
+    let line = f.line_starts.partition_point(|&l| l <= line_start) - 1;
+    // miette takes the header's `line:col` from these: the span's own column, not the window's.
+    let column = text[line_start..start].chars().count();
+    Some(Box::new(MietteSpanContents::new_named(
+        f.name.clone(),
+        &text.as_bytes()[from..to],
+        SourceSpan::new((f.base + from).into(), to - from),
+        line,
+        column,
+        1,
+    )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn locate_counts_lines_and_characters() {
+        let mut map = SourceMap::new();
+        let a = map.add("a.lase", "ab\ncd\n\nµx y");
+        let b = map.add("b.lase", "one\ntwo");
+        let at = |file, local: usize| {
+            let s = map.base(file) + local;
+            map.locate(Span::new(s, s))
+                .map(|(f, lc)| (f, lc.line, lc.col))
+        };
+        assert_eq!(at(a, 0), Some((a, 1, 1)));
+        assert_eq!(at(a, 2), Some((a, 1, 3)));
+        assert_eq!(at(a, 3), Some((a, 2, 1)));
+        assert_eq!(at(a, 6), Some((a, 3, 1)));
+        // `µ` is two bytes and one column.
+        assert_eq!(at(a, 10), Some((a, 4, 3)));
+        assert_eq!(at(a, 11), Some((a, 4, 4)));
+        // The end of the file is a position too.
+        assert_eq!(at(a, 12), Some((a, 4, 5)));
+        assert_eq!(at(b, 5), Some((b, 2, 2)));
+        assert_eq!(
+            map.describe(Span::new(map.base(b) + 7, map.base(b) + 7)),
+            "b.lase:2:4"
+        );
     }
 }
