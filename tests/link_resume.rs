@@ -284,7 +284,8 @@ fn without_journal_the_journal_goes_to_the_state_directory_and_resume_finds_it()
     let mut sims = Vec::new();
     for r in [&ra, &rb] {
         let sim = dropping();
-        let (code, _, err) = lase_state(&state, &["run", r.to_str().unwrap(), "--link", &url(&sim)]);
+        let (code, _, err) =
+            lase_state(&state, &["run", r.to_str().unwrap(), "--link", &url(&sim)]);
         assert_eq!(code, 1, "{err}");
         // Nothing beside the recipe; the output says where the journal is.
         let beside: Vec<_> = std::fs::read_dir(r.parent().unwrap()).unwrap().collect();

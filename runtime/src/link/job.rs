@@ -432,7 +432,10 @@ mod journal_place_tests {
         assert_eq!(journal_dir(None, None), None);
         let a = journal_name(Path::new("/a/frame.lase"));
         let b = journal_name(Path::new("/b/frame.lase"));
-        assert!(a.starts_with("frame.lase-") && a.ends_with(".journal"), "{a}");
+        assert!(
+            a.starts_with("frame.lase-") && a.ends_with(".journal"),
+            "{a}"
+        );
         assert_ne!(a, b);
         assert_eq!(a, journal_name(Path::new("/a/frame.lase")));
     }

@@ -8,8 +8,9 @@
 //! block with axis words does not: in laser mode it is passed to the planner with the block and
 //! changes power as that block starts. And a block whose motion mode is not G1/G2/G3 (a `G0`)
 //! runs with the laser off whatever `M3`/`M4` and `S` say (gcode.c sets
-//! `GC_PARSER_LASER_DISABLE`, so the block is planned at spindle speed 0). A standalone `S`
-//! line, by contrast, syncs. So a post *flies* when its beam can be driven by S words alone:
+//! `GC_PARSER_LASER_DISABLE`, so the block is planned at spindle speed 0; grblHAL's core
+//! gcode.c decides the same with `motion_is_lasercut`). A standalone `S` line, by contrast,
+//! syncs. So a post *flies* when its beam can be driven by S words alone:
 //! the laser is armed once with `M3 S0`/`M4 S0` at rest, every feed move carries its power
 //! (`S0` when unlit), and `M5` comes only at the end. Switching between `M3` (constant power)
 //! and `M4` (power scaled with speed) is a spindle state change, so it re-arms at a planned
