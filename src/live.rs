@@ -33,15 +33,17 @@ pub struct RunArgs {
     pub link: Option<String>,
     pub dialect: Option<String>,
     pub journal: Option<PathBuf>,
-    pub resume: Option<PathBuf>,
+    /// `--resume JOURNAL`; `Some(None)`: `--resume` alone, the recipe's own journal.
+    pub resume: Option<Option<PathBuf>>,
     pub resume_at: Option<usize>,
     pub check: bool,
     pub send_response: bool,
     pub rx_buffer: Option<usize>,
 }
 
-/// The journal of a new job: `--journal`, else beside the recipe (`frame.lase.journal`),
-/// else in the temporary directory when the recipe's folder is not writable. The in-process
+/// The journal of a new job: `--journal`, else the recipe's own in the user's state
+/// directory (`link::job::journal_dir`, named by `journal_name`), else in the temporary
+/// directory when there is no state directory or it cannot be created. The in-process
 /// simulator keeps none unless asked: its machine ends with the process, so there is
 /// nothing to resume.
 fn journal_path(args: &RunArgs, recipe: &Path, url: &LinkUrl) -> Option<PathBuf> {
@@ -51,24 +53,53 @@ fn journal_path(args: &RunArgs, recipe: &Path, url: &LinkUrl) -> Option<PathBuf>
     if matches!(url, LinkUrl::Sim(_)) {
         return None;
     }
-    let name = format!(
-        "{}.journal",
-        recipe
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "job".into())
-    );
-    let beside = recipe.with_file_name(&name);
-    let dir = beside
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let writable = tempfile::NamedTempFile::new_in(dir).is_ok();
-    Some(if writable {
-        beside
-    } else {
-        std::env::temp_dir().join(name)
-    })
+    let name = job::journal_name(&canonical(recipe));
+    let dir = state_journal_dir().filter(|d| std::fs::create_dir_all(d).is_ok());
+    Some(dir.unwrap_or_else(std::env::temp_dir).join(name))
+}
+
+/// The state directory's journal folder for this user (not created).
+fn state_journal_dir() -> Option<PathBuf> {
+    job::journal_dir(
+        std::env::var_os("XDG_STATE_HOME").as_deref(),
+        std::env::var_os("HOME").as_deref(),
+    )
+}
+
+/// The recipe's full path: what its journal is named by and what the journal records.
+fn canonical(recipe: &Path) -> PathBuf {
+    std::fs::canonicalize(recipe).unwrap_or_else(|_| recipe.to_path_buf())
+}
+
+/// The journal `--resume` means: the one given, or with `--resume` alone the recipe's own
+/// (where a run without `--journal` kept it).
+fn resume_path(args: &RunArgs) -> Result<Option<PathBuf>, (SourceMap, Failure)> {
+    match &args.resume {
+        None => Ok(None),
+        Some(Some(p)) => Ok(Some(p.clone())),
+        Some(None) => {
+            let Some(file) = &args.file else {
+                return Err(io_fail(
+                    "--resume without a journal needs the recipe: `lase run FILE --resume`, or `lase run --resume JOURNAL`".into(),
+                ));
+            };
+            let name = job::journal_name(&canonical(file));
+            let found = [state_journal_dir(), Some(std::env::temp_dir())]
+                .into_iter()
+                .flatten()
+                .map(|d| d.join(&name))
+                .find(|p| p.exists());
+            found.map(Some).ok_or_else(|| {
+                io_fail(format!(
+                    "no journal of {} to resume (looked for {name} in {}); give it with --resume JOURNAL",
+                    file.display(),
+                    state_journal_dir()
+                        .map(|d| d.display().to_string())
+                        .unwrap_or_else(|| "the state directory (HOME is not set)".into())
+                ))
+            })
+        }
+    }
 }
 
 /// `lase run`: the recipe compiled, the link opened, then `link::job`'s sequence (preflight →
@@ -76,7 +107,8 @@ fn journal_path(args: &RunArgs, recipe: &Path, url: &LinkUrl) -> Option<PathBuf>
 /// journal, and what the operator sees.
 pub fn cmd_run(args: RunArgs) -> CmdResult {
     // A resumed job names its recipe, link and dialect in the journal.
-    let resumed = read_resumed(&args)?;
+    let resume = resume_path(&args)?;
+    let resumed = read_resumed(resume.as_deref())?;
     let file: PathBuf = match (&args.file, &resumed) {
         (Some(f), _) => f.clone(),
         (None, Some(st)) => PathBuf::from(&st.header.recipe),
@@ -94,7 +126,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
     let nc = nc_lines(&recipe, &job, dialect)?;
     let lines = JobLines::new(&job, &nc, dialect);
-    let origin = match (resumed, &args.resume) {
+    let origin = match (resumed, &resume) {
         (Some(st), Some(path)) => Origin::resume(
             &lines,
             path.clone(),
@@ -139,8 +171,8 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
 }
 
 /// The journal `--resume` names, read; a job that ended has nothing to resume.
-fn read_resumed(args: &RunArgs) -> Result<Option<journal::State>, (SourceMap, Failure)> {
-    let Some(path) = &args.resume else {
+fn read_resumed(path: Option<&Path>) -> Result<Option<journal::State>, (SourceMap, Failure)> {
+    let Some(path) = path else {
         return Ok(None);
     };
     let st = journal::read(path).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
@@ -185,7 +217,7 @@ fn run_dialect(
 /// naming the recipe by its full path so that `--resume` finds it from anywhere.
 fn new_journal(args: &RunArgs, file: &Path, url: &LinkUrl) -> Option<NewJournal> {
     let path = journal_path(args, file, url)?;
-    let recipe = std::fs::canonicalize(file).unwrap_or_else(|_| file.to_path_buf());
+    let recipe = canonical(file);
     Some(NewJournal {
         path,
         recipe: recipe.display().to_string(),

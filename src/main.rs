@@ -68,8 +68,10 @@ enum Command {
     ///
     /// Links: `sim` (in-process simulated GRBL/grblHAL controller, the default; options as a query:
     /// `sim://?time-scale=real&baud=115200`), `tcp://HOST:PORT`, `serial:///dev/ttyUSB0?baud=115200`.
-    /// Over tcp and serial a journal records every line sent and acknowledged (default: beside
-    /// the recipe, `FILE.journal`); after a dropped link, `--resume JOURNAL` continues the job.
+    /// Over tcp and serial a journal records every line sent and acknowledged (default: in the
+    /// user's state directory, `$XDG_STATE_HOME/lase/journals/` or
+    /// `~/.local/state/lase/journals/`, one file per recipe path; the run prints where); after
+    /// a dropped link, `lase run FILE --resume` (or `--resume JOURNAL`) continues the job.
     Run {
         /// The recipe (optional with --resume: the journal names it).
         file: Option<PathBuf>,
@@ -80,12 +82,14 @@ enum Command {
         /// G93); default: grbl, or grblhal when the machine has axes beyond X, Y, Z.
         #[arg(long)]
         dialect: Option<String>,
-        /// Job journal file (default: beside the recipe for tcp and serial links).
+        /// Job journal file (default for tcp and serial links: the recipe's own in
+        /// `$XDG_STATE_HOME/lase/journals/`, else `~/.local/state/lase/journals/`).
         #[arg(long)]
         journal: Option<PathBuf>,
-        /// Continue the job recorded in this journal after a dropped link.
-        #[arg(long, value_name = "JOURNAL")]
-        resume: Option<PathBuf>,
+        /// Continue the job recorded in this journal after a dropped link; without a value,
+        /// the recipe's own journal in the state directory (`lase run FILE --resume`).
+        #[arg(long, value_name = "JOURNAL", num_args = 0..=1)]
+        resume: Option<Option<PathBuf>>,
         /// With --resume: the number of lines that ran, when the controller's state cannot tell.
         #[arg(long, value_name = "N", requires = "resume")]
         resume_at: Option<usize>,

@@ -234,3 +234,90 @@ fn without_reruns(
     }
     out
 }
+
+/// `lase run` with env `XDG_STATE_HOME=state` (and `HOME` elsewhere, so nothing of the user's
+/// is touched), from the repository root.
+fn lase_state(state: &std::path::Path, args: &[&str]) -> (i32, String, String) {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lase"))
+        .args(args)
+        .current_dir(root())
+        .env("NO_COLOR", "1")
+        .env("XDG_STATE_HOME", state)
+        .env("HOME", state.join("home"))
+        .output()
+        .expect("the lase binary runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn without_journal_the_journal_goes_to_the_state_directory_and_resume_finds_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let state = dir.path().join("state");
+    // Two recipes with the same file name in different folders.
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    std::fs::create_dir_all(&a).unwrap();
+    std::fs::create_dir_all(&b).unwrap();
+    let (ra, rb) = (a.join("job.lase"), b.join("job.lase"));
+    for r in [&ra, &rb] {
+        std::fs::copy(root().join("examples/frame_marking.lase"), r).unwrap();
+    }
+    let c = compile(&ra);
+    let dropping = || {
+        sim_for(
+            &c.job,
+            SimOptions {
+                time_scale: TimeScale::Max,
+                faults: Faults {
+                    drop_after_lines: vec![12],
+                    ..Faults::default()
+                },
+                ..SimOptions::default()
+            },
+        )
+    };
+    let journals = state.join("lase/journals");
+    let mut paths = Vec::new();
+    let mut sims = Vec::new();
+    for r in [&ra, &rb] {
+        let sim = dropping();
+        let (code, _, err) =
+            lase_state(&state, &["run", r.to_str().unwrap(), "--link", &url(&sim)]);
+        assert_eq!(code, 1, "{err}");
+        // Nothing beside the recipe; the output says where the journal is.
+        let beside: Vec<_> = std::fs::read_dir(r.parent().unwrap()).unwrap().collect();
+        assert_eq!(beside.len(), 1, "only the recipe in its folder");
+        let listed: Vec<_> = std::fs::read_dir(&journals)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| !paths.contains(p))
+            .collect();
+        assert_eq!(listed.len(), 1, "one new journal per recipe: {listed:?}");
+        let j = &listed[0];
+        assert!(err.contains(&format!("journal {}", j.display())), "{err}");
+        assert!(err.contains("--resume"), "{err}");
+        paths.push(j.clone());
+        sims.push(sim);
+    }
+    assert_ne!(paths[0], paths[1]);
+    // `lase run FILE --resume` finds the recipe's own journal (which names the link) and
+    // finishes the job on the controller that lost it.
+    let (code, _, err) = lase_state(&state, &["run", rb.to_str().unwrap(), "--resume"]);
+    assert_eq!(code, 0, "{err}");
+    let done = lase_runtime::link::journal::read(&paths[1]).unwrap();
+    assert_eq!(done.end.as_deref(), Some("done"));
+    let open = lase_runtime::link::journal::read(&paths[0]).unwrap();
+    assert_eq!(open.end, None, "the other recipe's journal is untouched");
+    for sim in sims {
+        sim.stop();
+    }
+    // No journal for a recipe that never ran: a clear refusal.
+    let other = dir.path().join("never.lase");
+    std::fs::copy(root().join("examples/frame_marking.lase"), &other).unwrap();
+    let (code, _, err) = lase_state(&state, &["run", other.to_str().unwrap(), "--resume"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("no journal of"), "{err}");
+}

@@ -31,11 +31,14 @@ fn machine(name: &str) -> Machine {
 }
 
 /// Reads a LinuxCNC or grblHAL program back into blocks (LinuxCNC: M62/M63 switch the beam at
-/// the next motion; grblHAL: M3/M4 and M5 in laser mode, without a stop).
+/// the next motion; grblHAL in laser mode: armed by M3/M4, lit on a G1/G2/G3 block while the
+/// S in force is above 0, dark in G0, off after M5).
 fn blocks(ngc: &str, m: &Machine) -> Vec<Block> {
     let mut q = Axes::ZERO;
     let mut g93 = false;
     let mut lit = false;
+    // grblHAL: the spindle armed, the S in force and whether the motion mode cuts.
+    let (mut armed, mut s, mut feed) = (false, None::<f64>, false);
     let mut out = Vec::new();
     for line in ngc.lines() {
         let w = nc_words(line);
@@ -43,10 +46,19 @@ fn blocks(ngc: &str, m: &Machine) -> Vec<Block> {
             match (c, v as i32) {
                 ('G', 93) => g93 = true,
                 ('G', 94) => g93 = false,
-                ('M', 62) | ('M', 3) | ('M', 4) => lit = true,
-                ('M', 63) | ('M', 65) | ('M', 5) => lit = false,
+                ('M', 62) => lit = true,
+                ('M', 63) | ('M', 65) => lit = false,
+                ('M', 3) | ('M', 4) => armed = true,
+                ('M', 5) => armed = false,
+                ('S', _) => s = Some(v),
+                ('G', 0) => feed = false,
+                ('G', 1..=3) => feed = true,
                 _ => {}
             }
+        }
+        if let Some(s) = s {
+            // A grblHAL program (LinuxCNC's has no S words).
+            lit = armed && feed && s > 0.0;
         }
         let mut moved = false;
         let prev = q;

@@ -12,7 +12,9 @@
 //! Before lowering, [`leadin`] adds lead-ins and lead-outs around every lit section (PROCESS.md
 //! §4's transition points), so the beam is only on at the programmed speed; [`power`] computes
 //! the per-block power of a lit move whose power follows the speed (PROCESS.md §1, eq. 1).
+//! [`beam`] says which beam switches stop the machine, for this planner and the emitter alike.
 
+pub mod beam;
 pub mod leadin;
 pub mod power;
 
@@ -231,9 +233,10 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         lookahead: program.planner.lookahead,
         n_axes,
     };
-    // A machine whose beam switch needs rest (seed 4's M27) on any of its posts: plan for the
-    // strictest, so one plan serves every dialect.
-    let laser_switch_stops = program.machine.post.values().any(|p| p.laser_switch_stops);
+    // A machine whose beam switch needs rest on any of its posts (seed 4's M27, a GRBL post
+    // that switches with M3/M5): plan for the strictest, so one plan serves every dialect.
+    let switch_stops = beam::switch_stops(&program.ops, &program.machine.post);
+    let laser_switch_stops = switch_stops.every_switch;
     let led = leadin::add_leads(
         program.start,
         &program.ops,
@@ -247,6 +250,8 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         },
     )?;
     program.ops = led.ops;
+    // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
+    let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;
     let mut moves: Vec<Move> = Vec::new();
     let mut initial_dwell_s = 0.0;
     let mut pos = program.start;
@@ -268,6 +273,10 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         let lit = op.laser().is_some();
         if op.target().is_some() && lit != lit_prev && laser_switch_stops {
             // The machine switches the beam with an M-function that needs it at rest (§4).
+            stop_here(&mut moves, &mut initial_dwell_s, 0.0);
+        }
+        if arm_stops.binary_search(&i).is_ok() {
+            // GRBL re-arms the laser (M3/M4 S0) before this op: a synced spindle change.
             stop_here(&mut moves, &mut initial_dwell_s, 0.0);
         }
         match &op.kind {

@@ -253,7 +253,9 @@ fn emitted_sub_block_power_is_the_plans_time_mean() {
 fn grbl_uses_dynamic_mode_instead_of_sub_blocks() {
     let coupled = emit_to_string(&job(RECT), Dialect::Grbl).unwrap();
     let plain = emit_to_string(&job(&RECT.replace(", couple speed", "")), Dialect::Grbl).unwrap();
-    assert!(coupled.contains("M4 S400"), "{coupled}");
+    // Armed with M4 at rest; the power rides on the blocks (GRBL syncs M3/M4/M5).
+    assert!(coupled.lines().any(|l| l == "M4 S0"), "{coupled}");
+    assert!(coupled.lines().any(|l| l.ends_with(" S400")), "{coupled}");
     assert!(!coupled.lines().any(|l| l.starts_with("M3")));
     assert_eq!(
         coupled

@@ -19,7 +19,7 @@ use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
 use crate::axes::{self, Axes, MAX_AXES};
 use crate::machine::AxisKind;
-use crate::motion::{Job, arc_sweep, power};
+use crate::motion::{Job, arc_sweep, beam, power};
 use crate::program::{Coupling, Op, OpKind, P3};
 use std::io;
 
@@ -83,6 +83,8 @@ struct Modal {
     q: Axes,
     laser_on: bool,
     power_w: f64,
+    /// The S word in force (GRBL family): the last one written, `None` when unknown.
+    s: Option<String>,
     /// Last traceability comment.
     location: String,
     /// Feed moves are in inverse time (G93): on machines whose moves mix linear and rotary
@@ -133,6 +135,29 @@ pub(super) fn write(
         out.put(&format!("G64 P{p}"), None)?;
     }
 
+    // GRBL family: the beam flies on S words where the post allows (`motion::beam`); the
+    // arms are where it is switched on with M3/M4 S0, each at rest.
+    let flying = dialect.is_grbl_family() && beam::flies(post);
+    let arms = if flying {
+        beam::arms(&program.ops, post)
+    } else {
+        Vec::new()
+    };
+    let arm_line = |dynamic: bool| {
+        let line = format::fill(&post.laser_on[0], words(0.0));
+        if dynamic {
+            self::dynamic(dialect, &line)
+        } else {
+            line
+        }
+    };
+    let s_word = |power_w: f64| format::fill(&post.power[0], words(power_w));
+    let header_arm = arms.first().filter(|a| a.before.is_none());
+    if let Some(a) = header_arm {
+        // The first arm, in the header: the machine is at rest here anyway.
+        out.put(&arm_line(a.dynamic), None)?;
+    }
+
     let mut m = Modal {
         motion: None,
         feed: None,
@@ -141,6 +166,7 @@ pub(super) fn write(
         q: job.start,
         laser_on: false,
         power_w: 0.0,
+        s: header_arm.map(|_| s_word(0.0)),
         location: String::new(),
         inverse_time: false,
     };
@@ -194,8 +220,17 @@ pub(super) fn write(
                     }
                 }
             }
-            OpKind::Fire { .. } => pulse::write_fire(op, &mut out, &gate, tag)?,
+            OpKind::Fire { .. } => {
+                pulse::write_fire(op, &mut out, &gate, tag)?;
+                // Its laser lines leave the S word where its last pulse put it.
+                m.s = None;
+            }
             OpKind::Rapid { .. } | OpKind::Line { .. } | OpKind::Arc { .. } => {
+                if let Some(a) = arms.iter().find(|a| a.before == Some(i)) {
+                    // A re-arm (M3 ↔ M4, or after a fire window): motion plans a stop here.
+                    out.put(&arm_line(a.dynamic), tag)?;
+                    m.s = Some(s_word(0.0));
+                }
                 if !moves(op, m.pos) {
                     continue;
                 }
@@ -208,7 +243,11 @@ pub(super) fn write(
                 train.pso(op, m.laser_on, &mut out, post, tag)?;
                 if let Some(laser) = op.laser() {
                     let first = blocks.first().map_or(laser.power_w, |b| b.power_w);
-                    if !m.laser_on {
+                    if flying {
+                        // Armed already: the S word on the block switches the beam.
+                        m.laser_on = true;
+                        m.power_w = laser.power_w;
+                    } else if !m.laser_on {
                         for t in &post.laser_on {
                             let line = format::fill(t, words(first));
                             out.put(
@@ -245,7 +284,19 @@ pub(super) fn write(
                 if let Some(pitch) = gated {
                     pulse::write_gated(ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag)?;
                 } else if blocks.is_empty() {
-                    let line = motion_line(op, job.op_axes[i], &mut m, machine, arc_axes);
+                    let mut line = motion_line(op, job.op_axes[i], &mut m, machine, arc_axes);
+                    if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
+                        // Every feed move carries its power, S0 when unlit: in laser mode an S
+                        // word on a G1/G2/G3 block changes power as the block starts, without
+                        // a stop. A G0 needs none: GRBL runs rapids with the laser off
+                        // (gcode.c: a block not in G1/G2/G3 is GC_PARSER_LASER_DISABLE'd).
+                        let s = s_word(op.laser().map_or(0.0, |l| l.power_w));
+                        if m.s.as_deref() != Some(s.as_str()) {
+                            line.push(' ');
+                            line.push_str(&s);
+                            m.s = Some(s);
+                        }
+                    }
                     out.put(&line, tag)?;
                     out.stats.motion_blocks += 1;
                 } else {
@@ -273,7 +324,10 @@ pub(super) fn write(
                         out.stats.motion_blocks += 1;
                     }
                 }
-                if m.laser_on && !next_move_lit(&ops[i + 1..], m.pos) {
+                if flying && m.laser_on && !next_move_lit(&ops[i + 1..], m.pos) {
+                    // No M5 (it would stop the table): the next feed move says S0.
+                    m.laser_on = false;
+                } else if m.laser_on && !next_move_lit(&ops[i + 1..], m.pos) {
                     for t in &post.laser_off {
                         out.put(&format::fill(t, words(0.0)), tag)?;
                     }

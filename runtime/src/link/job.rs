@@ -12,8 +12,10 @@
 //! 3. [`Started::stream`]: the lines go out through [`stream::stream`]; the caller's
 //!    observer sees progress and returns the operator's hold/resume/abort.
 //!
-//! The callers keep only what is theirs: where the journal lives, the progress display, the
-//! keys, and the wording of the outcome.
+//! Where a journal lives by default is decided here too ([`journal_dir`], [`journal_name`]:
+//! the user's state directory, one file per recipe path). The callers keep only what is
+//! theirs: which journal a command uses, the progress display, the keys, and the wording of
+//! the outcome.
 
 use super::journal::{self, Header, Journal};
 use super::modal::Tracker;
@@ -92,6 +94,38 @@ impl<'a> JobLines<'a> {
     fn hash(&self) -> u64 {
         journal::program_hash(self.lines.iter().map(String::as_str))
     }
+}
+
+/// The folder `lase run` keeps journals in when no path is given: the user's state directory,
+/// `$XDG_STATE_HOME/lase/journals`, else `$HOME/.local/state/lase/journals` (the XDG base
+/// directory default; a relative `XDG_STATE_HOME` is ignored, as the spec says). Not the
+/// recipe's folder: that is often a source tree, and a journal is the machine's record, not
+/// the recipe's. `None` when neither variable says where home is.
+pub fn journal_dir(
+    state_home: Option<&std::ffi::OsStr>,
+    home: Option<&std::ffi::OsStr>,
+) -> Option<PathBuf> {
+    let state = state_home
+        .map(PathBuf::from)
+        .filter(|p| p.is_absolute())
+        .or_else(|| {
+            home.map(PathBuf::from)
+                .filter(|p| !p.as_os_str().is_empty())
+                .map(|h| h.join(".local").join("state"))
+        })?;
+    Some(state.join("lase").join("journals"))
+}
+
+/// The journal file name of the recipe at `recipe` (its canonical path): the file name, then
+/// a hash of the whole path, so that two `frame.lase` in different folders keep two journals
+/// and the same recipe always finds its own again (`lase run FILE --resume`).
+pub fn journal_name(recipe: &Path) -> String {
+    let name = recipe
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "job".into());
+    let hash = journal::program_hash([recipe.to_string_lossy().as_ref()]);
+    format!("{name}-{hash:016x}.journal")
 }
 
 /// The journal of a job that starts from its first line.
@@ -381,4 +415,28 @@ pub fn check_mode(link: &mut dyn Link, job: &JobLines<'_>) -> Result<Report, Lin
     );
     let _ = link.set_check_mode(false);
     Ok(report)
+}
+
+#[cfg(test)]
+mod journal_place_tests {
+    use super::*;
+    use std::ffi::OsStr;
+
+    #[test]
+    fn journals_live_in_the_state_directory_one_per_recipe_path() {
+        let d = journal_dir(Some(OsStr::new("/s")), Some(OsStr::new("/h")));
+        assert_eq!(d, Some(PathBuf::from("/s/lase/journals")));
+        // A relative XDG_STATE_HOME is ignored; then HOME's default.
+        let d = journal_dir(Some(OsStr::new("rel")), Some(OsStr::new("/h")));
+        assert_eq!(d, Some(PathBuf::from("/h/.local/state/lase/journals")));
+        assert_eq!(journal_dir(None, None), None);
+        let a = journal_name(Path::new("/a/frame.lase"));
+        let b = journal_name(Path::new("/b/frame.lase"));
+        assert!(
+            a.starts_with("frame.lase-") && a.ends_with(".journal"),
+            "{a}"
+        );
+        assert_ne!(a, b);
+        assert_eq!(a, journal_name(Path::new("/a/frame.lase")));
+    }
 }

@@ -204,6 +204,10 @@ pub(super) fn write_gated(
         let line = motion_line(&sub, q, m, g.machine, g.arc_axes);
         if high != trigger {
             write_edge(out, g, high, power, line, tag)?;
+            if g.dialect.is_grbl_family() {
+                // The S word it wrote is in force now.
+                m.s = Some(grbl_s(g, if high { power } else { 0.0 }));
+            }
             trigger = high;
         } else {
             out.put(&line, tag)?;
@@ -224,6 +228,12 @@ pub(super) fn write_gated(
     Ok(())
 }
 
+/// The S word of `power_w` on a GRBL-family gate block.
+fn grbl_s(g: &Gate<'_>, power_w: f64) -> String {
+    let w = (g.words)(power_w);
+    format!("S{}", format::number(w.power_w / w.max_power_w * w.s_max))
+}
+
 /// A motion block with the trigger switched at its start.
 fn write_edge(
     out: &mut Out<'_>,
@@ -234,9 +244,8 @@ fn write_edge(
     tag: Option<u32>,
 ) -> io::Result<()> {
     if g.dialect.is_grbl_family() {
-        let w = (g.words)(if high { power_w } else { 0.0 });
-        let s = format::number(w.power_w / w.max_power_w * w.s_max);
-        return out.put(&format!("{line} S{s}"), tag);
+        let s = grbl_s(g, if high { power_w } else { 0.0 });
+        return out.put(&format!("{line} {s}"), tag);
     }
     let (lines, fallback) = if high {
         (&g.post.pulse_on, &g.post.laser_on)
