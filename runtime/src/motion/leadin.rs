@@ -197,6 +197,21 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op, o_lead)),
             None => {}
         }
+        // Positioning ops between that did not move the spot (a `follow`'s rapid to a start
+        // the machine is already at, with the beam turned by a rounding) stood where the move
+        // before ended; that is now the lead-in start. Left aiming at P0, one of them would
+        // carry the machine along the lead-in as a rapid, and the lead-in itself would be
+        // empty: the section would start from a rapid, not from the planned ramp.
+        for i in prev_move.map_or(0, |pm| pm + 1)..first {
+            if !moving[i]
+                && matches!(
+                    ops[i].kind,
+                    OpKind::Rapid { .. } | OpKind::Line { laser: None, .. }
+                )
+            {
+                ed.redirect[i] = Some((p_lead, o_lead));
+            }
+        }
         ed.before[first].push((
             Op {
                 kind: OpKind::Line {
