@@ -94,7 +94,7 @@ fn every_example_stays_within_its_measured_worst_per_axis_at_1_khz() {
             // The row of WORST this measurement gives: 4 significant digits, rounded up
             // (a ratio within REL of 1 is 1).
             let up = |x: f64| {
-                if x <= 1.0 + REL && x >= 1.0 - 1e-4 {
+                if (1.0 - 1e-4..=1.0 + REL).contains(&x) {
                     return "1.0".to_string();
                 }
                 let digits = (3.0 - x.log10().floor()).max(0.0) as usize;
