@@ -6,7 +6,9 @@ use std::process::Command;
 
 /// Runs LinuxCNC's `rs274 -g FILE`. The interpreter always prints what it executes, so a
 /// failure with no output at all is the process dying (seen once on a loaded CI machine), not
-/// a verdict on the program: it is asked again, up to twice.
+/// a verdict on the program; so is one killed by a signal (several `rs274` started at once
+/// sometimes die of SIGBUS right after printing `executing`, with the tests' parallel trials).
+/// Either is asked again, up to four times.
 pub fn rs274_g(file: &Path) -> std::io::Result<std::process::Output> {
     let run = || {
         Command::new("rs274")
@@ -16,8 +18,9 @@ pub fn rs274_g(file: &Path) -> std::io::Result<std::process::Output> {
             .output()
     };
     let mut out = run()?;
-    for _ in 0..2 {
-        if out.status.success() || !out.stdout.is_empty() || !out.stderr.is_empty() {
+    for _ in 0..4 {
+        let died = out.status.code().is_none();
+        if !died && (out.status.success() || !out.stdout.is_empty() || !out.stderr.is_empty()) {
             break;
         }
         out = run()?;
