@@ -41,6 +41,10 @@ fn main() {
             "thousands_of_errors_show_the_first_fifty_and_count_the_rest",
             thousands_of_errors_show_the_first_fifty_and_count_the_rest,
         ),
+        trial(
+            "an_immediate_linuxcnc_output_where_the_plan_flies_points_at_its_post_line",
+            an_immediate_linuxcnc_output_where_the_plan_flies_points_at_its_post_line,
+        ),
     ];
     trials.extend(per_file(
         "err",
@@ -129,6 +133,46 @@ fn machine_file_errors_point_into_the_toml() {
     assert_eq!(code, 1);
     assert!(err.contains("bad_machine.toml:9"), "{err}");
     assert!(err.contains("unknown unit `ss`"), "{err}");
+}
+
+/// LinuxCNC's M64/M65/M68 drain the motion queue: a post line with one where lase plans a
+/// flying beam switch (lead-ins of style b) is refused at `lase emit`, pointing at the line of
+/// the machine file; the same line where the plan stops there (`laser_switch_stops`) is fine.
+fn an_immediate_linuxcnc_output_where_the_plan_flies_points_at_its_post_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let stock = std::fs::read_to_string(root().join("stdlib/machines/xy_table.toml")).unwrap();
+    let flying = stock.replace(
+        "laser_on = [\"M67 E0 Q{pct}\", \"M62 P0\"]",
+        "laser_on = [\"M67 E0 Q{pct}\", \"M64 P0\"]",
+    );
+    assert_ne!(flying, stock, "xy_table's LinuxCNC laser_on is M67 + M62");
+    let line = flying.lines().position(|l| l.contains("M64 P0")).unwrap() + 1;
+    let at_rest = flying.replace(
+        "[post.linuxcnc]\n",
+        "[post.linuxcnc]\nlaser_switch_stops = true\n",
+    );
+    for (name, toml) in [("flying", &flying), ("at_rest", &at_rest)] {
+        std::fs::write(dir.path().join(format!("{name}.toml")), toml).unwrap();
+        std::fs::write(
+            dir.path().join(format!("{name}.lase")),
+            format!(
+                "machine \"{name}.toml\"\nlaser {{ power 10 W }}\n\
+                 follow profile polyline [(0, 0), (20 mm, 0)] at 20 mm/s\n"
+            ),
+        )
+        .unwrap();
+    }
+    let recipe = |n: &str| dir.path().join(n).to_string_lossy().into_owned();
+    let (code, _, err) = lase(&["emit", "--dialect", "linuxcnc", &recipe("flying.lase")]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("lase::emit::immediate_output"), "{err}");
+    assert!(err.contains(&format!("flying.toml:{line}:")), "{err}");
+    assert!(
+        err.contains("at 20 mm/") && err.contains("write M62 for M64"),
+        "{err}"
+    );
+    let (code, _, err) = lase(&["emit", "--dialect", "linuxcnc", &recipe("at_rest.lase")]);
+    assert_eq!(code, 0, "{err}");
 }
 
 fn a_missing_file_is_a_clean_error() {

@@ -466,3 +466,72 @@ fn a_pso_post_configures_distance_firing_once_per_pitch() {
     assert_eq!(ngc.matches("M62 P0").count(), 8);
     assert_eq!(pulses_of(&recipe).len(), 4 * 50 * 2);
 }
+
+/// The row's speed before its first pulse, from the sampled trace (`lase plan --trace` at
+/// 1 ms), recomputed from the spot positions: the ramp ends `PULSE_CRUISE_MARGIN_S` (5 ms)
+/// or more before the first spot of each row, so every whole 1 ms window of the trace's grid in
+/// the 5 ms before it (at least four) runs at the scan speed. (Before the margin the first spot sat where the ramp ends: the millisecond
+/// before it averaged 19.95 of 20 mm/s.)
+#[test]
+fn every_row_of_a_dot_array_is_at_cruise_before_its_first_pulse_in_the_trace() {
+    for ex in ["texture_array", "texture_array_unidirectional"] {
+        let recipe = root().join(format!("examples/{ex}.lase"));
+        let pulses = pulses_of(&recipe);
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("trace.csv");
+        let (code, _, err) = lase(&[
+            "plan",
+            recipe.to_str().unwrap(),
+            "--trace",
+            csv.to_str().unwrap(),
+            "--period",
+            "1ms",
+        ]);
+        assert_eq!(code, 0, "{err}");
+        let text = std::fs::read_to_string(csv).unwrap();
+        let mut lines = text.lines();
+        let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = |name: &str| head.iter().position(|h| *h == name).unwrap();
+        let (ct, cx, cy) = (col("t"), col("px"), col("py"));
+        let rows: Vec<(f64, f64, f64)> = lines
+            .map(|l| {
+                let f: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+                (f[ct], f[cx], f[cy])
+            })
+            .collect();
+        // First pulse of each row: none in the 1.5 pulse periods (15 ms) before it.
+        let firsts: Vec<f64> = pulses
+            .iter()
+            .enumerate()
+            .filter(|(i, p)| *i == 0 || p.t - pulses[i - 1].t > 0.015)
+            .map(|(_, p)| p.t)
+            .collect();
+        assert_eq!(
+            firsts.len(),
+            ROWS as usize * PASSES,
+            "{ex}: one start per row"
+        );
+        let mut slowest = f64::INFINITY;
+        for &tp in &firsts {
+            // Whole 1 ms windows [t − 1 ms, t] of the trace grid inside [tp − 5 ms, tp].
+            let windows = rows
+                .windows(2)
+                .filter(|w| w[0].0 >= tp - 0.005 - 1e-9 && w[1].0 <= tp + 1e-9);
+            let mut n = 0;
+            for w in windows {
+                let v = (w[1].1 - w[0].1).hypot(w[1].2 - w[0].2) / (w[1].0 - w[0].0);
+                slowest = slowest.min(v);
+                // 6-decimal positions: 1.4e-3 mm/s of rounding over 1 ms.
+                assert!(
+                    (v - 20.0).abs() <= 4e-3,
+                    "{ex}: {v} mm/s in the ms before {} s, {} ms before the first pulse at {tp} s",
+                    w[1].0,
+                    (tp - w[1].0) * 1e3
+                );
+                n += 1;
+            }
+            assert!(n >= 4, "{ex}: {n} whole windows before {tp}");
+        }
+        eprintln!("{ex}: slowest 1 ms before a row's first pulse: {slowest:.4} mm/s");
+    }
+}

@@ -549,7 +549,7 @@ const SCAN_COMMON: [SettingSpec; 8] = [
     set(
         "overscan",
         L,
-        "Extension of every row before its first and after its last spot or line, so they are passed at the programmed speed. Default: computed from the planner's ramps (the lead-in length for the speed, the axes' limits and the ramp kind).",
+        "Extension of every row before its first and after its last spot or line, so they are passed at the programmed speed. Default: computed from the planner's ramps (the lead-in length for the speed, the axes' limits and the ramp kind); for `scan dots` on the fly, plus 5 ms of travel at the scan speed, so every row is at cruise for 5 ms before its first pulse and every pulse fires at the programmed speed with room to spare.",
     ),
     set(
         "origin",

@@ -119,6 +119,20 @@ pub struct DialectPost {
     /// is on, and no per-pulse lines are written.
     #[serde(default)]
     pub pso: Vec<String>,
+    /// Where each template line is written in the machine file, so a diagnostic about one
+    /// line points at it (empty for a post not read from a file).
+    #[serde(skip)]
+    pub spans: PostSpans,
+}
+
+/// The machine-file spans of a post's template lines, one per line in the order written.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct PostSpans {
+    pub laser_on: Vec<Span>,
+    pub laser_off: Vec<Span>,
+    pub power: Vec<Span>,
+    pub pulse_on: Vec<Span>,
+    pub pulse_off: Vec<Span>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -215,20 +229,24 @@ struct FilePlanner {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FilePost {
-    laser_on: Vec<String>,
-    laser_off: Vec<String>,
+    laser_on: Vec<toml::Spanned<String>>,
+    laser_off: Vec<toml::Spanned<String>>,
     #[serde(default)]
-    power: Vec<String>,
+    power: Vec<toml::Spanned<String>>,
     #[serde(default = "default_s_max")]
     s_max: f64,
     #[serde(default)]
     laser_switch_stops: bool,
     #[serde(default)]
-    pulse_on: Vec<String>,
+    pulse_on: Vec<toml::Spanned<String>>,
     #[serde(default)]
-    pulse_off: Vec<String>,
+    pulse_off: Vec<toml::Spanned<String>>,
     #[serde(default)]
     pso: Vec<String>,
+}
+
+fn texts(lines: &[toml::Spanned<String>]) -> Vec<String> {
+    lines.iter().map(|l| l.get_ref().clone()).collect()
 }
 
 fn default_s_max() -> f64 {
@@ -542,14 +560,21 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             (
                 k,
                 DialectPost {
-                    laser_on: p.laser_on,
-                    laser_off: p.laser_off,
-                    power: p.power,
+                    laser_on: texts(&p.laser_on),
+                    laser_off: texts(&p.laser_off),
+                    power: texts(&p.power),
                     s_max: p.s_max,
                     laser_switch_stops: p.laser_switch_stops,
-                    pulse_on: p.pulse_on,
-                    pulse_off: p.pulse_off,
+                    pulse_on: texts(&p.pulse_on),
+                    pulse_off: texts(&p.pulse_off),
                     pso: p.pso,
+                    spans: PostSpans {
+                        laser_on: p.laser_on.iter().map(|l| at(l.span())).collect(),
+                        laser_off: p.laser_off.iter().map(|l| at(l.span())).collect(),
+                        power: p.power.iter().map(|l| at(l.span())).collect(),
+                        pulse_on: p.pulse_on.iter().map(|l| at(l.span())).collect(),
+                        pulse_off: p.pulse_off.iter().map(|l| at(l.span())).collect(),
+                    },
                 },
             )
         })

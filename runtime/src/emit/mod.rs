@@ -268,6 +268,19 @@ pub enum EmitError {
         help: String,
     },
 
+    /// A LinuxCNC post line with an immediate output word (M64/M65/M68) where the plan
+    /// switches on the fly: the message names the line, its post key and the planned speed.
+    #[error("{message}")]
+    #[diagnostic(code(lase::emit::immediate_output))]
+    ImmediateOutput {
+        message: String,
+        code: u32,
+        #[label("LinuxCNC drains its motion queue for M{code}: the machine stops here")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
     #[error("writing the NC program failed: {0}")]
     #[diagnostic(code(lase::emit::io))]
     Io(#[from] std::io::Error),

@@ -1,10 +1,12 @@
 //! Checks a whole program against a dialect before a single line is written: M-codes, events,
-//! axis letters, post templates, arc planes and (GRBL family) line lengths.
+//! axis letters, post templates, arc planes, (GRBL family) line lengths, and (LinuxCNC) that
+//! no post line the plan switches on the fly stops the machine.
 
 use super::format::{self, LaserWords};
 use super::{Dialect, EmitError, EmitWarning};
 use crate::machine::{AxisKind, DialectPost, Machine};
 use crate::motion::Job;
+use crate::program::PulseMode;
 use crate::program::{Coupling, Op, OpKind};
 use lase_lang::Span;
 
@@ -173,6 +175,9 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
         .find(|o| o.laser().is_some_and(|l| l.couple == Coupling::Speed))
     {
         check_coupling(post, key, machine, dialect, coupled.span)?;
+    }
+    if dialect == Dialect::LinuxCnc {
+        check_flying_switches(job, key, post)?;
     }
     for (i, op) in ops.iter().enumerate() {
         match &op.kind {
@@ -456,4 +461,114 @@ fn check_arc_plane(machine: &Machine, dialect: Dialect, span: Span) -> Result<()
         label: "arc".into(),
         help: "use a machine with X and Y axes, or write the path as straight moves".into(),
     })
+}
+
+/// LinuxCNC's immediate output words: `M64`/`M65` (digital) and `M68` (analog) wait for the
+/// motion queue to drain, so the machine stops before the output changes; `M62`/`M63` and
+/// `M67` change it at the start of the next move without breaking blending (CONTROLLERS.md).
+/// The synchronized word for each.
+fn synchronized_word(code: u32) -> Option<u32> {
+    match code {
+        64 => Some(62),
+        65 => Some(63),
+        68 => Some(67),
+        _ => None,
+    }
+}
+
+/// Every post line LinuxCNC runs where the plan keeps moving (a flying beam switch of style b,
+/// a power change inside a lit section, a pulse edge by distance) must keep motion
+/// synchronized: with an immediate word the machine would stop there, switch at rest, and the
+/// lit section would start or end at the wrong speed. Where the plan itself stops (a machine
+/// whose switch needs rest, a dwell, an M-code) immediate words are fine.
+fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(), EmitError> {
+    let ops = &job.program.ops;
+    // Planned speed where each op starts and ends (None: the op plans no motion).
+    let mut v_in: Vec<Option<f64>> = vec![None; ops.len()];
+    let mut v_out: Vec<f64> = vec![0.0; ops.len()];
+    for s in job.plan.segments() {
+        let t = s.tag as usize;
+        if t < ops.len() {
+            v_in[t].get_or_insert(s.v_entry);
+            v_out[t] = s.v_exit;
+        }
+    }
+    let spans = &post.spans;
+    let lines = |what: &'static str| -> (&[String], &[Span]) {
+        match what {
+            "laser_on" => (&post.laser_on, &spans.laser_on),
+            "laser_off" => (&post.laser_off, &spans.laser_off),
+            "power" => (&post.power, &spans.power),
+            "pulse_on" => (&post.pulse_on, &spans.pulse_on),
+            _ => (&post.pulse_off, &spans.pulse_off),
+        }
+    };
+    let check = |what: &'static str, speed: f64, op: &Op| -> Result<(), EmitError> {
+        if speed <= 1e-9 {
+            return Ok(());
+        }
+        let (texts, line_spans) = lines(what);
+        for (k, t) in texts.iter().enumerate() {
+            let Some((code, sync)) = format::m_words(t)
+                .into_iter()
+                .find_map(|c| synchronized_word(c).map(|s| (c, s)))
+            else {
+                continue;
+            };
+            return Err(EmitError::ImmediateOutput {
+                message: format!(
+                    "`{t}` in [post.{key}] {what} of machine `{}` switches an output \
+                     immediately (M{code}), where lase plans the switch on the fly at {} mm/s",
+                    job.program.machine.name,
+                    lase_lang::units::format_number(speed)
+                ),
+                code,
+                span: line_spans.get(k).copied().unwrap_or(op.span),
+                help: format!(
+                    "write M{sync} for M{code} in [post.{key}] {what} of the machine file: \
+                     LinuxCNC's M62/M63 (digital) and M67 (analog) take effect at the start of \
+                     the next move without stopping; or set `laser_switch_stops = true` there \
+                     if the beam must switch at rest (lase then plans stops)"
+                ),
+            });
+        }
+        Ok(())
+    };
+    let mut on = false;
+    let mut power_w = 0.0;
+    for (i, op) in ops.iter().enumerate() {
+        let Some(v0) = v_in[i] else { continue };
+        if op.target().is_none() {
+            continue;
+        }
+        let Some(laser) = op.laser() else { continue };
+        if !on {
+            check("laser_on", v0, op)?;
+            on = true;
+        } else if laser.couple != Coupling::Speed
+            && (laser.power_w - power_w).abs() > 1e-9 * laser.power_w.abs().max(1.0)
+        {
+            // (Coupled power steps are written with M67 by the writer itself.)
+            check("power", v0, op)?;
+        }
+        power_w = laser.power_w;
+        if laser
+            .pulse
+            .as_ref()
+            .is_some_and(|p| matches!(p.mode, PulseMode::Distance { .. }))
+        {
+            check("pulse_on", v0, op)?;
+            check("pulse_off", v0, op)?;
+        }
+        let next_lit = ops[i + 1..]
+            .iter()
+            .zip(&v_in[i + 1..])
+            .find(|(o, v)| o.target().is_some() && v.is_some())
+            .is_some_and(|(o, _)| o.laser().is_some());
+        if !next_lit {
+            check("laser_off", v_out[i], op)?;
+            on = false;
+        }
+    }
+    Ok(())
 }

@@ -351,7 +351,15 @@ impl Evaluator {
                     ));
                 }
                 let needed = planner::lead_distance(v, v, a, j);
-                fam.lead = needed;
+                // Dot rows on the fly run up `PULSE_CRUISE_MARGIN_S` longer than the ramp needs
+                // (the lead-ins do the same), so they are at cruise that long before the first
+                // spot: approach points stand that far back.
+                let margin = if dots {
+                    speed * crate::motion::leadin::PULSE_CRUISE_MARGIN_S
+                } else {
+                    0.0
+                };
+                fam.lead = needed + margin;
                 fam.overscan = match (set.overscan, leadin) {
                     (Some((o, sp)), LeadIn::Auto) if o + 1e-9 < needed => {
                         return Err(bad(
@@ -374,7 +382,8 @@ impl Evaluator {
                     }
                     (Some((o, _)), _) => Some(o),
                     (None, LeadIn::Auto) => None,
-                    (None, LeadIn::Off) => Some(needed),
+                    // No lead-ins: the overscan is the run-up, one move from the approach.
+                    (None, LeadIn::Off) => Some(needed + margin),
                 };
             }
         }

@@ -41,6 +41,16 @@ use crate::planner::{self, AxisLimits, PlannerConfig};
 use crate::program::{Laser, Op, OpKind, Orient, P3};
 use lase_lang::units::format_number;
 
+/// Cruise time before the first pulse of a section with pulses by distance: its lead-in is
+/// longer than the ramp by this long at the feed, so the planner (which ramps as early as it
+/// can) is at cruise that long before the first pulse, and every pulse fires at the programmed
+/// speed with room for a controller whose ramp ends a few servo periods late (LinuxCNC's edges
+/// land within 2–3 periods of 1 ms). Without it the first spot of each dot row sat exactly where
+/// the ramp ends: the 1 ms before it averaged 19.95 of 20 mm/s on `texture_array`. A margin in
+/// a separate move before the lead-in would not do: each planned move starts and ends its
+/// S-curve ramp at zero acceleration, so a ramp split in two ends later.
+pub const PULSE_CRUISE_MARGIN_S: f64 = 0.005;
+
 /// What the lead computation needs to know about the machine and the planner.
 #[derive(Clone, Copy, Debug)]
 pub struct LeadContext<'a> {
@@ -165,7 +175,12 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             Some(pm) if stop_between(pm + 1, first) => 0.0,
             Some(_) => v,
         };
-        let d_in = planner::lead_distance(v, w_max, a, j);
+        let margin = if pulsed_by_distance(op) {
+            v * PULSE_CRUISE_MARGIN_S
+        } else {
+            0.0
+        };
+        let d_in = planner::lead_distance(v, w_max, a, j) + margin;
         let (p_lead, o_lead, room) =
             match oriented_lead(cx, (p0, o_in), (chord_end, op.orient()), d_in) {
                 Some((p, o)) => (p, Some(o), d_in),
@@ -196,6 +211,21 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             Some(pm) => ed.after[pm].push((rapid(p_lead, op, o_lead), None)),
             None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op, o_lead)),
             None => {}
+        }
+        // Positioning ops between that did not move the spot (a `follow`'s rapid to a start
+        // the machine is already at, with the beam turned by a rounding) stood where the move
+        // before ended; that is now the lead-in start. Left aiming at P0, one of them would
+        // carry the machine along the lead-in as a rapid, and the lead-in itself would be
+        // empty: the section would start from a rapid, not from the planned ramp.
+        for i in prev_move.map_or(0, |pm| pm + 1)..first {
+            if !moving[i]
+                && matches!(
+                    ops[i].kind,
+                    OpKind::Rapid { .. } | OpKind::Line { laser: None, .. }
+                )
+            {
+                ed.redirect[i] = Some((p_lead, o_lead));
+            }
         }
         ed.before[first].push((
             Op {
@@ -391,6 +421,13 @@ fn is_stop(op: &Op) -> bool {
         op.kind,
         OpKind::Dwell { .. } | OpKind::MCode { .. } | OpKind::Event { .. }
     )
+}
+
+/// Whether `op` fires pulses by distance (on the fly).
+fn pulsed_by_distance(op: &Op) -> bool {
+    op.laser()
+        .and_then(|l| l.pulse.as_ref())
+        .is_some_and(|p| matches!(p.mode, crate::program::PulseMode::Distance { .. }))
 }
 
 fn feed_of(op: &Op) -> f64 {

@@ -46,3 +46,5 @@ pub fn program(
         machine: m,
     }
 }
+
+pub mod axis_limits;
