@@ -63,8 +63,12 @@ impl Host for StdlibOnly {
     }
 }
 
-/// Statements executed before the recipe is stopped as runaway.
-const STEP_BUDGET: u64 = 200_000_000;
+/// Evaluation steps (every statement, every expression node, every loop turn, every function
+/// call) before the recipe is stopped as runaway. Twenty million steps is a few seconds in a
+/// debug build and well under one in a release build, and some thousand times what the largest
+/// example takes; a recipe that needs more is computing, not describing a job, and an
+/// exponential recursion (`f(n - 1) + f(n - 1)`) reaches it long before it would finish.
+const STEP_BUDGET: u64 = 20_000_000;
 /// Ops (moves, pulses, machine events) a program may hold: about a gigabyte of process program
 /// and far beyond any real job (a million-spot raster is a few thousand ops). A loop that
 /// produces more is stopped before it exhausts memory or runs for hours.
@@ -122,6 +126,8 @@ pub struct Evaluator {
     start: P3,
     ops: Vec<Op>,
     steps: u64,
+    /// The statement running now: where a step budget overrun inside an expression points.
+    at: Span,
     depth: usize,
     imported: HashSet<usize>,
     /// Rhai extension modules and presets (`use`), loaded before checking.
@@ -164,6 +170,7 @@ impl Evaluator {
             start: [0.0; 3],
             ops: Vec::new(),
             steps: 0,
+            at: Span::new(0, 0),
             depth: 0,
             imported: HashSet::new(),
             ext: crate::ext::Extensions::new(),
@@ -179,6 +186,8 @@ impl Evaluator {
         host: &mut dyn Host,
     ) -> R<()> {
         let mut cx = Cx { program, map, host };
+        // Each recipe, and each REPL line, gets the whole budget.
+        self.steps = 0;
         self.hoist(stmts);
         for s in stmts {
             if let Flow::Return(_) = self.stmt(s, &mut cx)? {
@@ -197,6 +206,8 @@ impl Evaluator {
         host: &mut dyn Host,
     ) -> R<Value> {
         let mut cx = Cx { program, map, host };
+        self.steps = 0;
+        self.at = e.span;
         self.expr(e, &mut cx)
     }
 

@@ -27,9 +27,17 @@ impl Evaluator {
         self.steps += 1;
         if self.steps > STEP_BUDGET {
             return Err(EvalError::Budget {
-                message: format!("the recipe ran more than {STEP_BUDGET} steps"),
+                message: format!(
+                    "the recipe ran more than {} evaluation steps",
+                    units::format_number(STEP_BUDGET as f64)
+                ),
                 span,
-                help: Some("a loop runs far longer than intended; check its range".into()),
+                help: Some(
+                    "a loop runs far longer than intended, or a function calls itself more \
+                     than once per call (its work doubles with each level); check the range or \
+                     the recursion"
+                        .into(),
+                ),
             });
         }
         if self.ops.len() > MAX_OPS {
@@ -86,7 +94,12 @@ impl Evaluator {
     /// segment, so no recipe overflows it, however its frames are sized (a debug build's are
     /// large).
     pub(super) fn stmt(&mut self, s: &Stmt, cx: &mut Cx) -> R<Flow> {
-        stacker::maybe_grow(STACK_RED_ZONE, STACK_SEGMENT, || self.stmt_here(s, cx))
+        // An expression's steps are charged to the innermost statement running it, the one a
+        // budget overrun points at; a call returns to its caller's statement.
+        let outer = std::mem::replace(&mut self.at, s.span);
+        let r = stacker::maybe_grow(STACK_RED_ZONE, STACK_SEGMENT, || self.stmt_here(s, cx));
+        self.at = outer;
+        r
     }
 
     pub(super) fn stmt_here(&mut self, s: &Stmt, cx: &mut Cx) -> R<Flow> {
