@@ -345,6 +345,11 @@ fn geom_error(g: GeomError, span: Span, offset: Option<f64>) -> EvalError {
             format_quantity(*radius, Dim::LENGTH)
         )),
         (GeomError::Split { .. }, Some(_)) => Some("use a smaller offset distance".into()),
+        (GeomError::Crosses { .. }, _) => Some(
+            "order the points so the outline goes once round without crossing (a bow-tie's are \
+             out of order), or make each lobe a profile of its own"
+                .into(),
+        ),
         _ => None,
     };
     EvalError::Geometry {
@@ -356,6 +361,8 @@ fn geom_error(g: GeomError, span: Span, offset: Option<f64>) -> EvalError {
                 format_quantity(*s_start, Dim::LENGTH),
                 format_quantity(*s_end, Dim::LENGTH)
             )
+        } else if let GeomError::Crosses { .. } = &g {
+            "this profile crosses itself".into()
         } else if offset.is_some() {
             "this offset".into()
         } else {

@@ -69,13 +69,30 @@ impl Evaluator {
                 Profile::polyline(&pts, has("closed"))
             }
             "line" => Profile::polyline(&[pt(self, 0)?, pt(self, 1)?], false),
-            "arc" => Profile::arc(
-                pt(self, 0)?,
-                len(self, 1)?,
-                ang(self, 2)?,
-                ang(self, 3)?,
-                !has("cw"),
-            ),
+            "arc" => {
+                let (a0, a1) = (ang(self, 2)?, ang(self, 3)?);
+                // An end on the start (mod one turn) would otherwise be read as a whole turn:
+                // a lit full circle where the recipe meant nothing, or a typo.
+                let turns = (a1 - a0) / std::f64::consts::TAU;
+                if a0.is_finite() && a1.is_finite() && (turns - turns.round()).abs() < 1e-9 {
+                    let at = get(3)?.1;
+                    return Err(bad(
+                        Kind::OutOfRange,
+                        at,
+                        &format!(
+                            "this arc ends where it starts (start {}, end {}): it sweeps nothing",
+                            units::format_quantity(a0, Dim::ANGLE),
+                            units::format_quantity(a1, Dim::ANGLE)
+                        ),
+                        "zero sweep",
+                        Some(
+                            "give `end` a different angle from `start`; for a full circle write \
+                             `profile circle(center, radius, start: ...)`",
+                        ),
+                    ));
+                }
+                Profile::arc(pt(self, 0)?, len(self, 1)?, a0, a1, !has("cw"))
+            }
             "circle" => {
                 let a0 = match a.get(2).cloned().flatten() {
                     Some((v, sp)) => self.as_dim(&v, Dim::ANGLE, sp, "`start`")?,

@@ -9,8 +9,8 @@
 //! * hatch lines are lit `Line`s with the pulse setting in force;
 //! * positioning between rows is a `Rapid`, overscan and gaps unlit `Line`s at the speed.
 
-use super::{Cx, Evaluator, Kind, R, Value, bad, type_err};
-use crate::geometry::{Profile, V2};
+use super::{Cx, Evaluator, Kind, R, Value, bad, geom_error, type_err};
+use crate::geometry::{GeomError, Profile, V2};
 use crate::kinematics::{self, ToolPose};
 use crate::planner::{self, AxisLimits, MAX_AXES, PlannerConfig, ProfileKind};
 use crate::program::*;
@@ -224,6 +224,10 @@ impl Evaluator {
             }
             _ => {
                 let profiles = self.region_profiles(&rv, region.span, dots)?;
+                // A crossing outline has no one inside: the raster would fill part of it.
+                if let Some(near) = profiles.iter().filter(|p| p.closed).find_map(|p| p.crossing()) {
+                    return Err(geom_error(GeomError::Crosses { near }, region.span, None));
+                }
                 let reg = Region::new(&profiles, set.inset).map_err(|e| {
                     bad(
                         Kind::Geometry,
