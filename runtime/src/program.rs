@@ -9,7 +9,7 @@
 
 use crate::machine::Machine;
 use lase_lang::Span;
-use lase_lang::units::{Dim, format_quantity};
+use lase_lang::units::{self, Dim, format_quantity};
 use miette::Diagnostic;
 use serde::{Deserialize, Serialize};
 
@@ -271,13 +271,74 @@ pub enum LaserLimit {
         #[help]
         help: Option<String>,
     },
+
+    #[error("the program would fire about {count} pulses, above the {max} lase handles")]
+    #[diagnostic(code(lase::eval::too_large))]
+    Pulses {
+        count: String,
+        max: String,
+        #[label("the pulses pass the budget here")]
+        span: Span,
+        #[help]
+        help: Option<String>,
+    },
 }
 
 impl LaserLimit {
     pub fn span(&self) -> Span {
         match self {
-            LaserLimit::Power { span, .. } | LaserLimit::PulseRate { span, .. } => *span,
+            LaserLimit::Power { span, .. }
+            | LaserLimit::PulseRate { span, .. }
+            | LaserLimit::Pulses { span, .. } => *span,
         }
+    }
+}
+
+/// Pulses a program may fire: ten times a million-dimple texture. Planning, the pulse report
+/// and the emitter walk every pulse, so the count is held before anything is planned (a pulse
+/// every 1e-12 mm over 10 mm would be 1e13 of them).
+pub const MAX_PULSES: f64 = 10_000_000.0;
+
+/// About how many pulses `op` fires from `from`: a lower bound (the lit length over the
+/// pitch, or the lit time at the programmed feed over the period, plus the first), since
+/// ramps only lengthen the lit time.
+fn pulses_of(op: &Op, from: P3) -> f64 {
+    let (to, feed, laser) = match &op.kind {
+        OpKind::Line {
+            to,
+            feed_mm_s,
+            laser: Some(l),
+            ..
+        }
+        | OpKind::Arc {
+            to,
+            feed_mm_s,
+            laser: Some(l),
+            ..
+        } => (*to, *feed_mm_s, l),
+        OpKind::Fire { count, .. } => return f64::from(*count),
+        _ => return 0.0,
+    };
+    let length = match &op.kind {
+        OpKind::Arc { center, .. } => {
+            let (a0, a1) = (
+                (from[1] - center[1]).atan2(from[0] - center[0]),
+                (to[1] - center[1]).atan2(to[0] - center[0]),
+            );
+            let r = (from[0] - center[0]).hypot(from[1] - center[1]);
+            // The evaluator splits arcs at half turns, so the short way round is a lower bound.
+            let mut d = (a1 - a0).abs() % std::f64::consts::TAU;
+            if d > std::f64::consts::PI {
+                d = std::f64::consts::TAU - d;
+            }
+            r * d
+        }
+        _ => crate::motion::dist(from, to),
+    };
+    match laser.pulse.as_ref().map(|p| p.mode) {
+        Some(PulseMode::Distance { pitch_mm }) => length / pitch_mm + 1.0,
+        Some(PulseMode::Time { period_s }) => length / feed / period_s + 1.0,
+        None => 0.0,
     }
 }
 
@@ -379,7 +440,25 @@ impl ProcessProgram {
                 errors.push(e);
             }
         };
+        let (mut pulses, mut over) = (0.0, false);
+        let mut at = self.start;
         for op in &self.ops {
+            pulses += pulses_of(op, at);
+            at = op.target().unwrap_or(at);
+            if !(pulses <= MAX_PULSES) && !over {
+                over = true;
+                // Once: the first op past the budget is where the recipe asks too much.
+                note(LaserLimit::Pulses {
+                    count: units::format_number(pulses.round()),
+                    max: units::format_number(MAX_PULSES),
+                    span: op.span,
+                    help: Some(
+                        "lengthen the pulse `interval` (or lower the `rate`), or shorten the \
+                         lit path; a job this size belongs in several recipes"
+                            .into(),
+                    ),
+                });
+            }
             let r = match &op.kind {
                 OpKind::Line {
                     feed_mm_s,

@@ -7,6 +7,7 @@
 //! cannot be built, values out of range, and the dimension of values the checker could not
 //! type (unannotated function parameters). A runaway recipe is stopped by a step budget.
 
+mod bounds;
 mod builtins;
 mod error;
 mod expr;
@@ -69,10 +70,12 @@ impl Host for StdlibOnly {
 /// example takes; a recipe that needs more is computing, not describing a job, and an
 /// exponential recursion (`f(n - 1) + f(n - 1)`) reaches it long before it would finish.
 const STEP_BUDGET: u64 = 20_000_000;
-/// Ops (moves, pulses, machine events) a program may hold: about a gigabyte of process program
-/// and far beyond any real job (a million-spot raster is a few thousand ops). A loop that
-/// produces more is stopped before it exhausts memory or runs for hours.
-const MAX_OPS: usize = 10_000_000;
+/// Ops (moves, dot-mode stops, machine events) a program may hold. Half a million is some
+/// 200 MB through planning and emitting in a debug build and an NC program that streams for
+/// hours, far beyond any real job (a million-spot raster on the fly is a few thousand ops). A
+/// loop that produces more is stopped at the statement that passes it; a path or a scan that
+/// would is refused before any of its ops is made (`bounds::room_for_ops`).
+const MAX_OPS: usize = 500_000;
 /// Nested function calls before the recipe is stopped as runaway recursion.
 const MAX_DEPTH: usize = 200;
 

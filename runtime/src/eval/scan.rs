@@ -21,9 +21,9 @@ use lase_lang::Span;
 use lase_lang::ast::*;
 use lase_lang::units::{Dim, format_quantity};
 
-/// Dot mode needs two ops per spot and pass; beyond this the program would not fit in memory
-/// (on the fly needs a few ops per row).
-const MAX_DOT_WINDOWS: u64 = 2_000_000;
+/// Dot mode needs two ops per spot and pass, so the op budget allows half as many stops (on
+/// the fly needs a few ops per row).
+const MAX_DOT_WINDOWS: u64 = (super::MAX_OPS / 2) as u64;
 /// Rows a raster may have.
 const MAX_ROWS: f64 = 2_000_000.0;
 /// NC dwell resolution (`G4 P` with 4 decimals), s.
@@ -102,8 +102,12 @@ impl Evaluator {
             }
         };
         positive(Some((speed, speed_span)), "the scan speed")?;
+        self.in_range(speed, &super::bounds::FEED, "the scan speed", speed_span)?;
         let pitch = positive(set.pitch, "the pitch")?;
         let row_pitch = positive(set.row_pitch, "the row pitch")?;
+        for (x, sp) in [set.pitch, set.row_pitch].into_iter().flatten() {
+            self.in_range(x, &super::bounds::FINE_LENGTH, "the pitch", sp)?;
+        }
         if let Some((o, sp)) = set.overscan
             && !(o >= 0.0 && o.is_finite())
         {
@@ -392,6 +396,15 @@ impl Evaluator {
         let half = (0.5 * period / NC_TIME_STEP_S - 1e-9).ceil().max(1.0) * NC_TIME_STEP_S;
         let period_nc = 2.0 * half;
 
+        // Every row is at least a move per pass, and every dot-mode spot a stop: held to the op
+        // budget before the path is laid out.
+        let rows: usize = families.iter().map(|f| f.rows.len()).sum();
+        let stops = if firing == Firing::Dot { 2 * spots } else { 0 };
+        self.room_for_ops(
+            (rows as f64 + stops as f64) * f64::from(passes),
+            "this scan",
+            span,
+        )?;
         let steps = raster::scan_path(
             &families,
             &PathOptions {

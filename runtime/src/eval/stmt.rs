@@ -186,6 +186,9 @@ impl Evaluator {
                         None,
                     ));
                 }
+                if t > 0.0 {
+                    self.in_range(t, &super::bounds::DWELL, "the dwell", e.span)?;
+                }
                 self.need_machine(s.span)?;
                 self.push(OpKind::Dwell { seconds: t }, s.span);
             }
