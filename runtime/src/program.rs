@@ -538,6 +538,54 @@ mod tests {
         }
     }
 
+    /// The pulse estimate is the lit length over the pitch (or the lit time over the period)
+    /// plus the first pulse, measured from where the previous op left the spot; arcs by
+    /// their arc length.
+    #[test]
+    fn pulses_are_counted_from_the_lit_length() {
+        let by_distance = PulseMode::Distance { pitch_mm: 0.001 };
+        assert!((pulses_of(&lit(1.0, by_distance, 10.0, 0), [0.0; 3]) - 1001.0).abs() < 1e-6);
+        // From x = 0.5 the same op is half as long.
+        assert!((pulses_of(&lit(1.0, by_distance, 10.0, 0), [0.5, 0.0, 0.0]) - 501.0).abs() < 1e-6);
+        // 1 mm at 10 mm/s is 0.1 s: 10 000 periods of 10 us.
+        let by_time = PulseMode::Time { period_s: 1e-5 };
+        assert!((pulses_of(&lit(1.0, by_time, 10.0, 0), [0.0; 3]) - 10_001.0).abs() < 1e-6);
+        // Half a turn of radius 1 mm from (1, 0) to (-1, 0): pi mm.
+        let mut arc = lit(1.0, by_distance, 10.0, 0);
+        let OpKind::Line { laser, .. } = arc.kind else {
+            unreachable!()
+        };
+        arc.kind = OpKind::Arc {
+            to: [-1.0, 0.0, 0.0],
+            center: [0.0, 0.0],
+            ccw: true,
+            feed_mm_s: 10.0,
+            laser,
+        };
+        let n = pulses_of(&arc, [1.0, 0.0, 0.0]);
+        assert!((n - (std::f64::consts::PI / 0.001 + 1.0)).abs() < 1e-6, "{n}");
+    }
+
+    /// Two ops of 10 000 001 pulses each (1 mm every 0.1 nm, slowly enough for the laser's
+    /// rate): the budget is passed at the first, and reported once.
+    #[test]
+    fn validate_refuses_more_pulses_than_the_budget_once() {
+        let fine = PulseMode::Distance { pitch_mm: 1e-7 };
+        let mut second = lit(1.0, fine, 0.001, 5);
+        if let OpKind::Line { to, .. } = &mut second.kind {
+            *to = [2.0, 0.0, 0.0];
+        }
+        let errs = program(vec![lit(1.0, fine, 0.001, 0), second])
+            .validate()
+            .unwrap_err();
+        assert_eq!(errs.len(), 1, "{errs:?}");
+        assert_eq!(errs[0].span().start, 0);
+        assert_eq!(
+            errs[0].to_string(),
+            "the program would fire about 10000001 pulses, above the 10000000 lase handles"
+        );
+    }
+
     /// The xy_table: 100 W, 100 kHz. Each (span, problem) is reported once.
     #[test]
     fn validate_holds_every_lit_op_to_the_laser() {

@@ -59,7 +59,7 @@ pub(super) const FEED: Range = Range {
           as written) to 100 m/s (beyond any machine's axes)",
 };
 pub(super) const TOLERANCE: Range = Range {
-    lo_text: "0.1 um",
+    lo_text: "0.1 µm",
     hi_text: "10 mm",
     lo: RESOLUTION_MM,
     hi: 10.0,
@@ -67,7 +67,7 @@ pub(super) const TOLERANCE: Range = Range {
     why: "a tolerance runs from 0.1 µm (the NC programs write lengths to 0.1 µm) to 10 mm",
 };
 pub(super) const FINE_LENGTH: Range = Range {
-    lo_text: "0.1 um",
+    lo_text: "0.1 µm",
     hi_text: "10 m",
     lo: RESOLUTION_MM,
     hi: 10_000.0,
@@ -170,7 +170,7 @@ impl Evaluator {
 
     /// Refuses work of `n` more ops (a path's segments or stations) that would take the
     /// program past [`super::MAX_OPS`], before any of it is generated.
-    pub(super) fn room_for_ops(&self, n: f64, what: &str, span: Span) -> R<()> {
+    pub(super) fn room_for_ops(&self, n: f64, what: &str, help: &str, span: Span) -> R<()> {
         let total = self.ops.len() as f64 + n;
         if total > super::MAX_OPS as f64 {
             return Err(EvalError::TooLarge {
@@ -181,11 +181,9 @@ impl Evaluator {
                 ),
                 span,
                 label: "too many moves".into(),
-                help: Some(
-                    "use a coarser step or fewer points (a path this fine is finer than the \
-                     machine resolves), or split the job into several recipes"
-                        .into(),
-                ),
+                help: Some(format!(
+                    "{help}, or split the job into several recipes"
+                )),
             });
         }
         Ok(())

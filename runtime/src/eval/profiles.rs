@@ -55,6 +55,16 @@ impl Evaluator {
             let (v, sp) = get(i)?;
             s.as_dim(&v, Dim::ANGLE, sp, &format!("`{}`", names[i]))
         };
+        // A radius below what the NC text resolves draws a point (a circle of 1e-300 mm is
+        // emitted as arcs about the spot itself); a negative one is the geometry's to refuse.
+        let radius = |s: &Self| -> R<f64> {
+            let (v, sp) = get(1)?;
+            let r = s.as_dim(&v, Dim::LENGTH, sp, "`radius`")?;
+            if r > 0.0 {
+                s.in_range(r, &super::bounds::FINE_LENGTH, "the radius", sp)?;
+            }
+            Ok(r)
+        };
         let r = match pk.name {
             "polyline" => {
                 let (v, sp) = get(0)?;
@@ -91,14 +101,14 @@ impl Evaluator {
                         ),
                     ));
                 }
-                Profile::arc(pt(self, 0)?, len(self, 1)?, a0, a1, !has("cw"))
+                Profile::arc(pt(self, 0)?, radius(self)?, a0, a1, !has("cw"))
             }
             "circle" => {
                 let a0 = match a.get(2).cloned().flatten() {
                     Some((v, sp)) => self.as_dim(&v, Dim::ANGLE, sp, "`start`")?,
                     None => 0.0,
                 };
-                Profile::circle(pt(self, 0)?, len(self, 1)?, a0, !has("cw"))
+                Profile::circle(pt(self, 0)?, radius(self)?, a0, !has("cw"))
             }
             "rect" => {
                 let c = pt(self, 0)?;

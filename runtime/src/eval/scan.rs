@@ -403,6 +403,7 @@ impl Evaluator {
         self.room_for_ops(
             (rows as f64 + stops as f64) * f64::from(passes),
             "this scan",
+            "use a coarser pitch or fewer passes",
             span,
         )?;
         let steps = raster::scan_path(

@@ -23,7 +23,29 @@ impl Evaluator {
         }
     }
 
+    /// One statement: a step, and the op count held to its budget (a statement is where ops
+    /// are made, so an overrun points at the one that made too many).
     pub(super) fn tick(&mut self, span: Span) -> R<()> {
+        self.step(span)?;
+        if self.ops.len() > MAX_OPS {
+            return Err(EvalError::Budget {
+                message: format!(
+                    "the program holds more than {} moves and machine events",
+                    units::format_number(MAX_OPS as f64)
+                ),
+                span,
+                help: Some(
+                    "a loop produces far more motion than a job needs; check its range (a job \
+                     this size, if meant, belongs in several recipes)"
+                        .into(),
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// One evaluation step (a statement, an expression node, a loop turn), held to the budget.
+    pub(super) fn step(&mut self, span: Span) -> R<()> {
         self.steps += 1;
         if self.steps > STEP_BUDGET {
             return Err(EvalError::Budget {
@@ -36,20 +58,6 @@ impl Evaluator {
                     "a loop runs far longer than intended, or a function calls itself more \
                      than once per call (its work doubles with each level); check the range or \
                      the recursion"
-                        .into(),
-                ),
-            });
-        }
-        if self.ops.len() > MAX_OPS {
-            return Err(EvalError::Budget {
-                message: format!(
-                    "the program holds more than {} moves and machine events",
-                    units::format_number(MAX_OPS as f64)
-                ),
-                span,
-                help: Some(
-                    "a loop produces far more motion than a job needs; check its range (a job \
-                     this size, if meant, belongs in several recipes)"
                         .into(),
                 ),
             });
@@ -296,7 +304,7 @@ impl Evaluator {
             },
         };
         for item in items {
-            self.tick(var.span)?;
+            self.step(var.span)?;
             self.scopes.push(HashMap::new());
             self.bind(&var.name, item);
             let r = self.block(body, cx);
