@@ -563,7 +563,10 @@ mod tests {
             laser,
         };
         let n = pulses_of(&arc, [1.0, 0.0, 0.0]);
-        assert!((n - (std::f64::consts::PI / 0.001 + 1.0)).abs() < 1e-6, "{n}");
+        assert!(
+            (n - (std::f64::consts::PI / 0.001 + 1.0)).abs() < 1e-6,
+            "{n}"
+        );
     }
 
     /// Two ops of 10 000 001 pulses each (1 mm every 0.1 nm, slowly enough for the laser's

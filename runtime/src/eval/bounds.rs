@@ -181,9 +181,7 @@ impl Evaluator {
                 ),
                 span,
                 label: "too many moves".into(),
-                help: Some(format!(
-                    "{help}, or split the job into several recipes"
-                )),
+                help: Some(format!("{help}, or split the job into several recipes")),
             });
         }
         Ok(())

@@ -229,7 +229,11 @@ impl Evaluator {
             _ => {
                 let profiles = self.region_profiles(&rv, region.span, dots)?;
                 // A crossing outline has no one inside: the raster would fill part of it.
-                if let Some(near) = profiles.iter().filter(|p| p.closed).find_map(|p| p.crossing()) {
+                if let Some(near) = profiles
+                    .iter()
+                    .filter(|p| p.closed)
+                    .find_map(|p| p.crossing())
+                {
                     return Err(geom_error(GeomError::Crosses { near }, region.span, None));
                 }
                 let reg = Region::new(&profiles, set.inset).map_err(|e| {
