@@ -9,7 +9,7 @@
 
 use crate::machine::Machine;
 use lase_lang::Span;
-use lase_lang::units::{Dim, format_quantity};
+use lase_lang::units::{self, Dim, format_quantity};
 use miette::Diagnostic;
 use serde::{Deserialize, Serialize};
 
@@ -270,13 +270,74 @@ pub enum LaserLimit {
         #[help]
         help: Option<String>,
     },
+
+    #[error("the program would fire about {count} pulses, above the {max} lase handles")]
+    #[diagnostic(code(lase::eval::too_large))]
+    Pulses {
+        count: String,
+        max: String,
+        #[label("the pulses pass the budget here")]
+        span: Span,
+        #[help]
+        help: Option<String>,
+    },
 }
 
 impl LaserLimit {
     pub fn span(&self) -> Span {
         match self {
-            LaserLimit::Power { span, .. } | LaserLimit::PulseRate { span, .. } => *span,
+            LaserLimit::Power { span, .. }
+            | LaserLimit::PulseRate { span, .. }
+            | LaserLimit::Pulses { span, .. } => *span,
         }
+    }
+}
+
+/// Pulses a program may fire: ten times a million-dimple texture. Planning, the pulse report
+/// and the emitter walk every pulse, so the count is held before anything is planned (a pulse
+/// every 1e-12 mm over 10 mm would be 1e13 of them).
+pub const MAX_PULSES: f64 = 10_000_000.0;
+
+/// About how many pulses `op` fires from `from`: a lower bound (the lit length over the
+/// pitch, or the lit time at the programmed feed over the period, plus the first), since
+/// ramps only lengthen the lit time.
+fn pulses_of(op: &Op, from: P3) -> f64 {
+    let (to, feed, laser) = match &op.kind {
+        OpKind::Line {
+            to,
+            feed_mm_s,
+            laser: Some(l),
+            ..
+        }
+        | OpKind::Arc {
+            to,
+            feed_mm_s,
+            laser: Some(l),
+            ..
+        } => (*to, *feed_mm_s, l),
+        OpKind::Fire { count, .. } => return f64::from(*count),
+        _ => return 0.0,
+    };
+    let length = match &op.kind {
+        OpKind::Arc { center, .. } => {
+            let (a0, a1) = (
+                (from[1] - center[1]).atan2(from[0] - center[0]),
+                (to[1] - center[1]).atan2(to[0] - center[0]),
+            );
+            let r = (from[0] - center[0]).hypot(from[1] - center[1]);
+            // The evaluator splits arcs at half turns, so the short way round is a lower bound.
+            let mut d = (a1 - a0).abs() % std::f64::consts::TAU;
+            if d > std::f64::consts::PI {
+                d = std::f64::consts::TAU - d;
+            }
+            r * d
+        }
+        _ => crate::motion::dist(from, to),
+    };
+    match laser.pulse.as_ref().map(|p| p.mode) {
+        Some(PulseMode::Distance { pitch_mm }) => length / pitch_mm + 1.0,
+        Some(PulseMode::Time { period_s }) => length / feed / period_s + 1.0,
+        None => 0.0,
     }
 }
 
@@ -378,7 +439,25 @@ impl ProcessProgram {
                 errors.push(e);
             }
         };
+        let (mut pulses, mut over) = (0.0, false);
+        let mut at = self.start;
         for op in &self.ops {
+            pulses += pulses_of(op, at);
+            at = op.target().unwrap_or(at);
+            if !(pulses <= MAX_PULSES) && !over {
+                over = true;
+                // Once: the first op past the budget is where the recipe asks too much.
+                note(LaserLimit::Pulses {
+                    count: units::format_number(pulses.round()),
+                    max: units::format_number(MAX_PULSES),
+                    span: op.span,
+                    help: Some(
+                        "lengthen the pulse `interval` (or lower the `rate`), or shorten the \
+                         lit path; a job this size belongs in several recipes"
+                            .into(),
+                    ),
+                });
+            }
             let r = match &op.kind {
                 OpKind::Line {
                     feed_mm_s,
@@ -456,6 +535,57 @@ mod tests {
             },
             span: Span::new(at, at + 1),
         }
+    }
+
+    /// The pulse estimate is the lit length over the pitch (or the lit time over the period)
+    /// plus the first pulse, measured from where the previous op left the spot; arcs by
+    /// their arc length.
+    #[test]
+    fn pulses_are_counted_from_the_lit_length() {
+        let by_distance = PulseMode::Distance { pitch_mm: 0.001 };
+        assert!((pulses_of(&lit(1.0, by_distance, 10.0, 0), [0.0; 3]) - 1001.0).abs() < 1e-6);
+        // From x = 0.5 the same op is half as long.
+        assert!((pulses_of(&lit(1.0, by_distance, 10.0, 0), [0.5, 0.0, 0.0]) - 501.0).abs() < 1e-6);
+        // 1 mm at 10 mm/s is 0.1 s: 10 000 periods of 10 us.
+        let by_time = PulseMode::Time { period_s: 1e-5 };
+        assert!((pulses_of(&lit(1.0, by_time, 10.0, 0), [0.0; 3]) - 10_001.0).abs() < 1e-6);
+        // Half a turn of radius 1 mm from (1, 0) to (-1, 0): pi mm.
+        let mut arc = lit(1.0, by_distance, 10.0, 0);
+        let OpKind::Line { laser, .. } = arc.kind else {
+            unreachable!()
+        };
+        arc.kind = OpKind::Arc {
+            to: [-1.0, 0.0, 0.0],
+            center: [0.0, 0.0],
+            ccw: true,
+            feed_mm_s: 10.0,
+            laser,
+        };
+        let n = pulses_of(&arc, [1.0, 0.0, 0.0]);
+        assert!(
+            (n - (std::f64::consts::PI / 0.001 + 1.0)).abs() < 1e-6,
+            "{n}"
+        );
+    }
+
+    /// Two ops of 10 000 001 pulses each (1 mm every 0.1 nm, slowly enough for the laser's
+    /// rate): the budget is passed at the first, and reported once.
+    #[test]
+    fn validate_refuses_more_pulses_than_the_budget_once() {
+        let fine = PulseMode::Distance { pitch_mm: 1e-7 };
+        let mut second = lit(1.0, fine, 0.001, 5);
+        if let OpKind::Line { to, .. } = &mut second.kind {
+            *to = [2.0, 0.0, 0.0];
+        }
+        let errs = program(vec![lit(1.0, fine, 0.001, 0), second])
+            .validate()
+            .unwrap_err();
+        assert_eq!(errs.len(), 1, "{errs:?}");
+        assert_eq!(errs[0].span().start, 0);
+        assert_eq!(
+            errs[0].to_string(),
+            "the program would fire about 10000001 pulses, above the 10000000 lase handles"
+        );
     }
 
     /// The xy_table: 100 W, 100 kHz. Each (span, problem) is reported once.

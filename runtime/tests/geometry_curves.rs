@@ -477,3 +477,31 @@ fn rigid_motions_and_reversal_keep_the_spline_exact() {
         assert!((r.curvature_at(p.length() - s) + p.curvature_at(s)).abs() < 1e-9);
     }
 }
+
+/// A bow-tie crosses itself at its waist: `crossing` finds the point, and offsetting refuses
+/// it there instead of tracing one lobe. A rectangle, a circle and a rounded offset of the
+/// rectangle (neighbouring segments meet at every joint) do not cross.
+#[test]
+fn a_crossing_closed_profile_is_found_and_not_offset() {
+    let pts = |v: &[(f64, f64)]| v.iter().map(|&(x, y)| V2::new(x, y)).collect::<Vec<_>>();
+    let tie = Profile::polyline(
+        &pts(&[(0.0, 0.0), (10.0, 10.0), (10.0, 0.0), (0.0, 10.0)]),
+        true,
+    )
+    .unwrap();
+    let near = tie.crossing().expect("a bow-tie crosses itself");
+    assert!((near - V2::new(5.0, 5.0)).norm() < 1e-9, "{near:?}");
+    match tie.offset(1.0) {
+        Err(GeomError::Crosses { near }) => assert!((near - V2::new(5.0, 5.0)).norm() < 1e-9),
+        other => panic!("expected a crossing, got {other:?}"),
+    }
+    let rect = Profile::polyline(
+        &pts(&[(0.0, 0.0), (10.0, 0.0), (10.0, 5.0), (0.0, 5.0)]),
+        true,
+    )
+    .unwrap();
+    assert_eq!(rect.crossing(), None);
+    assert_eq!(rect.offset(1.0).unwrap().crossing(), None);
+    let circle = Profile::circle(V2::new(0.0, 0.0), 3.0, 0.0, true).unwrap();
+    assert_eq!(circle.crossing(), None);
+}

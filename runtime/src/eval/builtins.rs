@@ -183,7 +183,7 @@ impl Evaluator {
                 let o = p.offset_with(d, &opts).map_err(|g| {
                     // A fold-over is a property of the profile: point at it.
                     let at = match g {
-                        GeomError::FoldOver { .. } => {
+                        GeomError::FoldOver { .. } | GeomError::Crosses { .. } => {
                             a.first().cloned().flatten().map_or(span, |x| x.1)
                         }
                         _ => span,
@@ -216,7 +216,26 @@ impl Evaluator {
             "point_at" => {
                 let p = prof(self, 0)?;
                 let s = len(self, 1)?;
-                point2(p.point_at(s))
+                // Beyond either end there is no point on the profile; clamping to the end would
+                // hand back a point the recipe did not ask for. The slack forgives rounding in
+                // an `s` computed as `length(p)` or a sum of pieces.
+                let total = p.length();
+                let slack = 1e-9 * total.max(1.0);
+                if !(s >= -slack && s <= total + slack) {
+                    let at = a.get(1).cloned().flatten().map_or(span, |x| x.1);
+                    return Err(bad(
+                        Kind::OutOfRange,
+                        at,
+                        &format!(
+                            "s = {} is outside the profile, which runs from 0 to {}",
+                            units::format_quantity(s, Dim::LENGTH),
+                            units::format_quantity(total, Dim::LENGTH)
+                        ),
+                        "beyond the profile",
+                        Some("`point_at(p, s)` takes s from 0 to `length(p)`"),
+                    ));
+                }
+                point2(p.point_at(s.clamp(0.0, total)))
             }
             "polar" => {
                 let r = len(self, 0)?;

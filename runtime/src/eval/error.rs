@@ -7,9 +7,12 @@
 //! - `not_positive`: must be greater than zero (a limit, a speed, a spot, a step, a pulse);
 //! - `negative`: cannot be negative (a dwell, a power, a standoff, an overscan, an inset);
 //! - `out_of_range`: outside its range (an M-code, an index, a look-ahead, a cam's angles, a
-//!   scan speed the axes cannot reach or an overscan too short to reach it);
+//!   scan speed the axes cannot reach or an overscan too short to reach it, a quantity outside
+//!   what a machine can carry out (`bounds.rs`: feeds, tolerances, steps, dwells, pulses), an
+//!   arc that sweeps nothing, an arc length beyond a profile's ends);
 //! - `not_whole`: a count that is not a whole number;
-//! - `too_large`: a scan beyond what lase handles (rows, dot-mode stops);
+//! - `too_large`: work beyond what lase handles, refused before it is generated (a scan's rows
+//!   and dot-mode stops, a path's moves or stations past the op budget, the program's pulses);
 //! - `undefined`: a variable or function with no definition here;
 //! - `unknown_name`: a word not allowed there (a unit, a field, a profile or scan kind, a law);
 //! - `missing_argument`: a call or a profile without an argument it needs;
@@ -25,8 +28,8 @@
 //! The rest name the machine and the process sheet: `no_machine`, `unknown_machine`,
 //! `machine_file`, `machine_changed`, `unknown_axis`, `unknown_event`, `above_machine` (a
 //! setting above the machine's capability), `pulse_rate`, `no_power`; and `type_mismatch`,
-//! `geometry` (a profile that cannot be built, offset or followed), `limit` (the step budget,
-//! the op count and the call depth). Machine files, extensions and presets keep their own
+//! `geometry` (a profile that cannot be built, offset or followed, a closed profile that crosses
+//! itself), `limit` (the step budget, the op count and the call depth). Machine files, extensions and presets keep their own
 //! codes (`lase::machine::*`, `lase::ext::*`).
 
 use lase_lang::Span;
@@ -565,6 +568,15 @@ impl From<crate::program::LaserLimit> for EvalError {
                 span,
                 help,
             },
+            e @ LaserLimit::Pulses { span, .. } => {
+                let help = e.help().map(|h| h.to_string());
+                EvalError::TooLarge {
+                    message: e.to_string(),
+                    span,
+                    label: "the pulses pass the budget here".into(),
+                    help,
+                }
+            }
         }
     }
 }

@@ -74,6 +74,9 @@ impl Evaluator {
     }
 
     pub(super) fn expr_here(&mut self, e: &Expr, cx: &mut Cx) -> R<Value> {
+        // Every expression node is a step, so a runaway (an exponential recursion inside one
+        // statement) meets the budget as surely as a long loop does.
+        self.step(self.at)?;
         match &e.kind {
             ExprKind::Number { value, unit } => match unit {
                 None if *value == 0.0 => Ok(Value::Zero),

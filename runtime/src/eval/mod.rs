@@ -7,6 +7,7 @@
 //! cannot be built, values out of range, and the dimension of values the checker could not
 //! type (unannotated function parameters). A runaway recipe is stopped by a step budget.
 
+mod bounds;
 mod builtins;
 mod error;
 mod expr;
@@ -32,12 +33,18 @@ use std::rc::Rc;
 
 pub use crate::host::{Host, StdlibOnly};
 
-/// Statements executed before the recipe is stopped as runaway.
-const STEP_BUDGET: u64 = 200_000_000;
-/// Ops (moves, pulses, machine events) a program may hold: about a gigabyte of process program
-/// and far beyond any real job (a million-spot raster is a few thousand ops). A loop that
-/// produces more is stopped before it exhausts memory or runs for hours.
-const MAX_OPS: usize = 10_000_000;
+/// Evaluation steps (every statement, every expression node, every loop turn, every function
+/// call) before the recipe is stopped as runaway. Twenty million steps is a few seconds in a
+/// debug build and well under one in a release build, and some thousand times what the largest
+/// example takes; a recipe that needs more is computing, not describing a job, and an
+/// exponential recursion (`f(n - 1) + f(n - 1)`) reaches it long before it would finish.
+const STEP_BUDGET: u64 = 20_000_000;
+/// Ops (moves, dot-mode stops, machine events) a program may hold. Half a million is some
+/// 200 MB through planning and emitting in a debug build and an NC program that streams for
+/// hours, far beyond any real job (a million-spot raster on the fly is a few thousand ops). A
+/// loop that produces more is stopped at the statement that passes it; a path or a scan that
+/// would is refused before any of its ops is made (`bounds::room_for_ops`).
+const MAX_OPS: usize = 500_000;
 /// Nested function calls before the recipe is stopped as runaway recursion.
 const MAX_DEPTH: usize = 200;
 
@@ -91,6 +98,8 @@ pub struct Evaluator {
     start: P3,
     ops: Vec<Op>,
     steps: u64,
+    /// The statement running now: where a step budget overrun inside an expression points.
+    at: Span,
     depth: usize,
     imported: HashSet<usize>,
     /// Rhai extension modules and presets (`use`), loaded before checking.
@@ -133,6 +142,7 @@ impl Evaluator {
             start: [0.0; 3],
             ops: Vec::new(),
             steps: 0,
+            at: Span::new(0, 0),
             depth: 0,
             imported: HashSet::new(),
             ext: crate::ext::Extensions::new(),
@@ -148,6 +158,8 @@ impl Evaluator {
         host: &mut dyn Host,
     ) -> R<()> {
         let mut cx = Cx { program, map, host };
+        // Each recipe, and each REPL line, gets the whole budget.
+        self.steps = 0;
         self.hoist(stmts);
         for s in stmts {
             if let Flow::Return(_) = self.stmt(s, &mut cx)? {
@@ -166,6 +178,8 @@ impl Evaluator {
         host: &mut dyn Host,
     ) -> R<Value> {
         let mut cx = Cx { program, map, host };
+        self.steps = 0;
+        self.at = e.span;
         self.expr(e, &mut cx)
     }
 
@@ -303,6 +317,11 @@ fn geom_error(g: GeomError, span: Span, offset: Option<f64>) -> EvalError {
             format_quantity(*radius, Dim::LENGTH)
         )),
         (GeomError::Split { .. }, Some(_)) => Some("use a smaller offset distance".into()),
+        (GeomError::Crosses { .. }, _) => Some(
+            "order the points so the outline goes once round without crossing (a bow-tie's are \
+             out of order), or make each lobe a profile of its own"
+                .into(),
+        ),
         _ => None,
     };
     EvalError::Geometry {
@@ -314,6 +333,8 @@ fn geom_error(g: GeomError, span: Span, offset: Option<f64>) -> EvalError {
                 format_quantity(*s_start, Dim::LENGTH),
                 format_quantity(*s_end, Dim::LENGTH)
             )
+        } else if let GeomError::Crosses { .. } = &g {
+            "this profile crosses itself".into()
         } else if offset.is_some() {
             "this offset".into()
         } else {

@@ -93,7 +93,7 @@ impl Evaluator {
                 None,
             ));
         }
-        Ok(f)
+        self.in_range(f, &super::bounds::FEED, "the speed", span)
     }
 
     pub(super) fn follow(
@@ -126,6 +126,12 @@ impl Evaluator {
                 Some("remove `side`, or choose a machine such as cam_xwb or arm_3r"),
             ));
         }
+        self.room_for_ops(
+            profile.segs.len() as f64,
+            "this path",
+            "use fewer points (a path this fine is finer than the machine resolves)",
+            span,
+        )?;
         let z = self.pos[2];
         let start = profile.start();
         if (start.x - self.pos[0]).hypot(start.y - self.pos[1]) > 1e-9 {
@@ -234,6 +240,13 @@ impl Evaluator {
         } else {
             Normals::Exact
         };
+        // A station per step at least (the step only ever shortens), counted before resampling.
+        self.room_for_ops(
+            profile.length() / step,
+            "this path at this step",
+            "use a coarser `step`",
+            span,
+        )?;
         let stations =
             oriented_stations(profile, step, tol, standoff, side.on_left(profile), normals)
                 .map_err(|e| match e {

@@ -55,6 +55,16 @@ impl Evaluator {
             let (v, sp) = get(i)?;
             s.as_dim(&v, Dim::ANGLE, sp, &format!("`{}`", names[i]))
         };
+        // A radius below what the NC text resolves draws a point (a circle of 1e-300 mm is
+        // emitted as arcs about the spot itself); a negative one is the geometry's to refuse.
+        let radius = |s: &Self| -> R<f64> {
+            let (v, sp) = get(1)?;
+            let r = s.as_dim(&v, Dim::LENGTH, sp, "`radius`")?;
+            if r > 0.0 {
+                s.in_range(r, &super::bounds::FINE_LENGTH, "the radius", sp)?;
+            }
+            Ok(r)
+        };
         let r = match pk.name {
             "polyline" => {
                 let (v, sp) = get(0)?;
@@ -69,19 +79,36 @@ impl Evaluator {
                 Profile::polyline(&pts, has("closed"))
             }
             "line" => Profile::polyline(&[pt(self, 0)?, pt(self, 1)?], false),
-            "arc" => Profile::arc(
-                pt(self, 0)?,
-                len(self, 1)?,
-                ang(self, 2)?,
-                ang(self, 3)?,
-                !has("cw"),
-            ),
+            "arc" => {
+                let (a0, a1) = (ang(self, 2)?, ang(self, 3)?);
+                // An end on the start (mod one turn) would otherwise be read as a whole turn:
+                // a lit full circle where the recipe meant nothing, or a typo.
+                let turns = (a1 - a0) / std::f64::consts::TAU;
+                if a0.is_finite() && a1.is_finite() && (turns - turns.round()).abs() < 1e-9 {
+                    let at = get(3)?.1;
+                    return Err(bad(
+                        Kind::OutOfRange,
+                        at,
+                        &format!(
+                            "this arc ends where it starts (start {}, end {}): it sweeps nothing",
+                            units::format_quantity(a0, Dim::ANGLE),
+                            units::format_quantity(a1, Dim::ANGLE)
+                        ),
+                        "zero sweep",
+                        Some(
+                            "give `end` a different angle from `start`; for a full circle write \
+                             `profile circle(center, radius, start: ...)`",
+                        ),
+                    ));
+                }
+                Profile::arc(pt(self, 0)?, radius(self)?, a0, a1, !has("cw"))
+            }
             "circle" => {
                 let a0 = match a.get(2).cloned().flatten() {
                     Some((v, sp)) => self.as_dim(&v, Dim::ANGLE, sp, "`start`")?,
                     None => 0.0,
                 };
-                Profile::circle(pt(self, 0)?, len(self, 1)?, a0, !has("cw"))
+                Profile::circle(pt(self, 0)?, radius(self)?, a0, !has("cw"))
             }
             "rect" => {
                 let c = pt(self, 0)?;

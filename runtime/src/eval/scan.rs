@@ -9,8 +9,8 @@
 //! * hatch lines are lit `Line`s with the pulse setting in force;
 //! * positioning between rows is a `Rapid`, overscan and gaps unlit `Line`s at the speed.
 
-use super::{Cx, Evaluator, Kind, R, Value, bad, type_err};
-use crate::geometry::{Profile, V2};
+use super::{Cx, Evaluator, Kind, R, Value, bad, geom_error, type_err};
+use crate::geometry::{GeomError, Profile, V2};
 use crate::kinematics::{self, ToolPose};
 use crate::planner::{self, AxisLimits, MAX_AXES, PlannerConfig, ProfileKind};
 use crate::program::*;
@@ -21,9 +21,9 @@ use lase_lang::Span;
 use lase_lang::ast::*;
 use lase_lang::units::{Dim, format_quantity};
 
-/// Dot mode needs two ops per spot and pass; beyond this the program would not fit in memory
-/// (on the fly needs a few ops per row).
-const MAX_DOT_WINDOWS: u64 = 2_000_000;
+/// Dot mode needs two ops per spot and pass, so the op budget allows half as many stops (on
+/// the fly needs a few ops per row).
+const MAX_DOT_WINDOWS: u64 = (super::MAX_OPS / 2) as u64;
 /// Rows a raster may have.
 const MAX_ROWS: f64 = 2_000_000.0;
 /// NC dwell resolution (`G4 P` with 4 decimals), s.
@@ -102,8 +102,12 @@ impl Evaluator {
             }
         };
         positive(Some((speed, speed_span)), "the scan speed")?;
+        self.in_range(speed, &super::bounds::FEED, "the scan speed", speed_span)?;
         let pitch = positive(set.pitch, "the pitch")?;
         let row_pitch = positive(set.row_pitch, "the row pitch")?;
+        for (x, sp) in [set.pitch, set.row_pitch].into_iter().flatten() {
+            self.in_range(x, &super::bounds::FINE_LENGTH, "the pitch", sp)?;
+        }
         if let Some((o, sp)) = set.overscan
             && !(o >= 0.0 && o.is_finite())
         {
@@ -224,6 +228,14 @@ impl Evaluator {
             }
             _ => {
                 let profiles = self.region_profiles(&rv, region.span, dots)?;
+                // A crossing outline has no one inside: the raster would fill part of it.
+                if let Some(near) = profiles
+                    .iter()
+                    .filter(|p| p.closed)
+                    .find_map(|p| p.crossing())
+                {
+                    return Err(geom_error(GeomError::Crosses { near }, region.span, None));
+                }
                 let reg = Region::new(&profiles, set.inset).map_err(|e| {
                     bad(
                         Kind::Geometry,
@@ -397,6 +409,16 @@ impl Evaluator {
         let half = (0.5 * period / NC_TIME_STEP_S - 1e-9).ceil().max(1.0) * NC_TIME_STEP_S;
         let period_nc = 2.0 * half;
 
+        // Every row is at least a move per pass, and every dot-mode spot a stop: held to the op
+        // budget before the path is laid out.
+        let rows: usize = families.iter().map(|f| f.rows.len()).sum();
+        let stops = if firing == Firing::Dot { 2 * spots } else { 0 };
+        self.room_for_ops(
+            (rows as f64 + stops as f64) * f64::from(passes),
+            "this scan",
+            "use a coarser pitch or fewer passes",
+            span,
+        )?;
         let steps = raster::scan_path(
             &families,
             &PathOptions {

@@ -3,7 +3,7 @@
 //! and the planner settings (`planner { ... }`), each checked against the machine, and the
 //! pulse rate a feed implies.
 
-use super::{Cx, EvalError, Evaluator, Kind, LaserSet, R, Value, bad, type_err};
+use super::{Cx, EvalError, Evaluator, Kind, LaserSet, R, Value, bad, bounds, type_err};
 use crate::geometry::toolpath::HeadSide;
 use crate::machine::{AxisKind, parse_machine};
 use crate::program::*;
@@ -114,6 +114,14 @@ impl Evaluator {
                         "not positive",
                         None,
                     ));
+                }
+                if !rotary {
+                    let r = match s.key.name.as_str() {
+                        "v" => &bounds::FEED,
+                        "a" => &bounds::ACCEL,
+                        _ => &bounds::JERK,
+                    };
+                    self.in_range(x, r, &format!("the {name} limit"), e.span)?;
                 }
                 match axis {
                     None => match s.key.name.as_str() {
@@ -229,7 +237,7 @@ impl Evaluator {
                             None,
                         ));
                     }
-                    spot = Some(d);
+                    spot = Some(self.in_range(d, &bounds::FINE_LENGTH, "the spot", e.span)?);
                 }
             }
         }
@@ -255,7 +263,7 @@ impl Evaluator {
                 None,
             ));
         }
-        Ok(x)
+        self.in_range(x, &bounds::FINE_LENGTH, ctx, span)
     }
 
     pub(super) fn pulse_settings(&mut self, set: &[Setting], cx: &mut Cx) -> R<()> {
@@ -323,6 +331,7 @@ impl Evaluator {
                 }
             }
         }
+        self.pulse_in_range(&pulse, set)?;
         if !mode_set {
             let span = set.first().map(|s| s.span).unwrap_or_default();
             return Err(bad(
@@ -373,6 +382,8 @@ impl Evaluator {
                             None,
                         ));
                     }
+                    let what = format!("the {}", s.key.name);
+                    let x = self.in_range(x, &bounds::TOLERANCE, &what, e.span)?;
                     if s.key.name == "corner" {
                         p.junction_deviation_mm = x;
                     } else {

@@ -23,15 +23,10 @@ impl Evaluator {
         }
     }
 
+    /// One statement: a step, and the op count held to its budget (a statement is where ops
+    /// are made, so an overrun points at the one that made too many).
     pub(super) fn tick(&mut self, span: Span) -> R<()> {
-        self.steps += 1;
-        if self.steps > STEP_BUDGET {
-            return Err(EvalError::Budget {
-                message: format!("the recipe ran more than {STEP_BUDGET} steps"),
-                span,
-                help: Some("a loop runs far longer than intended; check its range".into()),
-            });
-        }
+        self.step(span)?;
         if self.ops.len() > MAX_OPS {
             return Err(EvalError::Budget {
                 message: format!(
@@ -42,6 +37,27 @@ impl Evaluator {
                 help: Some(
                     "a loop produces far more motion than a job needs; check its range (a job \
                      this size, if meant, belongs in several recipes)"
+                        .into(),
+                ),
+            });
+        }
+        Ok(())
+    }
+
+    /// One evaluation step (a statement, an expression node, a loop turn), held to the budget.
+    pub(super) fn step(&mut self, span: Span) -> R<()> {
+        self.steps += 1;
+        if self.steps > STEP_BUDGET {
+            return Err(EvalError::Budget {
+                message: format!(
+                    "the recipe ran more than {} evaluation steps",
+                    units::format_number(STEP_BUDGET as f64)
+                ),
+                span,
+                help: Some(
+                    "a loop runs far longer than intended, or a function calls itself more \
+                     than once per call (its work doubles with each level); check the range or \
+                     the recursion"
                         .into(),
                 ),
             });
@@ -86,7 +102,12 @@ impl Evaluator {
     /// segment, so no recipe overflows it, however its frames are sized (a debug build's are
     /// large).
     pub(super) fn stmt(&mut self, s: &Stmt, cx: &mut Cx) -> R<Flow> {
-        stacker::maybe_grow(STACK_RED_ZONE, STACK_SEGMENT, || self.stmt_here(s, cx))
+        // An expression's steps are charged to the innermost statement running it, the one a
+        // budget overrun points at; a call returns to its caller's statement.
+        let outer = std::mem::replace(&mut self.at, s.span);
+        let r = stacker::maybe_grow(STACK_RED_ZONE, STACK_SEGMENT, || self.stmt_here(s, cx));
+        self.at = outer;
+        r
     }
 
     pub(super) fn stmt_here(&mut self, s: &Stmt, cx: &mut Cx) -> R<Flow> {
@@ -172,6 +193,9 @@ impl Evaluator {
                         "negative",
                         None,
                     ));
+                }
+                if t > 0.0 {
+                    self.in_range(t, &super::bounds::DWELL, "the dwell", e.span)?;
                 }
                 self.need_machine(s.span)?;
                 self.push(OpKind::Dwell { seconds: t }, s.span);
@@ -280,7 +304,7 @@ impl Evaluator {
             },
         };
         for item in items {
-            self.tick(var.span)?;
+            self.step(var.span)?;
             self.scopes.push(HashMap::new());
             self.bind(&var.name, item);
             let r = self.block(body, cx);

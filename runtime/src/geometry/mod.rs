@@ -256,6 +256,11 @@ pub enum GeomError {
     SelfIntersects {
         near: V2,
     },
+    /// A closed profile that crosses itself (a bow-tie): it has no one inside, so it cannot be
+    /// offset or filled; `near` is a crossing point.
+    Crosses {
+        near: V2,
+    },
 }
 
 impl std::fmt::Display for GeomError {
@@ -303,6 +308,13 @@ impl std::fmt::Display for GeomError {
             GeomError::SelfIntersects { near } => write!(
                 f,
                 "the offset crosses itself near ({}, {}) mm: the profile is narrower than twice the distance there",
+                n(near.x),
+                n(near.y)
+            ),
+            GeomError::Crosses { near } => write!(
+                f,
+                "the closed profile crosses itself at ({}, {}) mm: it has no one inside to offset \
+                 or fill",
                 n(near.x),
                 n(near.y)
             ),

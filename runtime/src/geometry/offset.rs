@@ -79,6 +79,13 @@ impl Profile {
         if d == 0.0 {
             return Ok(self.clone());
         }
+        // A crossing closed profile has no one outside: the offset would trace one lobe and
+        // drop the rest without a word.
+        if self.closed
+            && let Some(near) = self.crossing()
+        {
+            return Err(GeomError::Crosses { near });
+        }
         let left = self.left_offset(d);
         if !opts.trim
             && let Some(r) = self.fold_over_regions(d).first()
@@ -97,6 +104,13 @@ impl Profile {
             (Some(_), true) => line_arc_offset(&self.to_line_arc(0.5 * opts.tol_mm)?, left),
             (None, _) => line_arc_offset(self, left),
         }
+    }
+
+    /// A point where the profile crosses or touches itself away from the joints of
+    /// neighbouring segments (a bow-tie's waist), if there is one. Near-linear: crossings are
+    /// found through an AABB index of the segments.
+    pub fn crossing(&self) -> Option<V2> {
+        first_crossing(self)
     }
 
     /// Every region where offsetting by `d` folds over: `κ ℓ ≥ 1`, i.e. the center of
@@ -215,21 +229,28 @@ fn spline_offset(sp: &Spline, left: f64, tol: f64) -> Result<Profile, GeomError>
 /// An offset that crosses itself away from a fold-over (a neck narrower than 2|d|) is as
 /// unusable as a folded one.
 fn check_self_intersection(o: &Profile) -> Result<(), GeomError> {
+    match first_crossing(o) {
+        Some(near) => Err(GeomError::SelfIntersects { near }),
+        None => Ok(()),
+    }
+}
+
+/// The first crossing of `o` with itself that is not the joint of neighbouring segments.
+fn first_crossing(o: &Profile) -> Option<V2> {
+    if o.segs.len() < 3 {
+        return None;
+    }
     let pl = o.to_pline();
     let index = pl.create_approx_aabb_index();
     let hits = pline_intersects::all_self_intersects_as_basic(&pl, &index, false, 1e-9);
-    // Consecutive biarc pieces touch at their joints; only crossings well inside count.
-    for h in hits {
-        let p = V2::new(h.point.x, h.point.y);
-        let nseg = o.segs.len();
-        let i = h.start_index1;
-        let j = h.start_index2;
-        let adjacent = i.abs_diff(j) <= 1 || (o.closed && i.abs_diff(j) == nseg - 1);
-        if !adjacent {
-            return Err(GeomError::SelfIntersects { near: p });
-        }
-    }
-    Ok(())
+    // Consecutive segments (and biarc pieces) touch at their joints; only other meetings count.
+    let nseg = o.segs.len();
+    hits.into_iter()
+        .find(|h| {
+            let (i, j) = (h.start_index1, h.start_index2);
+            !(i.abs_diff(j) <= 1 || (o.closed && i.abs_diff(j) == nseg - 1))
+        })
+        .map(|h| V2::new(h.point.x, h.point.y))
 }
 
 /// Fold regions of a spline: samples of `κ ℓ − 1` per span, local maxima refined by golden
