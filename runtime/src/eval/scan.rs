@@ -367,7 +367,7 @@ impl Evaluator {
                 // (the lead-ins do the same), so they are at cruise that long before the first
                 // spot: approach points stand that far back.
                 let margin = if dots {
-                    speed * crate::motion::leadin::PULSE_CRUISE_MARGIN_S
+                    speed * crate::program::PULSE_CRUISE_MARGIN_S
                 } else {
                     0.0
                 };

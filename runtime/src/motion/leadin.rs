@@ -41,15 +41,7 @@ use crate::planner::{self, AxisLimits, PlannerConfig};
 use crate::program::{Laser, Op, OpKind, Orient, P3};
 use lase_lang::units::format_number;
 
-/// Cruise time before the first pulse of a section with pulses by distance: its lead-in is
-/// longer than the ramp by this long at the feed, so the planner (which ramps as early as it
-/// can) is at cruise that long before the first pulse, and every pulse fires at the programmed
-/// speed with room for a controller whose ramp ends a few servo periods late (LinuxCNC's edges
-/// land within 2–3 periods of 1 ms). Without it the first spot of each dot row sat exactly where
-/// the ramp ends: the 1 ms before it averaged 19.95 of 20 mm/s on `texture_array`. A margin in
-/// a separate move before the lead-in would not do: each planned move starts and ends its
-/// S-curve ramp at zero acceleration, so a ramp split in two ends later.
-pub const PULSE_CRUISE_MARGIN_S: f64 = 0.005;
+pub use crate::program::PULSE_CRUISE_MARGIN_S;
 
 /// What the lead computation needs to know about the machine and the planner.
 #[derive(Clone, Copy, Debug)]
