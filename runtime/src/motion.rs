@@ -23,6 +23,7 @@ pub use leadin::{Lead, LeadKind, LitSection};
 use crate::axes::{Axes, MAX_AXES};
 use crate::kinematics::{self, KinError, Kinematics, ToolPose};
 use crate::planner::{self, AxisLimits, Move, Plan, PlannerConfig, ProfileKind};
+pub use crate::program::arc_sweep;
 use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp, dist};
 use lase_lang::Span;
 use std::sync::Arc;
@@ -460,25 +461,4 @@ pub fn arc_points(from: P3, to: P3, center: [f64; 2], ccw: bool, tol: f64) -> Ve
             ]
         })
         .collect()
-}
-
-/// The signed sweep from angle `a0` to `a1` in the given direction; a full turn when the end
-/// equals the start.
-pub fn arc_sweep(a0: f64, a1: f64, ccw: bool, from: P3, to: P3) -> f64 {
-    use std::f64::consts::TAU;
-    let same = (from[0] - to[0]).abs() < 1e-9 && (from[1] - to[1]).abs() < 1e-9;
-    if same {
-        return if ccw { TAU } else { -TAU };
-    }
-    let mut d = a1 - a0;
-    if ccw {
-        while d <= 0.0 {
-            d += TAU;
-        }
-    } else {
-        while d >= 0.0 {
-            d -= TAU;
-        }
-    }
-    d
 }

@@ -169,6 +169,64 @@ impl Op {
             _ => None,
         }
     }
+
+    /// Whether this motion op moves the spot from `from` (a zero-length line is no move: emit
+    /// writes nothing for it, since G0/G1 without axis words is an error in rs274ngc, and the
+    /// planner drops it).
+    pub fn moves_from(&self, from: P3) -> bool {
+        match &self.kind {
+            OpKind::Arc { .. } => true,
+            OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
+                (0..3).any(|k| (to[k] - from[k]).abs() > 1e-12)
+            }
+            _ => false,
+        }
+    }
+
+    /// An arc op's circle as seen from `from`: radius, start angle and signed sweep (rad).
+    pub fn arc_from(&self, from: P3) -> Option<(f64, f64, f64)> {
+        let OpKind::Arc {
+            to, center, ccw, ..
+        } = &self.kind
+        else {
+            return None;
+        };
+        let r = (from[0] - center[0]).hypot(from[1] - center[1]);
+        let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
+        let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
+        Some((r, a0, arc_sweep(a0, a1, *ccw, from, *to)))
+    }
+
+    /// Length of this motion op from `from`, mm (part space; a helix for an arc that climbs);
+    /// 0 for an op that does not move.
+    pub fn length_from(&self, from: P3) -> f64 {
+        match (self.arc_from(from), self.target()) {
+            (Some((r, _, sweep)), Some(to)) => (r * sweep).hypot(to[2] - from[2]),
+            (None, Some(to)) => dist(from, to),
+            _ => 0.0,
+        }
+    }
+}
+
+/// The signed sweep from angle `a0` to `a1` in the given direction; a full turn when the end
+/// equals the start.
+pub fn arc_sweep(a0: f64, a1: f64, ccw: bool, from: P3, to: P3) -> f64 {
+    use std::f64::consts::TAU;
+    let same = (from[0] - to[0]).abs() < 1e-9 && (from[1] - to[1]).abs() < 1e-9;
+    if same {
+        return if ccw { TAU } else { -TAU };
+    }
+    let mut d = a1 - a0;
+    if ccw {
+        while d <= 0.0 {
+            d += TAU;
+        }
+    } else {
+        while d >= 0.0 {
+            d -= TAU;
+        }
+    }
+    d
 }
 
 pub use crate::machine::Ramp;
@@ -312,38 +370,21 @@ pub const MAX_PULSES: f64 = 10_000_000.0;
 /// pitch, or the lit time at the programmed feed over the period, plus the first), since
 /// ramps only lengthen the lit time.
 fn pulses_of(op: &Op, from: P3) -> f64 {
-    let (to, feed, laser) = match &op.kind {
+    let (feed, laser) = match &op.kind {
         OpKind::Line {
-            to,
             feed_mm_s,
             laser: Some(l),
             ..
         }
         | OpKind::Arc {
-            to,
             feed_mm_s,
             laser: Some(l),
             ..
-        } => (*to, *feed_mm_s, l),
+        } => (*feed_mm_s, l),
         OpKind::Fire { count, .. } => return f64::from(*count),
         _ => return 0.0,
     };
-    let length = match &op.kind {
-        OpKind::Arc { center, .. } => {
-            let (a0, a1) = (
-                (from[1] - center[1]).atan2(from[0] - center[0]),
-                (to[1] - center[1]).atan2(to[0] - center[0]),
-            );
-            let r = (from[0] - center[0]).hypot(from[1] - center[1]);
-            // The evaluator splits arcs at half turns, so the short way round is a lower bound.
-            let mut d = (a1 - a0).abs() % std::f64::consts::TAU;
-            if d > std::f64::consts::PI {
-                d = std::f64::consts::TAU - d;
-            }
-            r * d
-        }
-        _ => dist(from, to),
-    };
+    let length = op.length_from(from);
     match laser.pulse.as_ref().map(|p| p.mode) {
         Some(PulseMode::Distance { pitch_mm }) => length / pitch_mm + 1.0,
         Some(PulseMode::Time { period_s }) => length / feed / period_s + 1.0,

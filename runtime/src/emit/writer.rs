@@ -19,7 +19,7 @@ use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
 use crate::axes::{self, Axes, MAX_AXES};
 use crate::machine::AxisKind;
-use crate::motion::{Job, arc_sweep, beam, power};
+use crate::motion::{Job, beam, power};
 use crate::program::{Coupling, Op, OpKind, P3};
 use std::io;
 
@@ -231,7 +231,7 @@ pub(super) fn write(
                     out.put(&arm_line(a.dynamic), tag)?;
                     m.s = Some(s_word(0.0));
                 }
-                if !moves(op, m.pos) {
+                if !op.moves_from(m.pos) {
                     continue;
                 }
                 let coupled = op.laser().is_some_and(|l| l.couple == Coupling::Speed);
@@ -442,17 +442,14 @@ fn part_way(
         return (sub, *to_q);
     }
     let mut q = from_q.lerp(to_q, f);
+    let arc = op.arc_from(from);
     match &mut sub.kind {
         OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
             *to = std::array::from_fn(|k| from[k] + f * (to[k] - from[k]));
         }
-        OpKind::Arc {
-            to, center, ccw, ..
-        } => {
-            let r = (from[0] - center[0]).hypot(from[1] - center[1]);
-            let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
-            let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
-            let a = a0 + f * arc_sweep(a0, a1, *ccw, from, *to);
+        OpKind::Arc { to, center, .. } => {
+            let (r, a0, sweep) = arc.unwrap_or_default();
+            let a = a0 + f * sweep;
             let z = from[2] + f * (to[2] - from[2]);
             *to = [center[0] + r * a.cos(), center[1] + r * a.sin(), z];
             if let Some((x, y, _)) = arc_axes {
@@ -465,23 +462,11 @@ fn part_way(
     (sub, q)
 }
 
-/// Whether a motion op moves the spot (a zero-length line is written as nothing, since G0/G1
-/// without axis words is an error in rs274ngc; the planner drops it too).
-fn moves(op: &Op, from: P3) -> bool {
-    match &op.kind {
-        OpKind::Arc { .. } => true,
-        OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
-            (0..3).any(|k| (to[k] - from[k]).abs() > 1e-12)
-        }
-        _ => false,
-    }
-}
-
 /// Whether the next op that moves the spot is lit (non-motion ops in between keep the beam
 /// as it is: the laser model of this module).
 fn next_move_lit(rest: &[Op], pos: P3) -> bool {
     rest.iter()
-        .find(|o| moves(o, pos))
+        .find(|o| o.moves_from(pos))
         .is_some_and(|o| o.laser().is_some())
 }
 

@@ -125,7 +125,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
     let moving: Vec<bool> = ops
         .iter()
         .zip(&starts)
-        .map(|(op, from)| moves(op, *from))
+        .map(|(op, from)| op.moves_from(*from))
         .collect();
     let runs = lit_runs(ops, &moving);
     if !cx.enabled || runs.is_empty() {
@@ -371,17 +371,6 @@ fn start_points(start: P3, ops: &[Op]) -> Vec<P3> {
             from
         })
         .collect()
-}
-
-/// Whether a motion op moves the spot (the same test as `emit` and the lowering use).
-fn moves(op: &Op, from: P3) -> bool {
-    match &op.kind {
-        OpKind::Arc { .. } => true,
-        OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
-            (0..3).any(|k| (to[k] - from[k]).abs() > 1e-12)
-        }
-        _ => false,
-    }
 }
 
 /// Lit sections: (first, last) indices of maximal runs of moving lit ops; non-motion ops and

@@ -29,7 +29,7 @@ use super::{Modal, Out, immediate, motion_line, part_way};
 use crate::axes::Axes;
 use crate::emit::Dialect;
 use crate::machine::{DialectPost, Machine};
-use crate::program::{Op, OpKind, P3, Pulse, PulseMode};
+use crate::program::{Op, OpKind, Pulse, PulseMode};
 use std::io;
 
 /// The pulse train in progress, carried across the lit moves of one section.
@@ -102,23 +102,6 @@ impl Train {
     }
 }
 
-/// Length of motion op `op` from `from`, mm (part space).
-fn op_length(op: &Op, from: P3) -> f64 {
-    match &op.kind {
-        OpKind::Arc {
-            to, center, ccw, ..
-        } => {
-            let r = (from[0] - center[0]).hypot(from[1] - center[1]);
-            let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
-            let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
-            let sweep = crate::motion::arc_sweep(a0, a1, *ccw, from, *to);
-            let dz = to[2] - from[2];
-            (r * sweep).hypot(dz)
-        }
-        _ => crate::program::dist(from, op.target().unwrap_or(from)),
-    }
-}
-
 /// What `write_gated` needs to know about the machine and the dialect.
 pub(super) struct Gate<'a> {
     pub dialect: Dialect,
@@ -154,7 +137,7 @@ pub(super) fn write_gated(
 ) -> io::Result<()> {
     let op = &ops[i];
     let (from, from_q) = (m.pos, m.q);
-    let len = op_length(op, from);
+    let len = op.length_from(from);
     let laser = op.laser();
     let power = laser.map_or(0.0, |l| l.power_w);
     let gate = if g.dialect.is_grbl_family() {
