@@ -16,6 +16,7 @@
 
 pub mod controller;
 pub mod gcode;
+pub mod motion;
 
 pub use controller::{
     Controller, ControllerConfig, Effect, ExecutedBlock, Firmware, LaserEvent, LineRecord,
@@ -33,6 +34,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
+
+/// With `TimeScale::Max`, how long the client must have sent no line bytes before everything
+/// buffered executes at once.
+const MAX_QUIET: Duration = Duration::from_millis(5);
 
 /// How simulated time relates to wall time.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -289,6 +294,8 @@ struct Server {
     drops: Vec<u64>,
     garbage: Vec<u64>,
     last_tick: Instant,
+    /// When the last byte of a line (not a real-time command) arrived.
+    last_line_byte: Instant,
     busy: bool,
     overflows_seen: u64,
     /// Line ends received from clients, for `drop_after_lines`.
@@ -325,6 +332,7 @@ impl Server {
             drops,
             garbage,
             last_tick: now,
+            last_line_byte: now,
             busy: false,
             overflows_seen: 0,
             lines_in: 0,
@@ -406,6 +414,9 @@ impl Server {
                     break;
                 }
                 self.wire_in.pop_front();
+                if crate::link::grbl::codes::realtime_of(b).is_none() {
+                    self.last_line_byte = now;
+                }
                 ctl.receive(b);
                 if b == b'\n' {
                     self.lines_in += 1;
@@ -418,7 +429,19 @@ impl Server {
             }
             let dt = now.saturating_duration_since(self.last_tick);
             self.last_tick = now;
-            ctl.run(self.opts.time_scale.sim_dt(dt));
+            if self.opts.time_scale == TimeScale::Max {
+                // Still modelled: time runs only while the controller waits for its planner,
+                // until the client has been quiet a moment; then everything left executes.
+                if now.saturating_duration_since(self.last_line_byte) >= MAX_QUIET
+                    && ctl.input_drained()
+                {
+                    ctl.run(f64::INFINITY);
+                } else {
+                    ctl.run_while_blocked();
+                }
+            } else {
+                ctl.run(self.opts.time_scale.sim_dt(dt));
+            }
             let mut out = ctl.take_output();
             if self
                 .garbage
