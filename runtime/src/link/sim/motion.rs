@@ -155,6 +155,8 @@ pub struct Block {
 pub struct Planner {
     pub limits: Limits,
     position: [i64; MAX_AXES],
+    /// Where the last block ends as programmed (`position` is it rounded to steps).
+    target: AxisPos,
     prev_unit: AxisPos,
     prev_nominal: f64,
 }
@@ -175,6 +177,7 @@ impl Planner {
         let mut p = Planner {
             limits,
             position: [0; MAX_AXES],
+            target: at,
             prev_unit: [0.0; MAX_AXES],
             prev_nominal: 0.0,
         };
@@ -185,6 +188,7 @@ impl Planner {
     /// GRBL's `plan_sync_position`: the planner's position after a reset or a jog.
     pub fn sync_position(&mut self, at: AxisPos) {
         self.position = std::array::from_fn(|k| (at[k] * self.limits.steps[k]).round() as i64);
+        self.target = at;
     }
 
     /// The segments of a move: arcs split into chords, a G93 move's time shared by length.
@@ -230,6 +234,8 @@ impl Planner {
         let target: [i64; MAX_AXES] =
             std::array::from_fn(|k| (seg.target[k] * lim.steps[k]).round() as i64);
         if (0..MAX_AXES).all(|k| target[k] == self.position[k]) {
+            // No steps: GRBL drops the block (the parser's position still moves).
+            self.target = seg.target;
             return None;
         }
         let delta: AxisPos =
@@ -269,8 +275,9 @@ impl Planner {
             }
         };
         let max_entry_sq = (nominal.min(self.prev_nominal)).powi(2).min(junction_sq);
-        let from: AxisPos = std::array::from_fn(|k| self.position[k] as f64 / lim.steps[k]);
-        let to: AxisPos = std::array::from_fn(|k| target[k] as f64 / lim.steps[k]);
+        // Timing comes from the steps; positions stay as programmed (under a step apart).
+        let (from, to) = (self.target, seg.target);
+        self.target = seg.target;
         self.prev_unit = unit;
         self.prev_nominal = nominal;
         self.position = target;
