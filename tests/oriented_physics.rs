@@ -269,7 +269,7 @@ fn executed_blocks(example: &str, m: &Machine) -> Vec<Block> {
         journal.to_str().unwrap(),
     ]);
     assert_eq!(code, 0, "{err}");
-    assert!(err.contains("GrblHAL"), "{err}");
+    assert!(err.contains("grblHAL"), "{err}");
     assert!(out.contains("done"), "{out}");
     assert!(sim.wait_quiet(std::time::Duration::from_secs(10)));
     let rec = sim.stop();

@@ -7,9 +7,10 @@
 //! As in GRBL: a line is read from the RX buffer as soon as the protocol loop is free; its
 //! `ok` is sent once its motion is in the planner (which holds `planner_blocks` blocks, arcs
 //! split into chords by `$12`), so a full planner holds the answer back; spindle and coolant
-//! changes, dwells and program ends first wait for the planner to empty. Moves run at their
-//! feed (clamped by `$110`–`$112`, scaled by the overrides); acceleration is not modelled
-//! in time. Soft limits (`$20=1`, the machine file's travel) raise ALARM:2; a soft reset
+//! changes, dwells and program ends first wait for the planner to empty. Moves run as GRBL's
+//! planner and stepper run them ([`super::motion`]: junction deviation, trapezoids at the
+//! block's acceleration, look-ahead over the buffer; `exec`), a feed hold decelerates.
+//! Soft limits (`$20=1`, the machine file's travel) raise ALARM:2; a soft reset
 //! while moving raises ALARM:3. In laser mode (`$32=1`) the laser fires on G1/G2/G3 moves
 //! with M3/M4 and S > 0, stays on at rest with M3 in G1/G2/G3, and is off during a hold.
 //!
@@ -22,7 +23,8 @@
 //! axis count in `$I`'s `[OPT:…]`, as grblHAL reports it.
 //!
 //! This file holds the controller's state, the byte-level protocol loop, real-time commands,
-//! reset and the simulated clock; `blocks` turns G-code lines into planner blocks, `system`
+//! reset and the simulated clock; `blocks` turns G-code lines into planner blocks, `exec`
+//! moves the machine along them, `system`
 //! answers `$` commands, jogs and status reports, `record` is what tests read, `config` the
 //! firmware build and settings.
 
@@ -448,8 +450,10 @@ impl Controller {
 
     fn laser_now(&self) -> f64 {
         match self.state {
-            St::Hold { .. } | St::Alarm { .. } | St::Sleep | St::Check => 0.0,
-            St::Cycle => self
+            // The stepper keeps driving the beam while a hold decelerates; laser mode turns it
+            // off once the machine stands.
+            St::Hold { complete: true } | St::Alarm { .. } | St::Sleep | St::Check => 0.0,
+            St::Cycle | St::Hold { complete: false } => self
                 .planner
                 .front()
                 .map_or(self.rest_laser, |b| b.b.laser_s),

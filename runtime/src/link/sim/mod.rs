@@ -5,7 +5,8 @@
 //! The serial line: with a baud rate, bytes reach the controller one at a time at `baud/10`
 //! bytes per second in each direction, as over a UART with 8N1 framing; without, as fast as
 //! the transport carries them. The controller's clock runs in real time, a multiple of it,
-//! or as fast as possible (everything buffered executes at once).
+//! or as fast as possible (time passes only while the controller waits for its planner, and
+//! what is buffered runs once the client is quiet, so a fast run is still GRBL's motion).
 //!
 //! Faults: drop the connection once the controller has received N lines or after T seconds
 //! (bytes in transit are lost, the controller keeps executing what it received, as a real
@@ -45,7 +46,8 @@ pub enum TimeScale {
     Real,
     /// This many simulated seconds per wall second.
     Factor(f64),
-    /// Everything the controller can execute, at once.
+    /// As fast as possible, still modelled: simulated time passes while the controller waits
+    /// for its planner, and everything left executes once the client is quiet.
     Max,
 }
 
