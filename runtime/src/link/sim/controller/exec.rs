@@ -158,11 +158,29 @@ impl Controller {
         };
         let reached = e.done + e.profile.len;
         if e.hold && e.profile.exit <= 1e-9 && reached < front.b.len - 1e-9 {
-            // Stopped inside the block: what is left of it waits in the buffer.
+            // Stopped inside the block: the part it ran is recorded, what is left of it
+            // waits in the buffer.
             let f = reached / front.b.len;
             let from = front.b.from;
-            front.b.from = std::array::from_fn(|i| from[i] + f * (front.b.to[i] - from[i]));
+            let stop: AxisPos = std::array::from_fn(|i| from[i] + f * (front.b.to[i] - from[i]));
+            front.b.from = stop;
             front.b.len -= reached;
+            let (seq, rapid, laser_s) = (front.seq, front.b.rapid, front.b.laser_s);
+            if self.state != St::Jog {
+                self.rec.executed_s = self.now;
+                self.rec.blocks.push(ExecutedBlock {
+                    seq,
+                    from,
+                    to: stop,
+                    rapid,
+                    laser_s,
+                    t_start: e.t_start,
+                    t_end: self.now,
+                    duration: self.now - e.t_start,
+                    entry_mm_s: e.entry,
+                    exit_mm_s: 0.0,
+                });
+            }
             self.exec = None;
             self.v = 0.0;
             self.mpos = front.b.from;
