@@ -356,6 +356,18 @@ fn cmd_plan(
         job.program.planner.ramp
     );
     outln!("  cycle time      {:.4} s", s.cycle_time_s);
+    // What the controller that streams the program will take, by its own planner.
+    match lase_runtime::link::sim::motion::controller_time(&job) {
+        Some(Ok(c)) => outln!(
+            "  controller      {:.4} s ({}: {} blocks, {} stops)",
+            c.timeline.total_s,
+            c.model,
+            c.timeline.blocks,
+            c.timeline.syncs
+        ),
+        Some(Err(why)) => outln!("  controller      not modelled: {why}"),
+        None => {}
+    }
     outln!(
         "  path length     {:.4} mm ({:.4} mm rapid)",
         s.path_length_mm,

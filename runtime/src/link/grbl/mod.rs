@@ -449,6 +449,8 @@ impl Link for GrblLink {
     fn describe(&self) -> String {
         match &self.banner {
             Some(b) => format!("{} ({})", self.url, b.split(" [").next().unwrap_or(b)),
+            // grblHAL greets a TCP client with no banner; its `$I` named it.
+            None if self.hal_build => format!("{} (grblHAL)", self.url),
             None => self.url.clone(),
         }
     }

@@ -7,9 +7,10 @@
 //! As in GRBL: a line is read from the RX buffer as soon as the protocol loop is free; its
 //! `ok` is sent once its motion is in the planner (which holds `planner_blocks` blocks, arcs
 //! split into chords by `$12`), so a full planner holds the answer back; spindle and coolant
-//! changes, dwells and program ends first wait for the planner to empty. Moves run at their
-//! feed (clamped by `$110`–`$112`, scaled by the overrides); acceleration is not modelled
-//! in time. Soft limits (`$20=1`, the machine file's travel) raise ALARM:2; a soft reset
+//! changes, dwells and program ends first wait for the planner to empty. Moves run as GRBL's
+//! planner and stepper run them ([`super::motion`]: junction deviation, trapezoids at the
+//! block's acceleration, look-ahead over the buffer; `exec`), a feed hold decelerates.
+//! Soft limits (`$20=1`, the machine file's travel) raise ALARM:2; a soft reset
 //! while moving raises ALARM:3. In laser mode (`$32=1`) the laser fires on G1/G2/G3 moves
 //! with M3/M4 and S > 0, stays on at rest with M3 in G1/G2/G3, and is off during a hold.
 //!
@@ -22,12 +23,14 @@
 //! axis count in `$I`'s `[OPT:…]`, as grblHAL reports it.
 //!
 //! This file holds the controller's state, the byte-level protocol loop, real-time commands,
-//! reset and the simulated clock; `blocks` turns G-code lines into planner blocks, `system`
+//! reset and the simulated clock; `blocks` turns G-code lines into planner blocks, `exec`
+//! moves the machine along them, `system`
 //! answers `$` commands, jogs and status reports, `record` is what tests read, `config` the
 //! firmware build and settings.
 
 mod blocks;
 mod config;
+mod exec;
 mod record;
 mod system;
 
@@ -37,6 +40,7 @@ pub use record::{
 };
 
 use super::gcode::Gc;
+use super::motion::{self, Limits, Planner};
 use crate::link::grbl::codes::realtime_of;
 use crate::link::{AxisPos, OverrideStep, Realtime};
 use std::collections::{BTreeMap, VecDeque};
@@ -60,12 +64,8 @@ enum St {
 #[derive(Debug, Clone)]
 struct PBlock {
     seq: u64,
-    from: AxisPos,
-    to: AxisPos,
-    duration: f64,
-    feed_mm_min: f64,
-    laser_s: f64,
-    rapid: bool,
+    /// The block as GRBL's planner holds it (what is left of it after a hold).
+    b: motion::Block,
     /// Laser power at rest once this block ends (M3 in G1 keeps the beam on).
     rest_after: f64,
 }
@@ -104,7 +104,14 @@ pub struct Controller {
     pending: Option<Pending>,
     gc: Gc,
     planner: VecDeque<PBlock>,
-    exec_t: f64,
+    /// GRBL's planner state (`pl`): the last block's end in steps, unit vector, speed.
+    pl: Planner,
+    /// The running block's progress.
+    exec: Option<exec::Exec>,
+    /// Speed at the end of the last block run, mm/s (0 at rest).
+    v: f64,
+    /// `~` arrived while a hold was still decelerating.
+    resume_asked: bool,
     mpos: AxisPos,
     state: St,
     now: f64,
@@ -125,6 +132,7 @@ pub struct Controller {
 impl Controller {
     pub fn new(cfg: ControllerConfig) -> Controller {
         let settings = cfg.settings.clone();
+        let limits = Limits::from_settings(&settings, cfg.firmware.axes(), cfg.planner_blocks);
         // The simulator starts homed at the origin (clamped into the travel).
         let mpos = cfg.home();
         let axes = cfg.firmware.axes();
@@ -142,7 +150,10 @@ impl Controller {
             pending: None,
             gc: Gc::new(mpos, axes),
             planner: VecDeque::new(),
-            exec_t: 0.0,
+            pl: Planner::new(limits, mpos),
+            exec: None,
+            v: 0.0,
+            resume_asked: false,
             mpos,
             state: St::Idle,
             now: 0.0,
@@ -171,12 +182,10 @@ impl Controller {
 
     /// Position now, mm (degrees for rotary axes).
     pub fn position(&self) -> AxisPos {
-        match (self.state, self.planner.front()) {
-            (_, Some(b)) if b.duration > 0.0 => {
-                let f = (self.exec_t / b.duration).clamp(0.0, 1.0);
-                std::array::from_fn(|i| b.from[i] + f * (b.to[i] - b.from[i]))
-            }
-            _ => self.mpos,
+        if self.exec.is_some() {
+            self.front_position().unwrap_or(self.mpos)
+        } else {
+            self.mpos
         }
     }
 
@@ -193,11 +202,14 @@ impl Controller {
             && !matches!(self.state, St::Cycle | St::Jog)
     }
 
-    /// A client connected: GRBL's welcome, as network controllers greet each connection.
+    /// A client connected: GRBL's welcome, as network GRBL controllers greet each connection;
+    /// grblHAL greets a TCP client with nothing (its `$I` says what it is).
     pub fn connected(&mut self) {
         self.connection += 1;
         self.rec.connections += 1;
-        self.say(self.cfg.firmware.banner());
+        if self.cfg.firmware == Firmware::Grbl {
+            self.say(self.cfg.firmware.banner());
+        }
         if matches!(self.state, St::Alarm { .. }) {
             self.say("[MSG:'$H'|'$X' to unlock]");
         }
@@ -262,6 +274,7 @@ impl Controller {
                 St::Cycle => {
                     self.state = St::Hold { complete: false };
                     self.rec.holds += 1;
+                    self.begin_hold();
                 }
                 St::Idle => {
                     self.state = St::Hold { complete: true };
@@ -271,7 +284,9 @@ impl Controller {
                 _ => {}
             },
             Realtime::CycleStart => {
-                if let St::Hold { .. } = self.state {
+                if self.state == (St::Hold { complete: false }) {
+                    self.resume_asked = true;
+                } else if let St::Hold { .. } = self.state {
                     self.state = if self.planner.is_empty() {
                         St::Idle
                     } else {
@@ -299,8 +314,7 @@ impl Controller {
 
     fn jog_cancel(&mut self) {
         self.mpos = self.position();
-        self.planner.clear();
-        self.exec_t = 0.0;
+        self.stop_motion();
         self.gc.pos = self.mpos;
         self.state = St::Idle;
     }
@@ -313,6 +327,7 @@ impl Controller {
             St::Cycle | St::Hold { complete: false } | St::Jog
         ) && !self.planner.is_empty();
         self.mpos = self.position();
+        self.stop_motion();
         self.rx.clear();
         self.rx_conn.clear();
         self.line.clear();
@@ -321,8 +336,6 @@ impl Controller {
         self.in_semicolon = false;
         self.overflow = false;
         self.pending = None;
-        self.planner.clear();
-        self.exec_t = 0.0;
         self.gc = Gc::new(self.mpos, self.cfg.firmware.axes());
         self.rest_laser = 0.0;
         self.overrides = [100, 100, 100];
@@ -348,18 +361,44 @@ impl Controller {
 
     /// Lets `dt` seconds of simulated time pass (`f64::INFINITY`: until nothing is left to
     /// do), running the protocol loop between events.
-    pub fn run(&mut self, mut dt: f64) {
+    pub fn run(&mut self, dt: f64) {
+        self.run_until(dt, false);
+    }
+
+    /// As fast as possible while a client streams: simulated time passes only while the
+    /// protocol loop waits (a line held back by a full planner, a sync, a dwell), so the
+    /// planner holds what a client streaming faster than the machine moves would give it.
+    pub fn run_while_blocked(&mut self) {
+        self.run_until(f64::INFINITY, true);
+    }
+
+    /// A `?` is waiting for its answer.
+    pub fn status_asked(&self) -> bool {
+        self.status_request
+    }
+
+    /// Nothing received is waiting to be read or executed by the protocol loop.
+    pub fn input_drained(&self) -> bool {
+        self.rx.is_empty() && self.pending.is_none()
+    }
+
+    fn run_until(&mut self, mut dt: f64, only_blocked: bool) {
         for _ in 0..10_000_000 {
             self.service();
             if self.state == St::Cycle && self.planner.is_empty() {
                 self.state = St::Idle;
             }
-            if self.state == (St::Hold { complete: false }) {
-                // Deceleration is not modelled: the hold completes at once.
-                self.mpos = self.position();
+            self.start_front();
+            if self.state == (St::Hold { complete: false }) && self.exec.is_none() {
+                // Nothing was moving: the hold is complete at once.
+                self.v = 0.0;
                 self.state = St::Hold { complete: true };
+                self.resume_if_asked();
             }
             self.note_laser();
+            if only_blocked && self.pending.is_none() {
+                break;
+            }
             let te = self.time_to_event();
             if te > dt || te.is_infinite() {
                 if dt.is_finite() && dt > 0.0 {
@@ -384,10 +423,7 @@ impl Controller {
 
     fn time_to_event(&self) -> f64 {
         match self.state {
-            St::Cycle | St::Jog => match self.planner.front() {
-                Some(b) => (b.duration - self.exec_t).max(0.0),
-                None => f64::INFINITY,
-            },
+            St::Cycle | St::Jog | St::Hold { complete: false } => self.motion_event(),
             St::Idle => match self.pending.as_ref().and_then(|p| p.work.front()) {
                 Some(Work::Dwell { left, .. }) if self.planner.is_empty() => left.max(0.0),
                 _ => f64::INFINITY,
@@ -399,34 +435,7 @@ impl Controller {
     fn elapse(&mut self, dt: f64) {
         self.now += dt;
         match self.state {
-            St::Cycle | St::Jog => {
-                let Some(b) = self.planner.front() else {
-                    return;
-                };
-                self.exec_t += dt;
-                if self.exec_t >= b.duration - 1e-12 {
-                    let b = self.planner.pop_front().unwrap_or_else(|| unreachable!());
-                    self.exec_t = 0.0;
-                    self.mpos = b.to;
-                    self.rest_laser = b.rest_after;
-                    if self.state == St::Jog {
-                        self.gc.pos = self.mpos;
-                    } else {
-                        self.rec.blocks.push(ExecutedBlock {
-                            seq: b.seq,
-                            from: b.from,
-                            to: b.to,
-                            rapid: b.rapid,
-                            laser_s: b.laser_s,
-                            t_end: self.now,
-                            duration: b.duration,
-                        });
-                    }
-                    if self.planner.is_empty() {
-                        self.state = St::Idle;
-                    }
-                }
-            }
+            St::Cycle | St::Jog | St::Hold { complete: false } => self.advance_motion(dt),
             St::Idle => {
                 if let Some(Work::Dwell { left, .. }) =
                     self.pending.as_mut().and_then(|p| p.work.front_mut())
@@ -441,8 +450,13 @@ impl Controller {
 
     fn laser_now(&self) -> f64 {
         match self.state {
-            St::Hold { .. } | St::Alarm { .. } | St::Sleep | St::Check => 0.0,
-            St::Cycle => self.planner.front().map_or(self.rest_laser, |b| b.laser_s),
+            // The stepper keeps driving the beam while a hold decelerates; laser mode turns it
+            // off once the machine stands.
+            St::Hold { complete: true } | St::Alarm { .. } | St::Sleep | St::Check => 0.0,
+            St::Cycle | St::Hold { complete: false } => self
+                .planner
+                .front()
+                .map_or(self.rest_laser, |b| b.b.laser_s),
             St::Jog => 0.0,
             St::Idle => self.rest_laser,
         }
@@ -453,10 +467,12 @@ impl Controller {
         if p != self.last_laser {
             self.last_laser = p;
             let pos = self.position();
+            let speed_mm_s = self.speed();
             self.rec.laser.push(LaserEvent {
                 t: self.now,
                 power_s: p,
                 pos,
+                speed_mm_s,
             });
         }
     }

@@ -5,7 +5,8 @@
 //! The serial line: with a baud rate, bytes reach the controller one at a time at `baud/10`
 //! bytes per second in each direction, as over a UART with 8N1 framing; without, as fast as
 //! the transport carries them. The controller's clock runs in real time, a multiple of it,
-//! or as fast as possible (everything buffered executes at once).
+//! or as fast as possible (time passes only while the controller waits for its planner, and
+//! what is buffered runs once the client is quiet, so a fast run is still GRBL's motion).
 //!
 //! Faults: drop the connection once the controller has received N lines or after T seconds
 //! (bytes in transit are lost, the controller keeps executing what it received, as a real
@@ -16,6 +17,7 @@
 
 pub mod controller;
 pub mod gcode;
+pub mod motion;
 
 pub use controller::{
     Controller, ControllerConfig, Effect, ExecutedBlock, Firmware, LaserEvent, LineRecord,
@@ -34,13 +36,18 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+/// With `TimeScale::Max`, how long the client must have sent no line bytes before everything
+/// buffered executes at once.
+const MAX_QUIET: Duration = Duration::from_millis(5);
+
 /// How simulated time relates to wall time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum TimeScale {
     Real,
     /// This many simulated seconds per wall second.
     Factor(f64),
-    /// Everything the controller can execute, at once.
+    /// As fast as possible, still modelled: simulated time passes while the controller waits
+    /// for its planner, and everything left executes once the client is quiet.
     Max,
 }
 
@@ -289,6 +296,8 @@ struct Server {
     drops: Vec<u64>,
     garbage: Vec<u64>,
     last_tick: Instant,
+    /// When the last byte of a line (not a real-time command) arrived.
+    last_line_byte: Instant,
     busy: bool,
     overflows_seen: u64,
     /// Line ends received from clients, for `drop_after_lines`.
@@ -325,6 +334,7 @@ impl Server {
             drops,
             garbage,
             last_tick: now,
+            last_line_byte: now,
             busy: false,
             overflows_seen: 0,
             lines_in: 0,
@@ -406,6 +416,9 @@ impl Server {
                     break;
                 }
                 self.wire_in.pop_front();
+                if crate::link::grbl::codes::realtime_of(b).is_none() {
+                    self.last_line_byte = now;
+                }
                 ctl.receive(b);
                 if b == b'\n' {
                     self.lines_in += 1;
@@ -418,7 +431,21 @@ impl Server {
             }
             let dt = now.saturating_duration_since(self.last_tick);
             self.last_tick = now;
-            ctl.run(self.opts.time_scale.sim_dt(dt));
+            if self.opts.time_scale == TimeScale::Max {
+                // Still modelled: time runs only while the controller waits for its planner,
+                // until the client has been quiet a moment or asks for its status; then
+                // everything left executes.
+                if (now.saturating_duration_since(self.last_line_byte) >= MAX_QUIET
+                    || ctl.status_asked())
+                    && ctl.input_drained()
+                {
+                    ctl.run(f64::INFINITY);
+                } else {
+                    ctl.run_while_blocked();
+                }
+            } else {
+                ctl.run(self.opts.time_scale.sim_dt(dt));
+            }
             let mut out = ctl.take_output();
             if self
                 .garbage

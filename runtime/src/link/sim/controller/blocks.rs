@@ -6,108 +6,48 @@
 use super::record::{LineResult, MotionEffect, effect_of};
 use super::{Controller, PBlock, Pending, St, Work};
 use crate::link::sim::gcode::{self, Step};
-use crate::link::{AxisPos, MAX_AXES, Plane};
+use crate::link::sim::motion::Limits;
+use crate::link::{AxisPos, MAX_AXES};
 use std::collections::VecDeque;
 
 impl Controller {
-    pub(super) fn chords(&self, seq: u64, mv: &gcode::Move, rest_after: f64) -> VecDeque<PBlock> {
-        let mut points = Vec::new();
-        if let Some(arc) = mv.arc {
-            let (a0, a1) = match arc.plane {
-                Plane::Xy => (0, 1),
-                Plane::Zx => (2, 0),
-                Plane::Yz => (1, 2),
-            };
-            let c = arc.center;
-            let r0 = [mv.from[a0] - c[a0], mv.from[a1] - c[a1]];
-            let r1 = [mv.target[a0] - c[a0], mv.target[a1] - c[a1]];
-            let others: Vec<usize> = (0..MAX_AXES).filter(|&k| k != a0 && k != a1).collect();
-            let radius = r0[0].hypot(r0[1]);
-            // GRBL's mc_arc: the angular travel, a full circle when start and end coincide.
-            let mut ang = (r0[0] * r1[1] - r0[1] * r1[0]).atan2(r0[0] * r1[0] + r0[1] * r1[1]);
-            let tol = self.setting(12).max(1e-6);
-            if arc.ccw {
-                if ang <= 1e-6 {
-                    ang += std::f64::consts::TAU;
-                }
-            } else if ang >= -1e-6 {
-                ang -= std::f64::consts::TAU;
-            }
-            let seg_len = (tol * (2.0 * radius - tol)).max(1e-12).sqrt();
-            let n = ((0.5 * ang.abs() * radius / seg_len).floor() as usize).clamp(1, 100_000);
-            let a_start = r0[1].atan2(r0[0]);
-            for i in 1..n {
-                let f = i as f64 / n as f64;
-                let a = a_start + ang * f;
-                let mut p = [0.0; MAX_AXES];
-                p[a0] = c[a0] + radius * a.cos();
-                p[a1] = c[a1] + radius * a.sin();
-                // The other axes move linearly (a helix along the plane's normal).
-                for &k in &others {
-                    p[k] = mv.from[k] + (mv.target[k] - mv.from[k]) * f;
-                }
-                points.push(p);
-            }
+    /// The planner blocks of a move, through GRBL's `plan_buffer_line` (arcs split by `$12`,
+    /// rates and accelerations from `$110`… and `$120`…, the overrides, junctions by `$11`).
+    pub(super) fn chords(
+        &mut self,
+        seq: u64,
+        mv: &gcode::Move,
+        rest_after: f64,
+    ) -> VecDeque<PBlock> {
+        // Settings may have changed since the last line (`$120=…`).
+        let limits = Limits::from_settings(
+            &self.settings,
+            self.cfg.firmware.axes(),
+            self.cfg.planner_blocks,
+        );
+        if limits != self.pl.limits {
+            self.pl.limits = limits;
         }
-        points.push(mv.target);
-        let total_len: f64 = {
-            let mut prev = mv.from;
-            points
-                .iter()
-                .map(|p| {
-                    let d = dist(prev, *p);
-                    prev = *p;
-                    d
-                })
-                .sum()
-        };
-        let mut out = VecDeque::new();
-        let mut prev = mv.from;
-        for p in points {
-            let len = dist(prev, p);
-            if len <= 1e-9 {
-                prev = p;
-                continue;
-            }
-            let dir: AxisPos = std::array::from_fn(|i| (p[i] - prev[i]).abs() / len);
-            // The fastest the axes allow along this direction, mm/min (degrees count as mm,
-            // as grblHAL counts them).
-            let axis_cap = (0..self.cfg.firmware.axes())
-                .filter(|&i| dir[i] > 1e-12)
-                .map(|i| self.setting(110 + i as u32) / dir[i])
-                .fold(f64::INFINITY, f64::min);
-            let (rate, duration) = match mv.inverse_time_s {
-                Some(t) if total_len > 0.0 => {
-                    let d = t * len / total_len;
-                    (len / d * 60.0, d)
-                }
-                _ => {
-                    let rate = if mv.rapid {
-                        axis_cap * f64::from(self.overrides[1]) / 100.0
-                    } else {
-                        mv.feed_mm_min.min(axis_cap) * f64::from(self.overrides[0]) / 100.0
-                    };
-                    let rate = if rate.is_finite() && rate > 0.0 {
-                        rate
-                    } else {
-                        1000.0
-                    };
-                    (rate, len / (rate / 60.0))
-                }
-            };
-            out.push_back(PBlock {
-                seq,
-                from: prev,
-                to: p,
-                duration,
-                feed_mm_min: rate,
-                laser_s: mv.laser_s,
-                rapid: mv.rapid,
-                rest_after,
-            });
-            prev = p;
+        let (feed_ov, rapid_ov) = (f64::from(self.overrides[0]), f64::from(self.overrides[1]));
+        self.pl
+            .segments(mv)
+            .iter()
+            .filter_map(|seg| {
+                // Whether the buffer is empty is decided when the block joins it.
+                let b = self.pl.block(seq, seg, false, feed_ov, rapid_ov)?;
+                Some(PBlock { seq, b, rest_after })
+            })
+            .collect()
+    }
+
+    /// A block joins the planner buffer: from rest when the buffer was empty (GRBL's
+    /// `plan_buffer_line`), and the running block may now end faster.
+    pub(super) fn push_block(&mut self, mut b: PBlock) {
+        if self.planner.is_empty() {
+            b.b.max_entry_sq = 0.0;
         }
-        out
+        self.planner.push_back(b);
+        self.replan_front();
     }
 
     pub(super) fn outside_travel(&self, p: AxisPos) -> bool {
@@ -147,7 +87,7 @@ impl Controller {
                 }
                 Step::Move(mv) => {
                     let chords = self.chords(seq, mv, rest_after);
-                    if chords.iter().any(|b| self.outside_travel(b.to)) {
+                    if chords.iter().any(|b| self.outside_travel(b.b.to)) {
                         self.record(seq, text, LineResult::Alarm(2), None);
                         self.soft_limit();
                         return;
@@ -185,8 +125,7 @@ impl Controller {
 
     fn soft_limit(&mut self) {
         self.mpos = self.position();
-        self.planner.clear();
-        self.exec_t = 0.0;
+        self.stop_motion();
         self.pending = None;
         self.rest_laser = 0.0;
         self.say("ALARM:2");
@@ -225,12 +164,13 @@ impl Controller {
                         return false;
                     }
                     self.rec.dwells.push((p.seq, *total));
+                    self.rec.executed_s = self.now;
                     p.work.pop_front();
                 }
                 Work::Blocks(q) => {
                     while self.planner.len() < self.cfg.planner_blocks {
                         let Some(b) = q.pop_front() else { break };
-                        self.planner.push_back(b);
+                        self.push_block(b);
                         if self.state == St::Idle {
                             self.state = St::Cycle;
                         }
@@ -255,12 +195,4 @@ impl Controller {
         self.reply(Ok(()));
         true
     }
-}
-
-fn dist(a: AxisPos, b: AxisPos) -> f64 {
-    a.iter()
-        .zip(&b)
-        .map(|(x, y)| (x - y).powi(2))
-        .sum::<f64>()
-        .sqrt()
 }

@@ -68,10 +68,14 @@ pub struct ExecutedBlock {
     pub rapid: bool,
     /// Laser power (S) during the move, 0 when dark.
     pub laser_s: f64,
-    /// Simulated time at its end, s.
+    /// Simulated time at its start and end, s.
+    pub t_start: f64,
     pub t_end: f64,
-    /// How long it moved, s (at the feed, or its share of a G93 block's time).
+    /// How long it moved, s (along its trapezoid; a hold's stop included).
     pub duration: f64,
+    /// Speed entering and leaving it, mm/s (degrees per second count as mm/s).
+    pub entry_mm_s: f64,
+    pub exit_mm_s: f64,
 }
 
 /// The laser output changed.
@@ -80,12 +84,17 @@ pub struct LaserEvent {
     pub t: f64,
     pub power_s: f64,
     pub pos: AxisPos,
+    /// Speed along the path at the edge, mm/s.
+    pub speed_mm_s: f64,
 }
 
 /// What the simulated controller did.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Recording {
     pub lines: Vec<LineRecord>,
+    /// When the last block or dwell ended, simulated s: the executed time of a program run
+    /// from power-up.
+    pub executed_s: f64,
     pub blocks: Vec<ExecutedBlock>,
     pub laser: Vec<LaserEvent>,
     /// Dwells run: line, seconds.

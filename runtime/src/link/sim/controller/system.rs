@@ -46,28 +46,39 @@ impl Controller {
                 self.say("[TLO:0.000]");
                 self.say(&format!("[PRB:{zeros}:0]"));
             }
-            "I" => {
-                let opt = match self.cfg.firmware {
-                    Firmware::Grbl => {
-                        self.say("[VER:1.1h.20190825:lase sim]");
+            "I" => match self.cfg.firmware {
+                Firmware::Grbl => {
+                    self.say("[VER:1.1h.20190825:lase sim]");
+                    let opt = format!(
+                        "[OPT:V,{},{}]",
+                        self.cfg.planner_blocks + 1,
+                        self.cfg.rx_buffer
+                    );
+                    self.say(&opt);
+                }
+                // grblHAL: its own version, the axis count in OPT, then the lines its
+                // report.c adds (message types with spaces among them).
+                Firmware::GrblHal { axes } => {
+                    let letters: String = AXIS_LETTERS[..axes].iter().collect();
+                    let lines = [
+                        "[VER:1.1f.20250101:lase sim]".to_string(),
                         format!(
-                            "[OPT:V,{},{}]",
+                            "[OPT:VNML+,{},{},{axes},0]",
                             self.cfg.planner_blocks + 1,
                             self.cfg.rx_buffer
-                        )
+                        ),
+                        format!("[AXS:{axes}:{letters}]"),
+                        "[NEWOPT:ENUMS,RT+,TC,SED]".into(),
+                        "[FIRMWARE:grblHAL]".into(),
+                        "[NVS STORAGE:*EEPROM]".into(),
+                        "[DRIVER:lase sim]".into(),
+                        "[DRIVER VERSION:20250101]".into(),
+                    ];
+                    for l in lines {
+                        self.say(&l);
                     }
-                    // grblHAL adds the axis count to OPT.
-                    Firmware::GrblHal { axes } => {
-                        self.say("[VER:1.1f.20250101:lase sim]");
-                        format!(
-                            "[OPT:V,{},{},{axes}]",
-                            self.cfg.planner_blocks + 1,
-                            self.cfg.rx_buffer
-                        )
-                    }
-                };
-                self.say(&opt);
-            }
+                }
+            },
             "N" => {
                 self.say("$N0=");
                 self.say("$N1=");
@@ -169,7 +180,9 @@ impl Controller {
                 }
                 mv.laser_s = 0.0;
                 let chords = self.chords(self.seq, &mv, self.rest_laser);
-                self.planner.extend(chords);
+                for b in chords {
+                    self.push_block(b);
+                }
                 self.state = St::Jog;
                 self.gc.pos = mv.target;
             }
@@ -203,10 +216,8 @@ impl Controller {
                 self.cfg.rx_buffer.saturating_sub(1) - self.rx.len()
             ));
         }
-        let feed = match (self.state, self.planner.front()) {
-            (St::Cycle | St::Jog, Some(b)) => b.feed_mm_min,
-            _ => 0.0,
-        };
+        // GRBL reports the speed it is running at now.
+        let feed = self.speed() * 60.0;
         let spindle = if self.gc.modal.spindle == Spindle::Off {
             0.0
         } else {
