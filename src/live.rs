@@ -27,17 +27,37 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
 }
 
 /// `lase run` options.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, clap::Args)]
 pub struct RunArgs {
+    /// The recipe (optional with --resume: the journal names it).
     pub file: Option<PathBuf>,
+    /// Controller link URL.
+    #[arg(long)]
     pub link: Option<String>,
+    /// NC dialect sent over the link: grbl (GRBL 1.1, X Y Z) or grblhal (up to six axes,
+    /// G93); default: grbl, or grblhal when the machine has axes beyond X, Y, Z.
+    #[arg(long)]
     pub dialect: Option<String>,
+    /// Job journal file (default for tcp and serial links: the recipe's own in
+    /// `$XDG_STATE_HOME/lase/journals/`, else `~/.local/state/lase/journals/`).
+    #[arg(long)]
     pub journal: Option<PathBuf>,
-    /// `--resume JOURNAL`; `Some(None)`: `--resume` alone, the recipe's own journal.
+    /// Continue the job recorded in this journal after a dropped link; without a value,
+    /// the recipe's own journal in the state directory (`lase run FILE --resume`).
+    #[arg(long, value_name = "JOURNAL", num_args = 0..=1)]
     pub resume: Option<Option<PathBuf>>,
+    /// With --resume: the number of lines that ran, when the controller's state cannot tell.
+    #[arg(long, value_name = "N", requires = "resume")]
     pub resume_at: Option<usize>,
+    /// GRBL check mode (`$C`): the controller parses every line, nothing moves.
+    #[arg(long)]
     pub check: bool,
+    /// Send-response flow control (one line in flight) instead of character counting.
+    #[arg(long)]
     pub send_response: bool,
+    /// The controller's serial RX buffer, bytes (default: what the controller reports in
+    /// `$I`, else 128).
+    #[arg(long)]
     pub rx_buffer: Option<usize>,
 }
 
@@ -541,19 +561,43 @@ impl Drop for Keys {
 }
 
 /// `lase sim` options.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, clap::Args)]
 pub struct SimArgs {
+    /// Address to listen on (loopback unless --allow-remote); port 0 picks a free one.
+    #[arg(long, default_value = "127.0.0.1:0")]
     pub listen: String,
+    /// Stock machine name or machine file path.
+    #[arg(long, default_value = "xy_table")]
     pub machine: String,
+    /// Simulated time: real, max or a speed-up factor (e.g. 100).
+    #[arg(long, default_value = "real")]
     pub time_scale: String,
+    /// Drop the connection once N lines have been received (repeatable).
+    #[arg(long, value_name = "N")]
     pub drop_after_lines: Vec<u64>,
+    /// Drop the n-th connection T seconds after it opens (repeatable).
+    #[arg(long, value_name = "T")]
     pub drop_after_secs: Vec<f64>,
+    /// Answer error:CODE (default 20) to line K instead of running it (repeatable).
+    #[arg(long, value_name = "K[:CODE]")]
     pub error_at_line: Vec<String>,
+    /// Send garbage once N lines have been answered (repeatable).
+    #[arg(long, value_name = "N", hide = true)]
     pub garbage_after_lines: Vec<u64>,
+    /// Throttle the link to this baud rate (8N1: baud/10 bytes per second each way).
+    #[arg(long)]
     pub baud: Option<u32>,
+    /// Serial RX buffer, bytes.
+    #[arg(long, default_value_t = 128)]
     pub rx_buffer: usize,
+    /// Planner buffer, blocks.
+    #[arg(long, default_value_t = 15)]
     pub planner_blocks: usize,
+    /// A GRBL setting different from the machine file's, N=VALUE (e.g. 32=0; repeatable).
+    #[arg(long = "setting", value_name = "N=VALUE")]
     pub settings: Vec<String>,
+    /// Allow listening on a non-loopback address.
+    #[arg(long)]
     pub allow_remote: bool,
 }
 

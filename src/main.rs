@@ -72,78 +72,10 @@ enum Command {
     /// user's state directory, `$XDG_STATE_HOME/lase/journals/` or
     /// `~/.local/state/lase/journals/`, one file per recipe path; the run prints where); after
     /// a dropped link, `lase run FILE --resume` (or `--resume JOURNAL`) continues the job.
-    Run {
-        /// The recipe (optional with --resume: the journal names it).
-        file: Option<PathBuf>,
-        /// Controller link URL.
-        #[arg(long)]
-        link: Option<String>,
-        /// NC dialect sent over the link: grbl (GRBL 1.1, X Y Z) or grblhal (up to six axes,
-        /// G93); default: grbl, or grblhal when the machine has axes beyond X, Y, Z.
-        #[arg(long)]
-        dialect: Option<String>,
-        /// Job journal file (default for tcp and serial links: the recipe's own in
-        /// `$XDG_STATE_HOME/lase/journals/`, else `~/.local/state/lase/journals/`).
-        #[arg(long)]
-        journal: Option<PathBuf>,
-        /// Continue the job recorded in this journal after a dropped link; without a value,
-        /// the recipe's own journal in the state directory (`lase run FILE --resume`).
-        #[arg(long, value_name = "JOURNAL", num_args = 0..=1)]
-        resume: Option<Option<PathBuf>>,
-        /// With --resume: the number of lines that ran, when the controller's state cannot tell.
-        #[arg(long, value_name = "N", requires = "resume")]
-        resume_at: Option<usize>,
-        /// GRBL check mode (`$C`): the controller parses every line, nothing moves.
-        #[arg(long)]
-        check: bool,
-        /// Send-response flow control (one line in flight) instead of character counting.
-        #[arg(long)]
-        send_response: bool,
-        /// The controller's serial RX buffer, bytes (default: what the controller reports in
-        /// `$I`, else 128).
-        #[arg(long)]
-        rx_buffer: Option<usize>,
-    },
+    Run(live::RunArgs),
     /// Run the simulated controller as a TCP server: GRBL 1.1, or grblHAL with up to six axes
     /// for a machine with axes beyond X, Y, Z.
-    Sim {
-        /// Address to listen on (loopback unless --allow-remote); port 0 picks a free one.
-        #[arg(long, default_value = "127.0.0.1:0")]
-        listen: String,
-        /// Stock machine name or machine file path.
-        #[arg(long, default_value = "xy_table")]
-        machine: String,
-        /// Simulated time: real, max or a speed-up factor (e.g. 100).
-        #[arg(long, default_value = "real")]
-        time_scale: String,
-        /// Drop the connection once N lines have been received (repeatable).
-        #[arg(long, value_name = "N")]
-        drop_after_lines: Vec<u64>,
-        /// Drop the n-th connection T seconds after it opens (repeatable).
-        #[arg(long, value_name = "T")]
-        drop_after_secs: Vec<f64>,
-        /// Answer error:CODE (default 20) to line K instead of running it (repeatable).
-        #[arg(long, value_name = "K[:CODE]")]
-        error_at_line: Vec<String>,
-        /// Send garbage once N lines have been answered (repeatable).
-        #[arg(long, value_name = "N", hide = true)]
-        garbage_after_lines: Vec<u64>,
-        /// Throttle the link to this baud rate (8N1: baud/10 bytes per second each way).
-        #[arg(long)]
-        baud: Option<u32>,
-        /// Serial RX buffer, bytes.
-        #[arg(long, default_value_t = 128)]
-        rx_buffer: usize,
-        /// Planner buffer, blocks.
-        #[arg(long, default_value_t = 15)]
-        planner_blocks: usize,
-        /// A GRBL setting different from the machine file's, N=VALUE (e.g. 32=0; repeatable).
-        #[arg(long = "setting", value_name = "N=VALUE")]
-        settings: Vec<String>,
-        /// Allow listening on a non-loopback address.
-        #[arg(long)]
-        allow_remote: bool,
-    },
+    Sim(live::SimArgs),
     /// Print the reference of a statement, function, profile, unit or standard library topic
     /// (`lase doc` lists the topics; `lase doc --markdown` prints docs/reference.md).
     Doc {
@@ -189,54 +121,8 @@ fn main() -> ExitCode {
             &period,
         ),
         Command::Plot { file, output } => cmd_plot(&file, output.as_deref()),
-        Command::Run {
-            file,
-            link,
-            dialect,
-            journal,
-            resume,
-            resume_at,
-            check,
-            send_response,
-            rx_buffer,
-        } => live::cmd_run(live::RunArgs {
-            file,
-            link,
-            dialect,
-            journal,
-            resume,
-            resume_at,
-            check,
-            send_response,
-            rx_buffer,
-        }),
-        Command::Sim {
-            listen,
-            machine,
-            time_scale,
-            drop_after_lines,
-            drop_after_secs,
-            error_at_line,
-            garbage_after_lines,
-            baud,
-            rx_buffer,
-            planner_blocks,
-            settings,
-            allow_remote,
-        } => live::cmd_sim(live::SimArgs {
-            listen,
-            machine,
-            time_scale,
-            drop_after_lines,
-            drop_after_secs,
-            error_at_line,
-            garbage_after_lines,
-            baud,
-            rx_buffer,
-            planner_blocks,
-            settings,
-            allow_remote,
-        }),
+        Command::Run(args) => live::cmd_run(args),
+        Command::Sim(args) => live::cmd_sim(args),
         Command::Repl { file, link } => return repl::run(file.as_deref(), link.as_deref(), color),
         Command::Doc { name, markdown } => return cmd_doc(name.as_deref(), markdown),
     };
