@@ -170,6 +170,23 @@ impl Op {
         }
     }
 
+    /// A lit feed move's programmed feed (mm/s) and laser; `None` for any other op.
+    pub fn lit_feed(&self) -> Option<(f64, &Laser)> {
+        match &self.kind {
+            OpKind::Line {
+                feed_mm_s,
+                laser: Some(l),
+                ..
+            }
+            | OpKind::Arc {
+                feed_mm_s,
+                laser: Some(l),
+                ..
+            } => Some((*feed_mm_s, l)),
+            _ => None,
+        }
+    }
+
     /// Whether this motion op moves the spot from `from` (a zero-length line is no move: emit
     /// writes nothing for it, since G0/G1 without axis words is an error in rs274ngc, and the
     /// planner drops it).
@@ -370,18 +387,9 @@ pub const MAX_PULSES: f64 = 10_000_000.0;
 /// pitch, or the lit time at the programmed feed over the period, plus the first), since
 /// ramps only lengthen the lit time.
 fn pulses_of(op: &Op, from: P3) -> f64 {
-    let (feed, laser) = match &op.kind {
-        OpKind::Line {
-            feed_mm_s,
-            laser: Some(l),
-            ..
-        }
-        | OpKind::Arc {
-            feed_mm_s,
-            laser: Some(l),
-            ..
-        } => (*feed_mm_s, l),
-        OpKind::Fire { count, .. } => return f64::from(*count),
+    let (feed, laser) = match (&op.kind, op.lit_feed()) {
+        (_, Some(lit)) => lit,
+        (OpKind::Fire { count, .. }, _) => return f64::from(*count),
         _ => return 0.0,
     };
     let length = op.length_from(from);
@@ -509,23 +517,17 @@ impl ProcessProgram {
                     ),
                 });
             }
-            let r = match &op.kind {
-                OpKind::Line {
-                    feed_mm_s,
-                    laser: Some(l),
-                    ..
-                }
-                | OpKind::Arc {
-                    feed_mm_s,
-                    laser: Some(l),
-                    ..
-                } => [
+            let r = match (&op.kind, op.lit_feed()) {
+                (_, Some((feed, l))) => [
                     check_power(l.power_w, m, op.span),
-                    l.check_pulse_rate(*feed_mm_s, m, op.span),
+                    l.check_pulse_rate(feed, m, op.span),
                 ],
-                OpKind::Fire {
-                    period_s, laser, ..
-                } => [
+                (
+                    OpKind::Fire {
+                        period_s, laser, ..
+                    },
+                    _,
+                ) => [
                     check_power(laser.power_w, m, op.span),
                     check_pulse_rate(1.0 / period_s, None, m, op.span),
                 ],
