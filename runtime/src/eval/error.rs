@@ -320,16 +320,11 @@ pub enum EvalError {
         help: Option<String>,
     },
 
-    #[error("pulse rate {rate} is above the laser's maximum {max}")]
-    #[diagnostic(code(lase::eval::pulse_rate))]
-    PulseRate {
-        rate: String,
-        max: String,
-        #[label("at this speed")]
-        span: Span,
-        #[help]
-        help: Option<String>,
-    },
+    /// The laser's limits (power, pulse rate, pulse budget): one rule with one diagnostic,
+    /// `crate::program::LaserLimit`, which `ProcessProgram::validate` reports too.
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Laser(crate::program::LaserLimit),
 
     #[error("machine `{machine}` has no event `{name}`")]
     #[diagnostic(code(lase::eval::unknown_event))]
@@ -389,11 +384,11 @@ impl EvalError {
             | EvalError::Empty { span, .. }
             | EvalError::Type { span, .. }
             | EvalError::Geometry { span, .. }
-            | EvalError::PulseRate { span, .. }
             | EvalError::UnknownEvent { span, .. }
             | EvalError::NoPower { span }
             | EvalError::Budget { span, .. } => *span,
             EvalError::Machine(m) => m.span(),
+            EvalError::Laser(l) => l.span(),
             EvalError::Extension(e) => e.span(),
         }
     }
@@ -539,45 +534,10 @@ impl From<crate::ext::ExtError> for EvalError {
 }
 
 /// The laser's limits are one rule (`crate::program::check_power`, `check_pulse_rate`), which
-/// `ProcessProgram::validate` applies too; while running, the evaluator reports it as its own.
+/// `ProcessProgram::validate` applies too; the evaluator reports the same diagnostic.
 impl From<crate::program::LaserLimit> for EvalError {
     fn from(e: crate::program::LaserLimit) -> EvalError {
-        use crate::program::LaserLimit;
-        match e {
-            LaserLimit::Power {
-                value,
-                limit,
-                span,
-                help,
-            } => EvalError::AboveMachine {
-                what: "laser power".into(),
-                value,
-                limit,
-                span,
-                help,
-            },
-            LaserLimit::PulseRate {
-                rate,
-                max,
-                span,
-                help,
-                ..
-            } => EvalError::PulseRate {
-                rate,
-                max,
-                span,
-                help,
-            },
-            e @ LaserLimit::Pulses { span, .. } => {
-                let help = e.help().map(|h| h.to_string());
-                EvalError::TooLarge {
-                    message: e.to_string(),
-                    span,
-                    label: "the pulses pass the budget here".into(),
-                    help,
-                }
-            }
-        }
+        EvalError::Laser(e)
     }
 }
 
