@@ -271,12 +271,21 @@ fn cmd_plan(
         s.ops
     );
     for (axis, p) in &s.axes {
+        // Peaks in the axis's own unit, as the machine file and the controller speak it.
+        let unit = job
+            .program
+            .machine
+            .axes
+            .iter()
+            .find(|a| &a.name == axis)
+            .map(|a| lase_runtime::axes::external_unit(a.kind))
+            .unwrap_or("mm");
         let j = p
             .j_max
-            .map(|j| format!("{j:.1}"))
+            .map(|j| format!("{j:.1} {unit}/s³"))
             .unwrap_or_else(|| "unbounded (trapezoid)".into());
         outln!(
-            "  axis {axis:<3}  v {:.3}  a {:.3}  j {j}",
+            "  axis {axis:<3}  v {:.3} {unit}/s  a {:.3} {unit}/s²  j {j}",
             p.v_max,
             p.a_max
         );
