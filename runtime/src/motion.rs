@@ -23,8 +23,7 @@ pub use leadin::{Lead, LeadKind, LitSection};
 use crate::axes::{Axes, MAX_AXES};
 use crate::kinematics::{self, KinError, Kinematics, ToolPose};
 use crate::planner::{self, AxisLimits, Move, Plan, PlannerConfig, ProfileKind};
-pub use crate::program::arc_sweep;
-use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp, dist};
+use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp, arc_circle, dist};
 use lase_lang::Span;
 use std::sync::Arc;
 
@@ -437,10 +436,7 @@ fn push_line(moves: &mut Vec<Move>, from: Axes, to: Axes, length: f64, feed: f64
 /// Points along an arc (excluding its start, including its end) such that no chord deviates
 /// from the arc by more than `tol`: chord sagitta r(1 − cos(θ/2)) ≤ tol. z moves linearly.
 pub fn arc_points(from: P3, to: P3, center: [f64; 2], ccw: bool, tol: f64) -> Vec<P3> {
-    let r = ((from[0] - center[0]).powi(2) + (from[1] - center[1]).powi(2)).sqrt();
-    let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
-    let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
-    let sweep = arc_sweep(a0, a1, ccw, from, to);
+    let (r, a0, sweep) = arc_circle(from, to, center, ccw);
     let max_step = if r > tol {
         2.0 * (1.0 - tol / r).acos()
     } else {

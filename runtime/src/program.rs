@@ -208,10 +208,7 @@ impl Op {
         else {
             return None;
         };
-        let r = (from[0] - center[0]).hypot(from[1] - center[1]);
-        let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
-        let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
-        Some((r, a0, arc_sweep(a0, a1, *ccw, from, *to)))
+        Some(arc_circle(from, *to, *center, *ccw))
     }
 
     /// Length of this motion op from `from`, mm (part space; a helix for an arc that climbs);
@@ -223,6 +220,15 @@ impl Op {
             _ => 0.0,
         }
     }
+}
+
+/// An arc from `from` to `to` about `center` (ccw or not) as radius, start angle and signed
+/// sweep (rad): what lowering it into chords, cutting it into sub-blocks and measuring it need.
+pub fn arc_circle(from: P3, to: P3, center: [f64; 2], ccw: bool) -> (f64, f64, f64) {
+    let r = (from[0] - center[0]).hypot(from[1] - center[1]);
+    let a0 = (from[1] - center[1]).atan2(from[0] - center[0]);
+    let a1 = (to[1] - center[1]).atan2(to[0] - center[0]);
+    (r, a0, arc_sweep(a0, a1, ccw, from, to))
 }
 
 /// The signed sweep from angle `a0` to `a1` in the given direction; a full turn when the end

@@ -261,13 +261,7 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
             }),
             BinOp::Div => {
                 if b == 0.0 {
-                    return Err(bad(
-                        Kind::DivisionByZero,
-                        rs,
-                        "division by zero",
-                        "this is zero",
-                        None,
-                    ));
+                    return Err(division_by_zero(rs));
                 }
                 Ok(Num(
                     a / b,
@@ -301,13 +295,7 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
         }
         (BinOp::Div, Point(a, n), Num(k, d)) if d.is_none() => {
             if *k == 0.0 {
-                return Err(bad(
-                    Kind::DivisionByZero,
-                    rs,
-                    "division by zero",
-                    "this is zero",
-                    None,
-                ));
+                return Err(division_by_zero(rs));
             }
             Ok(Point([a[0] / k, a[1] / k, a[2] / k], *n))
         }
@@ -318,4 +306,15 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
         (BinOp::Ne, Str(a), Str(b)) => Ok(Bool(a != b)),
         _ => Err(mismatch(&l, &r)),
     }
+}
+
+/// `x / 0`: the error at the divisor.
+fn division_by_zero(divisor: Span) -> EvalError {
+    bad(
+        Kind::DivisionByZero,
+        divisor,
+        "division by zero",
+        "this is zero",
+        None,
+    )
 }

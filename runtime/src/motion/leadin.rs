@@ -41,7 +41,7 @@ use crate::planner::{self, AxisLimits, PlannerConfig};
 use crate::program::{Laser, Op, OpKind, Orient, P3};
 use lase_lang::units::format_number;
 
-pub use crate::program::PULSE_CRUISE_MARGIN_S;
+use crate::program::PULSE_CRUISE_MARGIN_S;
 
 /// What the lead computation needs to know about the machine and the planner.
 #[derive(Clone, Copy, Debug)]
