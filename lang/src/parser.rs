@@ -721,7 +721,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         | Rule::product
         | Rule::unary
         | Rule::postfix => "an expression",
-        Rule::ident | Rule::callee => "a name",
+        Rule::ident | Rule::callee | Rule::arg_name => "a name",
         Rule::number | Rule::quantity => "a number",
         Rule::unit | Rule::unit_atom => "a unit",
         Rule::string => "a string",

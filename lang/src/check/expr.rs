@@ -226,12 +226,18 @@ impl Checker {
                         });
                     }
                 }
-                if flags.iter().any(|f| f.name == "cw") && flags.iter().any(|f| f.name == "ccw") {
-                    self.err(CheckError::UnknownSetting {
-                        stmt: name,
-                        key: "cw".into(),
-                        span: e.span,
-                        help: Some("give `cw` or `ccw`, not both".into()),
+                let dir = |n: &str| flags.iter().find(|f| f.name == n);
+                if let (Some(cw), Some(ccw)) = (dir("cw"), dir("ccw")) {
+                    let (a, b) = if cw.span.start <= ccw.span.start {
+                        (cw, ccw)
+                    } else {
+                        (ccw, cw)
+                    };
+                    self.err(CheckError::ConflictingFlags {
+                        first: a.name.clone(),
+                        second: b.name.clone(),
+                        first_span: a.span,
+                        second_span: b.span,
                     });
                 }
                 Ty::Profile

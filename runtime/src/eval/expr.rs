@@ -120,7 +120,7 @@ impl Evaluator {
                 if items.len() == 2 {
                     p[2] = 0.0;
                 }
-                Ok(Value::Point(p, items.len().min(3) as u8))
+                super::bounds::point_in_range(Value::Point(p, items.len().min(3) as u8), e.span)
             }
             ExprKind::List(items) => {
                 let mut out = Vec::with_capacity(items.len());
@@ -141,7 +141,7 @@ impl Evaluator {
                 }
                 let l = self.expr(lhs, cx)?;
                 let r = self.expr(rhs, cx)?;
-                binary(*op, l, r, lhs.span, rhs.span)
+                super::bounds::point_in_range(binary(*op, l, r, lhs.span, rhs.span)?, e.span)
             }
             ExprKind::Unary { op, expr } => {
                 let v = self.expr(expr, cx)?;
