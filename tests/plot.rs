@@ -356,7 +356,21 @@ fn oriented_machines_show_the_beam_direction() {
         let (src, job) = example(name);
         let svg = plot(&src, &job, false);
         let arrows = elements(&svg, r#"class="beam-arrow""#);
-        assert_eq!(arrows.len(), 24, "{name}");
+        // Up to 24, spread so that none stands on another (40 px apart at the spot).
+        assert!((8..=24).contains(&arrows.len()), "{name}: {}", arrows.len());
+        let tips: Vec<(f64, f64)> = arrows
+            .iter()
+            .filter(|a| a.starts_with("<line"))
+            .map(|a| (num(a, "x2"), num(a, "y2")))
+            .collect();
+        for (i, a) in tips.iter().enumerate() {
+            for b in &tips[..i] {
+                assert!(
+                    (a.0 - b.0).hypot(a.1 - b.1) >= 40.0 - 0.01,
+                    "{name}: {a:?} {b:?}"
+                );
+            }
+        }
         for a in arrows.iter().filter(|a| a.starts_with("<line")) {
             let title = &a[a.find("beam (").unwrap() + 6..a.find(") at").unwrap()];
             let b: Vec<f64> = title.split(", ").map(|v| v.parse().unwrap()).collect();

@@ -21,8 +21,11 @@ const RAPID_COLOR: &str = "#9a9a9a";
 const PASS_COLORS: [&str; 8] = [
     "#1565c0", "#c62828", "#2e7d32", "#6a1b9a", "#ef6c00", "#00838f", "#6d4c41", "#ad1457",
 ];
-/// Beam arrows drawn along the lit work on an oriented machine.
+/// Most beam arrows drawn along the lit work on an oriented machine …
 const BEAM_ARROWS: usize = 24;
+/// … each at least this far (px) from the others: passes that retrace a path in the drawing
+/// plane (the arm's slide steps) would otherwise stack their arrows on one spot.
+const BEAM_SPACING: f64 = 40.0;
 /// Side of a density cell, px.
 const CELL: f64 = 4.0;
 /// Pulses on the same spot to this grid (mm) are one spot, when counting passes.
@@ -474,8 +477,8 @@ impl Panel {
         Ok(ly)
     }
 
-    /// Arrows along the beam, from the lens side to the spot, at lit poses spread evenly over
-    /// the lit samples. A beam square to the drawing plane shows as a ring around the spot.
+    /// Arrows along the beam, from the lens side to the spot, at up to `BEAM_ARROWS` lit poses
+    /// spread over the lit samples and at least `BEAM_SPACING` apart on the page. A beam square to the drawing plane shows as a ring around the spot.
     fn draw_beams(&self, s: &mut String, ctx: &Ctx) -> fmt::Result {
         let job = ctx.job;
         let lit: Vec<&Pt> = ctx.pts.iter().filter(|p| p.kind.lit()).collect();
@@ -483,9 +486,23 @@ impl Panel {
             return Ok(());
         }
         writeln!(s, r#"<g id="beams">"#)?;
-        let n = BEAM_ARROWS.min(lit.len());
-        for k in 0..n {
-            let p = lit[k * lit.len() / n];
+        // Candidates spread evenly over the lit samples, kept while they stand clear of the
+        // arrows already placed.
+        let candidates = (BEAM_ARROWS * 8).min(lit.len());
+        let mut placed: Vec<(f64, f64)> = Vec::new();
+        for k in 0..candidates {
+            if placed.len() == BEAM_ARROWS {
+                break;
+            }
+            let p = lit[k * lit.len() / candidates];
+            let here = (self.px(p.h), self.py(p.w));
+            if placed
+                .iter()
+                .any(|q| (q.0 - here.0).hypot(q.1 - here.1) < BEAM_SPACING)
+            {
+                continue;
+            }
+            placed.push(here);
             let sample = job.plan.sample_segment(p.seg, p.t_local);
             let pose = job.kin.forward_at(&sample.pos, job.standoff_of(sample.tag));
             let (bh, bw) = (pose.beam[0], pose.beam[ctx.plane_w]);
