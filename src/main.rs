@@ -58,11 +58,20 @@ enum Command {
         #[arg(long, default_value = "1ms")]
         period: String,
     },
-    /// Draw the toolpath (coloured by laser state and speed) and the speed over time as SVG.
+    /// Draw the toolpath (laser state, speed, every pulse) and the speed, limits, power and
+    /// events over time, as SVG or PNG.
     Plot {
         file: PathBuf,
+        /// Output file: `.png` writes a PNG (2 px per SVG unit), anything else SVG (default:
+        /// the recipe's name with `.svg`).
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Fit the toolpath view to all motion (approach, travel, overscan), not the lit work.
+        #[arg(long)]
+        full: bool,
+        /// Speed unit of the plot: mm/s or mm/min (default: the one the recipe's feeds use).
+        #[arg(long)]
+        speed_unit: Option<String>,
     },
     /// Check, plan and stream the job to a controller (the built-in simulator by default).
     ///
@@ -120,7 +129,12 @@ fn main() -> ExitCode {
             pulses.as_deref(),
             &period,
         ),
-        Command::Plot { file, output } => cmd_plot(&file, output.as_deref()),
+        Command::Plot {
+            file,
+            output,
+            full,
+            speed_unit,
+        } => cmd_plot(&file, output.as_deref(), full, speed_unit.as_deref()),
         Command::Run(args) => live::cmd_run(args),
         Command::Sim(args) => live::cmd_sim(args),
         Command::Repl { file, link } => return repl::run(file.as_deref(), link.as_deref(), color),
@@ -260,11 +274,26 @@ fn cmd_plan(
         s.rapid_length_mm
     );
     outln!(
-        "  laser on        {:.4} mm, {:.4} s",
+        "  laser on        {:.4} mm, {:.4} s while moving",
         s.laser_on_length_mm,
         s.laser_on_time_s
     );
-    outln!("  pulses          {}", s.pulses);
+    // Dot mode fires with the spot at rest: say so, or "laser on 0 mm" next to a pulse count
+    // reads as a contradiction.
+    if s.pulses_standstill > 0 {
+        outln!(
+            "  laser at rest   {:.4} s in dot-mode windows",
+            s.standstill_fire_time_s
+        );
+        outln!(
+            "  pulses          {} ({} at rest, {} along lit moves)",
+            s.pulses,
+            s.pulses_standstill,
+            s.pulses_moving
+        );
+    } else {
+        outln!("  pulses          {}", s.pulses);
+    }
     outln!(
         "  blocks          {} planned moves from {} ops",
         s.blocks,
@@ -293,14 +322,38 @@ fn cmd_plan(
     Ok(())
 }
 
-fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
+fn cmd_plot(file: &Path, output: Option<&Path>, full: bool, unit: Option<&str>) -> CmdResult {
+    use lase_runtime::report::{PlotOptions, SpeedUnit};
+    let speed_unit = match unit {
+        None => None,
+        Some("mm/s") => Some(SpeedUnit::MmPerS),
+        Some("mm/min") => Some(SpeedUnit::MmPerMin),
+        Some(other) => {
+            return Err(io_fail(format!(
+                "bad --speed-unit `{other}`: give mm/s or mm/min"
+            )));
+        }
+    };
     let (recipe, job) = driver::compile(file)?;
-    let svg = lase_runtime::report::plot_svg(&job).map_err(|e| io_fail(e.to_string()))?;
+    let opts = PlotOptions {
+        full_extent: full,
+        speed_unit: speed_unit
+            .unwrap_or_else(|| SpeedUnit::of_source(recipe.map.text(recipe.main))),
+    };
     let default = file.with_extension("svg");
     let path = output.unwrap_or(&default);
+    let png = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let bytes = if png {
+        lase_runtime::report::plot_png(&job, &opts).map_err(io_fail)?
+    } else {
+        lase_runtime::report::plot_svg(&job, &opts)
+            .map_err(|e| io_fail(e.to_string()))?
+            .into_bytes()
+    };
     output::write_atomic(path, |w| {
-        w.write_all(svg.as_bytes())
-            .map_err(|e| io_fail(e.to_string()))
+        w.write_all(&bytes).map_err(|e| io_fail(e.to_string()))
     })?;
     outln!("{}: wrote {}", recipe.name(), path.display());
     Ok(())

@@ -417,15 +417,24 @@ impl Session {
     fn plot(&self, arg: Option<&str>) {
         let Some(job) = self.job() else { return };
         let path = arg.unwrap_or("lase-repl.svg");
-        let svg = match lase_runtime::report::plot_svg(&job) {
-            Ok(s) => s,
+        // `.png` rasterizes, as `lase plot -o f.png` does.
+        let opts = Default::default();
+        let bytes = if path.to_ascii_lowercase().ends_with(".png") {
+            lase_runtime::report::plot_png(&job, &opts)
+        } else {
+            lase_runtime::report::plot_svg(&job, &opts)
+                .map(String::into_bytes)
+                .map_err(|e| e.to_string())
+        };
+        let bytes = match bytes {
+            Ok(b) => b,
             Err(e) => {
                 self.say_error(&format!("cannot draw the plot: {e}"));
                 return;
             }
         };
         match crate::output::write_atomic(Path::new(path), |w| {
-            w.write_all(svg.as_bytes()).map_err(|e| {
+            w.write_all(&bytes).map_err(|e| {
                 (
                     SourceMap::new(),
                     Failure::one(driver::IoError {

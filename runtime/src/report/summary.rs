@@ -25,6 +25,12 @@ pub struct Summary {
     /// Beam-on time: lit motion plus dwells between lit moves, s.
     pub laser_on_time_s: f64,
     pub pulses: u64,
+    /// Of `pulses`: fired while the spot moves (lit moves with a pulse setting) …
+    pub pulses_moving: u64,
+    /// … and fired at standstill (dot-mode windows), where no lit length or time accrues.
+    pub pulses_standstill: u64,
+    /// Gate time of the dot-mode windows, s (the spot stands; not in `laser_on_time_s`).
+    pub standstill_fire_time_s: f64,
     /// Moves handed to the planner (arcs count once per chord).
     pub blocks: usize,
     /// Ops of the process program.
@@ -43,16 +49,17 @@ pub struct AxisPeaks {
     pub j_max: Option<f64>,
 }
 
-/// Pulses of the dot-mode fire windows.
-fn fire_pulses(job: &Job) -> u64 {
+/// Pulses of the dot-mode fire windows and how long their gates are open in all.
+fn fire_pulses(job: &Job) -> (u64, f64) {
     job.program
         .ops
         .iter()
-        .map(|o| match o.kind {
-            crate::program::OpKind::Fire { count, .. } => u64::from(count),
-            _ => 0,
+        .fold((0, 0.0), |(n, t), o| match o.kind {
+            crate::program::OpKind::Fire {
+                count, window_s, ..
+            } => (n + u64::from(count), t + window_s),
+            _ => (n, t),
         })
-        .sum()
 }
 
 /// Summarizes a planned job.
@@ -120,6 +127,8 @@ pub fn summarize(job: &Job) -> Summary {
             )
         })
         .collect();
+    let moving = sections(job).iter().map(|s| s.count()).sum::<u64>();
+    let (standstill, fire_time) = fire_pulses(job);
     Summary {
         recipe: job.program.recipe.clone(),
         machine: machine.name.clone(),
@@ -129,7 +138,10 @@ pub fn summarize(job: &Job) -> Summary {
         rapid_length_mm: round_sig(rapid),
         laser_on_length_mm: round_sig(lit_len),
         laser_on_time_s: round_sig(lit_time),
-        pulses: sections(job).iter().map(|s| s.count()).sum::<u64>() + fire_pulses(job),
+        pulses: moving + standstill,
+        pulses_moving: moving,
+        pulses_standstill: standstill,
+        standstill_fire_time_s: round_sig(fire_time),
         blocks: job.moves.len(),
         ops: job.program.ops.len(),
         axes,
