@@ -328,7 +328,12 @@ pub(crate) fn job_failure(report: Report, lines: &JobLines<'_>, resume: String) 
             stop,
         }),
         Outcome::Lost(e) => Failure::one(output::LinkLost {
-            reason: e.to_string(),
+            // The reason alone: `LinkError::Lost`'s own text starts with "the link to the
+            // controller was lost", which `LinkLost` already says.
+            reason: match e {
+                lase_runtime::link::LinkError::Lost { reason } => reason,
+                other => other.to_string(),
+            },
             acked: report.acked,
             total,
             resume,

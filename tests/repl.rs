@@ -164,6 +164,13 @@ move to (0 mm, 0 mm) at 20 mm/s
     assert_eq!(code, 0, "{err}");
     let all = format!("{out}{err}");
     assert!(all.contains("the link to the controller was lost"), "{all}");
+    // Said once per loss, not "lost after …: the link to the controller was lost: …".
+    assert!(
+        !all.contains("was lost after")
+            || all.matches("link to the controller was lost").count()
+                == all.matches("was lost after").count(),
+        "{all}"
+    );
     assert!(
         all.contains("`repl` was interrupted by a lost link: `:resume` continues it"),
         "{all}"
