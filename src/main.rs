@@ -272,9 +272,9 @@ fn cmd_plan(
     outln!("  pulses          {}", s.pulses);
     time_split_lines(&job, s.cycle_time_s);
     outln!(
-        "  blocks          {} planned moves from {} ops",
+        "  blocks          {} planned moves from {}",
         s.blocks,
-        s.ops
+        output::ops_count(&job)
     );
     for (axis, p) in &s.axes {
         // Peaks in the axis's own unit, as the machine file and the controller speak it.
