@@ -377,8 +377,9 @@ impl Station {
     /// interrupted by a lost link is dropped.
     pub fn abort(&mut self, machine: Option<&Machine>) -> R<String> {
         let dropped = self.lost.take().map(|j| j.name);
+        let letters = self.letters.clone();
         let link = self.link(machine)?;
-        let stop = stream::stop_safely(&mut **link);
+        let stop = stream::stop_safely(&mut **link, &letters);
         Ok(match dropped {
             Some(name) => format!("dropped the interrupted job `{name}` (check the part); {stop}"),
             None => stop,
