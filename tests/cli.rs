@@ -98,3 +98,78 @@ fn plan_says_how_much_of_the_cycle_is_unlit_and_hints_when_it_dominates() {
         }
     }
 }
+
+/// The `done` line: `NAME: done — N lines acknowledged in T s (…)` → T.
+fn run_seconds(out: &str) -> f64 {
+    let t = out
+        .split("acknowledged in ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("{out}"));
+    t.split_whitespace().next().unwrap().parse().unwrap()
+}
+
+/// The built-in simulator's clock is `--time-scale`: `max` by default (a 20 s job streams in
+/// a moment), a factor of 40 takes about 20 s / 40; it is documented in `--help` and refused
+/// for a real controller's link.
+#[test]
+fn run_time_scale_sets_the_simulators_clock() {
+    let (_, help, _) = lase(&["run", "--help"]);
+    assert!(
+        help.contains("--time-scale") && help.contains("`max` (the default"),
+        "{help}"
+    );
+    let (code, out, err) = lase(&["run", "examples/frame_marking.lase"]);
+    assert_eq!(code, 0, "{err}");
+    let fast = run_seconds(&out);
+    let (code, out, err) = lase(&["run", "examples/frame_marking.lase", "--time-scale", "40"]);
+    assert_eq!(code, 0, "{err}");
+    let scaled = run_seconds(&out);
+    // frame_marking plans 20.0 s: at ×40 at least 0.5 s of motion, less the last few blocks
+    // the controller still runs after the final `ok`.
+    assert!(scaled > 0.4, "×40 took {scaled} s");
+    assert!(fast < scaled, "max {fast} s, ×40 {scaled} s");
+    let (code, _, err) = lase(&[
+        "run",
+        "examples/frame_marking.lase",
+        "--link",
+        "tcp://127.0.0.1:9",
+        "--time-scale",
+        "real",
+    ]);
+    assert_eq!(code, 1);
+    assert!(err.contains("--time-scale"), "{err}");
+}
+
+/// Ctrl-C from outside a terminal (SIGINT to a script's `lase run`) is a feed hold too; with
+/// nobody to resume it, the held job is then stopped at rest, and lase exits 1 with the abort
+/// diagnostic, never killed mid-move with the controller still running.
+#[test]
+fn sigint_holds_then_stops_a_run_without_a_terminal() {
+    use std::io::{BufRead, BufReader};
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lase"))
+        .args(["run", "examples/frame_marking.lase", "--time-scale", "real"])
+        .current_dir(root())
+        .env("NO_COLOR", "1")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = BufReader::new(child.stderr.take().unwrap());
+    let mut header = String::new();
+    err.read_line(&mut header).unwrap();
+    assert!(header.contains("lines to"), "{header}");
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut err, &mut rest).unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(1), "{rest}");
+    assert!(rest.contains("feed hold"), "{rest}");
+    assert!(rest.contains("aborted after"), "{rest}");
+}
