@@ -137,7 +137,8 @@ fn open_braces_continue_the_input_on_the_next_line() {
     enter(&mut p, "ring(5 mm)");
     prompt(&mut p);
     enter(&mut p, ":plan");
-    p.exp_regex(r"\d+ ops, cycle time [0-9.]+ s").unwrap();
+    p.exp_regex(r"\d+ ops( \+ \d+ lead-ins/outs)?, cycle time [0-9.]+ s")
+        .unwrap();
     prompt(&mut p);
     quit(p);
 }
