@@ -347,10 +347,18 @@ pub const PROFILE_KINDS: &[ProfileKind] = &[
     },
     ProfileKind {
         name: "svg",
-        params: &[req("path", PTy::Str), opt("index", NUM)],
+        params: &[
+            req("path", PTy::Str),
+            opt("index", NUM),
+            opt("id", PTy::Str),
+        ],
         flags: &[],
         doc: "A contour from SVG path data (the `d` attribute: M, L, H, V, C, S, Q, T, A, Z), \
-              in mm with y up; `index` picks one of several subpaths.",
+              in mm with y up, or from an SVG file (`svg(\"part.svg\")`, a name ending in \
+              .svg, relative to the recipe): its `<path>` elements, one user unit per mm, \
+              without transforms; `id: \"outline\"` picks the path with that id; `index` \
+              picks one of several contours (subpaths, or the paths of a file in document \
+              order).",
         unsupported: false,
     },
 ];
