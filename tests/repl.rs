@@ -320,3 +320,22 @@ fn load_and_plan_count_the_same_ops() {
     assert_eq!(s["ops"].as_u64().unwrap() as usize, loaded + leads);
     assert!(leads > 0 && loaded == 28, "{plan}");
 }
+
+/// `:help scan` and `:help machine` show what `lase doc` shows: both scan kinds with their
+/// settings, and every stock machine.
+#[test]
+fn help_documents_scan_and_the_stock_machines() {
+    let (code, out, err) = session(":help scan\n:help machine\n");
+    assert_eq!(code, 0, "{err}");
+    for needle in [
+        "scan dots REGION",
+        "scan raster REGION",
+        "  overscan ",
+        "  cross ",
+    ] {
+        assert!(out.contains(needle), "{needle}:\n{out}");
+    }
+    for m in lase_stdlib::machine_names() {
+        assert!(out.contains(m), "{m}:\n{out}");
+    }
+}
