@@ -4,7 +4,7 @@
 //! terminal) and the mapping of a controller's answer back to the recipe line.
 
 use crate::driver::{self, Failure, IoError};
-use crate::output;
+use crate::output::{self, outln};
 use lase_lang::{SourceMap, Span};
 use lase_runtime::emit::{Dialect, NcLine};
 use lase_runtime::link::job::{self, JobLines, NewJournal, Origin, Refused, Started};
@@ -345,15 +345,18 @@ fn stream_run(
     }
     let elapsed = report.elapsed.as_secs_f64();
     let rate = report.program_bytes as f64 / elapsed.max(1e-9);
-    println!(
+    outln!(
         "{name}: done — {} lines acknowledged in {elapsed:.3} s ({:.0} bytes/s), controller {}",
         report.acked,
         rate,
         link.status(&lines.letters())
     );
-    println!(
+    outln!(
         "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
-        summary.cycle_time_s, summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
+        summary.cycle_time_s,
+        summary.laser_on_length_mm,
+        summary.laser_on_time_s,
+        summary.pulses
     );
     Ok(())
 }
@@ -427,7 +430,7 @@ fn run_check(name: &str, link: &mut dyn Link, lines: &JobLines<'_>, map: &Source
     let report = job::check_mode(link, lines).map_err(fail)?;
     match report.outcome {
         Outcome::Done => {
-            println!(
+            outln!(
                 "{name}: check mode — the controller accepted all {} lines",
                 lines.lines().len()
             );
@@ -787,14 +790,14 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
         sim::Firmware::Grbl => "GRBL 1.1".to_string(),
         sim::Firmware::GrblHal { axes } => format!("grblHAL ({axes} axes)"),
     };
-    println!(
+    outln!(
         "lase sim: {firmware} simulator for `{}` listening on {bound} (time scale {time_scale}{}, RX buffer {} bytes, {} planner blocks)",
         machine.name,
         args.baud.map(|b| format!(", {b} baud")).unwrap_or_default(),
         args.rx_buffer,
         args.planner_blocks
     );
-    println!("lase sim: stream to it with `lase run FILE --link tcp://{bound}`");
+    outln!("lase sim: stream to it with `lase run FILE --link tcp://{bound}`");
     use std::io::Write;
     let _ = std::io::stdout().flush();
     handle.join();

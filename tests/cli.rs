@@ -173,3 +173,22 @@ fn sigint_holds_then_stops_a_run_without_a_terminal() {
     assert!(rest.contains("feed hold"), "{rest}");
     assert!(rest.contains("aborted after"), "{rest}");
 }
+
+/// `lase run … | head -1` once panicked on the closed pipe when printing how the job ended;
+/// a reader that stops early ends lase quietly, as for `lase emit`.
+#[test]
+fn run_into_a_closed_pipe_does_not_panic() {
+    use std::process::{Command, Stdio};
+    let mut child = Command::new(env!("CARGO_BIN_EXE_lase"))
+        .args(["run", "examples/frame_marking.lase"])
+        .current_dir(root())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_ne!(out.status.code(), Some(101), "{err}");
+}
