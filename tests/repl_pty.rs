@@ -328,6 +328,9 @@ fn ctrl_c_in_lase_run_holds_and_a_second_one_aborts() {
     p.exp_string("a second Ctrl-C = abort").unwrap();
     // The bar runs on planned time: its ETA counts down from the plan's cycle time.
     p.exp_regex(r"% ETA [0-9.]+ s of 20\.0 s planned").unwrap();
+    // The controller says `Run` while the job moves, on the machine's own axes.
+    p.exp_regex(r"lines \| Run \| X-?[0-9.]+ Y-?[0-9.]+")
+        .unwrap();
     let deadline = Instant::now() + Duration::from_secs(120);
     while !sim.recording().laser.iter().any(|e| e.power_s > 0.0) {
         assert!(Instant::now() < deadline, "the laser never came on");
