@@ -36,18 +36,22 @@ enum Command {
     /// Write the NC program of a recipe (stdout unless -o).
     Emit {
         file: PathBuf,
+        /// Write the NC program to this file (atomically) instead of stdout.
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso.
         #[arg(long, default_value = "linuxcnc")]
         dialect: String,
     },
-    /// Plan the motion: cycle time and peaks; optionally a JSON summary and a CSV trace.
+    /// Plan the motion: cycle time, peaks and where the time goes; optionally a JSON summary
+    /// (`-o`), a CSV trace (`--trace`) and every pulse (`--pulses`).
     Plan {
         file: PathBuf,
-        /// Write the job summary as JSON.
-        #[arg(long)]
-        summary: Option<PathBuf>,
+        /// Write the job summary as JSON to this file (`--summary` is an old spelling).
+        // `-o` is every command's output file, as in `emit` and `plot`; `--summary` stays as a
+        // hidden alias so existing scripts keep working.
+        #[arg(short, long, alias = "summary")]
+        output: Option<PathBuf>,
         /// Write a sampled trace as CSV.
         #[arg(long)]
         trace: Option<PathBuf>,
@@ -118,7 +122,7 @@ fn main() -> ExitCode {
         } => cmd_emit(&file, output.as_deref(), &dialect),
         Command::Plan {
             file,
-            summary,
+            output: summary,
             trace,
             pulses,
             period,
@@ -294,10 +298,11 @@ fn cmd_plan(
     } else {
         outln!("  pulses          {}", s.pulses);
     }
+    time_split_lines(&job, s.cycle_time_s);
     outln!(
-        "  blocks          {} planned moves from {} ops",
+        "  blocks          {} planned moves from {}",
         s.blocks,
-        s.ops
+        output::ops_count(&job)
     );
     for (axis, p) in &s.axes {
         // Peaks in the axis's own unit, as the machine file and the controller speak it.
@@ -320,6 +325,47 @@ fn cmd_plan(
         );
     }
     Ok(())
+}
+
+/// Where the cycle goes: lit, unlit at a feed (overscan, lead-ins), rapid, standing still; and
+/// a hint when unlit motion takes longer than the lit work, which is where a recipe can win
+/// most (a hatch fill whose rows are mostly overscan).
+fn time_split_lines(job: &lase_runtime::motion::Job, cycle_s: f64) {
+    let t = lase_runtime::report::time_split(job);
+    let pct = |x: f64| {
+        if cycle_s > 0.0 {
+            100.0 * x / cycle_s
+        } else {
+            0.0
+        }
+    };
+    outln!(
+        "  time split      lit {:.4} s ({:.0} %), unlit feed {:.4} s ({:.0} %), rapid {:.4} s ({:.0} %), still {:.4} s",
+        t.lit_s,
+        pct(t.lit_s),
+        t.unlit_feed_s,
+        pct(t.unlit_feed_s),
+        t.rapid_s,
+        pct(t.rapid_s),
+        t.still_s
+    );
+    if t.unlit_motion_s() > t.lit_s && t.unlit_motion_s() > 0.1 * cycle_s {
+        let (what, fix) = if t.unlit_feed_s >= t.rapid_s {
+            (
+                "unlit moves at a feed (scan overscan, lead-ins and -outs, unlit `move ... at`)",
+                "for a scan, a shorter `overscan`, rows along the region's long side (`angle`) or a lower `speed` (shorter ramps) cut it",
+            )
+        } else {
+            (
+                "rapid travel (approaches, a unidirectional scan's return strokes)",
+                "`order serpentine` for a scan, or start each path near where the last one ends",
+            )
+        };
+        outln!(
+            "  hint: {:.0} % of the cycle is unlit motion, mostly {what}; {fix}",
+            pct(t.unlit_motion_s())
+        );
+    }
 }
 
 fn cmd_plot(file: &Path, output: Option<&Path>, full: bool, unit: Option<&str>) -> CmdResult {

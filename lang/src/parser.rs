@@ -838,7 +838,37 @@ fn syntax_error(e: pest::error::Error<Rule>, text: &str, base: usize) -> ParseEr
         1 => expected[0].to_string(),
         n => format!("{} or {}", expected[..n - 1].join(", "), expected[n - 1]),
     };
-    let help = if found == "`=`" && expected.contains(&"a comparison") {
+    let word = text[start..tok_end].trim();
+    let is_word = !word.is_empty()
+        && word.chars().all(|c| c.is_alphanumeric() || c == '_')
+        && !word.starts_with(|c: char| c.is_ascii_digit());
+    let keyword = is_word && crate::schema::KEYWORDS.contains(&word);
+    // A keyword where a name is due (`let at = ...`) is a name the language keeps.
+    let found = if keyword && expected.contains(&"a name") {
+        format!("the keyword {found}")
+    } else {
+        found
+    };
+    let help = if keyword && expected.contains(&"a name") {
+        Some(format!(
+            "`{word}` is a keyword of the language and cannot name a value; choose another \
+             name, e.g. `{word}_1`"
+        ))
+    } else if let Some(kw) = is_word
+        .then(|| misspelt_statement(word, &expected))
+        .flatten()
+    {
+        // The long list of what could follow an expression statement hides the real slip.
+        return ParseError::Syntax {
+            message: format!("`{word}` starts no statement; did you mean `{kw}`?"),
+            span: Span::new(base + start, base + tok_end),
+            label: format!("did you mean `{kw}`?"),
+            help: Some(format!(
+                "`{kw}` is the statement keyword closest to `{word}`; `lase doc statements` \
+                 lists them all"
+            )),
+        };
+    } else if found == "`=`" && expected.contains(&"a comparison") {
         Some("`=` only binds names in `let`; compare with `==`".to_string())
     } else if expected.contains(&"a unit") || found.starts_with("`mm") {
         Some("a unit follows its number on the same line: `20 mm/s`".to_string())
@@ -851,6 +881,19 @@ fn syntax_error(e: pest::error::Error<Rule>, text: &str, base: usize) -> ParseEr
         label: format!("expected {list}"),
         help,
     }
+}
+
+/// The statement keyword a word where a statement may start is a misspelling of
+/// (`folow` → `follow`), by the same similarity as names' suggestions.
+fn misspelt_statement(word: &str, expected: &[&str]) -> Option<&'static str> {
+    if !expected.contains(&"a statement") || crate::schema::KEYWORDS.contains(&word) {
+        return None;
+    }
+    const STATEMENT_KEYWORDS: &[&str] = &[
+        "machine", "limits", "let", "fn", "import", "use", "if", "for", "return", "laser", "pulse",
+        "planner", "move", "follow", "dwell", "mcode", "event", "scan",
+    ];
+    crate::units::suggest(word, STATEMENT_KEYWORDS.iter().copied())
 }
 
 #[cfg(test)]

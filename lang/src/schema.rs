@@ -347,10 +347,18 @@ pub const PROFILE_KINDS: &[ProfileKind] = &[
     },
     ProfileKind {
         name: "svg",
-        params: &[req("path", PTy::Str), opt("index", NUM)],
+        params: &[
+            req("path", PTy::Str),
+            opt("index", NUM),
+            opt("id", PTy::Str),
+        ],
         flags: &[],
         doc: "A contour from SVG path data (the `d` attribute: M, L, H, V, C, S, Q, T, A, Z), \
-              in mm with y up; `index` picks one of several subpaths.",
+              in mm with y up, or from an SVG file (`svg(\"part.svg\")`, a name ending in \
+              .svg, relative to the recipe): its `<path>` elements, one user unit per mm, \
+              without transforms; `id: \"outline\"` picks the path with that id; `index` \
+              picks one of several contours (subpaths, or the paths of a file in document \
+              order).",
         unsupported: false,
     },
 ];
@@ -559,9 +567,13 @@ const SCAN_COMMON: [SettingSpec; 8] = [
     set(
         "power",
         PTy::Dim(Dim::POWER),
-        "Laser power for this scan only.",
+        "Laser power for this scan only (default: the `laser` power in force).",
     ),
-    set("spot", L, "Spot diameter for this scan only."),
+    set(
+        "spot",
+        L,
+        "Spot diameter for this scan only (default: the `laser` spot in force).",
+    ),
 ];
 
 pub const SCAN_KINDS: &[ScanKind] = &[
@@ -577,17 +589,25 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             SCAN_COMMON[5],
             SCAN_COMMON[6],
             SCAN_COMMON[7],
-            set("pitch", L, "L1: spot spacing along a row."),
+            set(
+                "pitch",
+                L,
+                "L1: spot spacing along a row (required, except for a list of points, where it defaults to the spot diameter and only sets the row grouping).",
+            ),
             set(
                 "row_pitch",
                 L,
                 "L2: spacing between rows (default: `pitch`; with `layout hex`, pitch·√3/2).",
             ),
-            set("rows", NUM, "Rows of an array given by its origin point."),
+            set(
+                "rows",
+                NUM,
+                "Rows of an array given by its origin point (required with a point region).",
+            ),
             set(
                 "cols",
                 NUM,
-                "Spots per row of an array given by its origin point.",
+                "Spots per row of an array given by its origin point (required with a point region).",
             ),
             set(
                 "layout",
@@ -607,10 +627,10 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             set(
                 "inset",
                 L,
-                "Keep spot centers this far inside the region's borders (offset machinery).",
+                "Keep spot centers this far inside the region's borders (offset machinery; default 0 mm).",
             ),
         ],
-        doc: "A texturing dot array: spots on a lattice (L1 along a row, L2 between rows), in or from the region, fired with the pulse settings in force (`pulse { width, energy }`). Spots are counted from the lattice origin, never accumulated.",
+        doc: "A texturing dot array: spots on a lattice (L1 along a row, L2 between rows), in or from the region, fired with the pulse settings in force (the `pulse` width and energy). Spots are counted from the lattice origin, never accumulated.",
     },
     ScanKind {
         name: "raster",
@@ -628,12 +648,12 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             set(
                 "cross",
                 PTy::Flag,
-                "Cross-hatch: a second set of lines at `angle` + 90°, after the first in every pass.",
+                "Cross-hatch: a second set of lines at `angle` + 90°, after the first in every pass (a flag: write `cross`; default off).",
             ),
             set(
                 "inset",
                 L,
-                "Shrink the region by this much from every border first (outer borders move in, holes grow), with the offset machinery.",
+                "Shrink the region by this much from every border first (outer borders move in, holes grow), with the offset machinery (default 0 mm).",
             ),
         ],
         doc: "A hatch fill: parallel lines `pitch` apart clipped to the region, lit at `speed`; with `pulse interval` in force the beam pulses along each line from its start.",

@@ -266,6 +266,7 @@ impl Session {
                 let before = self.eval.ops().len();
                 if self.input(&text, path) {
                     self.loaded = Some(path.into());
+                    // The ops the recipe wrote, as `:plan` counts them first.
                     println!(
                         "loaded {path}: {} ops to run",
                         self.eval.ops().len().saturating_sub(before)
@@ -367,8 +368,8 @@ impl Session {
     fn summary_line(&self, job: &Job) -> String {
         let s = lase_runtime::report::summarize(job);
         let mut line = format!(
-            "{} ops, cycle time {:.4} s, path {:.4} mm, laser on {:.4} mm",
-            job.program.ops.len(),
+            "{}, cycle time {:.4} s, path {:.4} mm, laser on {:.4} mm",
+            crate::output::ops_count(job),
             s.cycle_time_s,
             s.path_length_mm,
             s.laser_on_length_mm

@@ -297,6 +297,13 @@ impl Checker {
                     (Num(_), Zero) | (Zero, Zero) => l.clone(),
                     (Point, Point) if op != BinOp::Rem => Point,
                     (Str, Str) if op == BinOp::Add => Str,
+                    // `+` on two lists concatenates them; their items must be of one kind.
+                    (List(a), List(b)) if op == BinOp::Add => match (&**a, &**b) {
+                        (Unknown, _) => r.clone(),
+                        (_, Unknown) => l.clone(),
+                        (a, b) if same_kind(a, b) => l.clone(),
+                        _ => mismatch(self, "concatenate"),
+                    },
                     _ => mismatch(self, verb),
                 }
             }

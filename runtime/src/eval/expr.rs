@@ -300,6 +300,27 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
             Ok(Point([a[0] / k, a[1] / k, a[2] / k], *n))
         }
         (BinOp::Add, Str(a), Str(b)) => Ok(Str(format!("{a}{b}").into())),
+        // List concatenation, capped so doubling a list in a loop or recursion cannot exhaust
+        // memory before the step budget notices.
+        (BinOp::Add, List(a), List(b)) => {
+            let n = a.len() + b.len();
+            if n > MAX_LIST_ITEMS {
+                return Err(EvalError::TooLarge {
+                    message: format!(
+                        "the concatenated list would hold {} items, above the {} lase handles",
+                        lase_lang::units::format_number(n as f64),
+                        lase_lang::units::format_number(MAX_LIST_ITEMS as f64)
+                    ),
+                    span: ls.to(rs),
+                    label: "too many items".into(),
+                    help: Some("build smaller lists, or split the job into several recipes".into()),
+                });
+            }
+            let mut out = Vec::with_capacity(n);
+            out.extend(a.iter().cloned());
+            out.extend(b.iter().cloned());
+            Ok(List(Rc::new(out)))
+        }
         (BinOp::Eq, Bool(a), Bool(b)) => Ok(Bool(a == b)),
         (BinOp::Ne, Bool(a), Bool(b)) => Ok(Bool(a != b)),
         (BinOp::Eq, Str(a), Str(b)) => Ok(Bool(a == b)),
@@ -307,6 +328,9 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
         _ => Err(mismatch(&l, &r)),
     }
 }
+
+/// Items a list made by `+` may hold (as many as an extension's arrays).
+pub(crate) const MAX_LIST_ITEMS: usize = 1_000_000;
 
 /// `x / 0`: the error at the divisor.
 fn division_by_zero(divisor: Span) -> EvalError {

@@ -156,6 +156,14 @@ impl Evaluator {
                 LaserStmt::Settings(set) => {
                     let ls = self.laser_settings(set, cx)?;
                     if let Some(p) = ls.power {
+                        if let (Some(pulse), Some(e)) = (
+                            &self.pulse,
+                            set.iter()
+                                .find(|s| s.key.name == "power")
+                                .and_then(|s| s.value.as_ref()),
+                        ) {
+                            super::sheet::pulse_energy_agrees(p, pulse, e.span, "this power")?;
+                        }
                         self.laser.power_w = Some(p);
                     }
                     if let Some(d) = ls.spot {

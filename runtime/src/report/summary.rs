@@ -147,3 +147,47 @@ pub fn summarize(job: &Job) -> Summary {
         axes,
     }
 }
+
+/// Where a job's cycle time goes, s: lit motion (and dwells between lit moves), unlit motion
+/// at a feed (a scan's overscan, lead-ins and -outs, the approach to a row), rapid travel, and
+/// standstill (unlit dwells, stops, the wait before the first move). The four add up to the
+/// cycle time. `lase plan` prints it, so a job whose time goes mostly to overscan shows it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeSplit {
+    pub lit_s: f64,
+    pub unlit_feed_s: f64,
+    pub rapid_s: f64,
+    pub still_s: f64,
+}
+
+impl TimeSplit {
+    /// Unlit motion, feed and rapid.
+    pub fn unlit_motion_s(&self) -> f64 {
+        self.unlit_feed_s + self.rapid_s
+    }
+}
+
+/// The [`TimeSplit`] of a planned job, from the same segments and rules as [`summarize`]'s
+/// laser-on time (so `lit_s` is its `laser_on_time_s`).
+pub fn time_split(job: &Job) -> TimeSplit {
+    let (mut lit, mut feed, mut rapid) = (0.0, 0.0, 0.0);
+    for (i, seg) in job.plan.segments().iter().enumerate() {
+        let t = seg.motion_duration();
+        if segment_laser(job, i).is_some() {
+            lit += t;
+            if dwell_lit(job, i) {
+                lit += seg.dwell;
+            }
+        } else if segment_is_rapid(job, i) {
+            rapid += t;
+        } else {
+            feed += t;
+        }
+    }
+    TimeSplit {
+        lit_s: lit,
+        unlit_feed_s: feed,
+        rapid_s: rapid,
+        still_s: (job.cycle_time() - lit - feed - rapid).max(0.0),
+    }
+}
