@@ -164,9 +164,11 @@ impl Checker {
                 self.expect_count(&i, index, "an index");
                 match t {
                     Ty::List(elem) => *elem,
+                    // A string's item is its character at the index, itself a string.
+                    Ty::Str => Ty::Str,
                     Ty::Unknown => Ty::Unknown,
                     other => {
-                        self.type_err("a list", &other, expr, "indexing");
+                        self.type_err("a list or a string", &other, expr, "indexing");
                         Ty::Unknown
                     }
                 }
@@ -234,7 +236,12 @@ impl Checker {
                         help: Some("give `cw` or `ccw`, not both".into()),
                     });
                 }
-                Ty::Profile
+                // Text is many strokes or outlines: a list of profiles.
+                if pk.name == "text" {
+                    Ty::List(Box::new(Ty::Profile))
+                } else {
+                    Ty::Profile
+                }
             }
         }
     }

@@ -198,7 +198,33 @@ impl Evaluator {
                                 )
                             })
                     }
-                    other => Err(type_err("a list", &other, expr.span, "indexing")),
+                    // A string's items are its characters (Unicode scalar values), so a
+                    // serial number's digits can be taken one by one.
+                    Value::Str(text) => {
+                        let len = text.chars().count() as i64;
+                        let k = if i < 0 { len + i } else { i };
+                        text.chars()
+                            .nth(k as usize)
+                            .filter(|_| k >= 0)
+                            .map(|c| Value::Str(c.to_string().into()))
+                            .ok_or_else(|| {
+                                bad(
+                                    Kind::OutOfRange,
+                                    index.span,
+                                    &format!(
+                                        "index {i} is out of range for a string of {len} characters"
+                                    ),
+                                    "out of range",
+                                    Some("indices run from 0; negative ones count from the end"),
+                                )
+                            })
+                    }
+                    other => Err(type_err(
+                        "a list or a string",
+                        &other,
+                        expr.span,
+                        "indexing",
+                    )),
                 }
             }
             ExprKind::Call { callee, args } => self.call(callee, args, e.span, cx),
