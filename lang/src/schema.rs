@@ -272,7 +272,7 @@ pub const BUILTINS: &[Builtin] = &[
         ],
         ret: Ret::Profiles,
         doc: "A QR code of the text (byte mode, error correction M, the smallest version that \
-              holds it) as closed profiles to fill with `scan raster`: one rectangle per run of \
+              holds it) as closed profiles to fill with a `raster` scan: one rectangle per run of \
               dark modules in a row, `module` wide per module. `origin` is the lower-left corner of \
               the symbol's quiet zone (default the origin); `quiet` is the quiet zone in modules \
               (default 4, the standard's), which the size counts but no profile fills.",
@@ -286,7 +286,7 @@ pub const BUILTINS: &[Builtin] = &[
             opt("quiet", NUM),
         ],
         ret: Ret::Points,
-        doc: "The QR code of `qr` as the centres of its dark modules, for `scan dots` (one \
+        doc: "The QR code of `qr` as the centres of its dark modules, for a `dots` scan (one \
               pulse per module).",
     },
     Builtin {
@@ -299,7 +299,7 @@ pub const BUILTINS: &[Builtin] = &[
         ],
         ret: Ret::Profiles,
         doc: "A Data Matrix (ECC 200, the smallest square symbol that holds the text) as closed \
-              profiles to fill with `scan raster`, as `qr` does; the quiet zone defaults to 1 \
+              profiles to fill with a `raster` scan, as `qr` does; the quiet zone defaults to 1 \
               module, the standard's minimum.",
     },
     Builtin {
@@ -312,7 +312,7 @@ pub const BUILTINS: &[Builtin] = &[
         ],
         ret: Ret::Points,
         doc: "The Data Matrix of `datamatrix` as the centres of its dark modules, for \
-              `scan dots`.",
+              a `dots` scan.",
     },
 ];
 
@@ -447,8 +447,8 @@ pub const PROFILE_KINDS: &[ProfileKind] = &[
         doc: "Text as a list of profiles. Without `font`, lase's built-in single-stroke font \
               (Hershey Simplex, ASCII 32–126): open strokes to `follow`. With `font: \
               \"file.ttf\"` (TrueType or OpenType, relative to the recipe): each glyph's closed \
-              outlines, curves flattened within the planner's tolerance, to fill with `scan \
-              raster`. `height` is the height of a capital letter; `origin` the anchor on the \
+              outlines, curves flattened within the planner's tolerance, to fill with a `raster` \
+              scan. `height` is the height of a capital letter; `origin` the anchor on the \
               baseline (default the origin); `align` is \"left\" (default), \"center\" or \
               \"right\" of the anchor; `spacing` is added between letters; `angle` turns the \
               baseline (default 0 deg). With `radius` the baseline is an arc of that radius \
