@@ -59,7 +59,10 @@ const STATEMENTS: &[(&str, &str)] = &[
         "`use \"file.rhai\"`, `use stdlib::cams`, `use stdlib::presets::cam_hardening`: Rhai extension functions or preset values; `lase doc extensions`.",
     ),
     ("if", "`if cond { } else if cond { } else { }`."),
-    ("for", "`for i in 0..n { }`, `0..=n`, `for p in list { }`."),
+    (
+        "for",
+        "`for i in 0..n { }`, `0..=n`, `for p in list { }`. The same clause builds a list: `[x * 2 for x in xs if x > 0 mm]` (map and filter in one form; at most 1 000 000 items).",
+    ),
     (
         "move",
         "`move to P rapid`, `move to P at 5 mm/s`, `move by V ...`: positioning.",

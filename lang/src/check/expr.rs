@@ -6,6 +6,7 @@ use crate::ast::*;
 use crate::diag::{CheckError, did_you_mean};
 use crate::schema;
 use crate::units::{self, Dim};
+use std::collections::HashMap;
 
 impl Checker {
     pub(super) fn expr(&mut self, e: &Expr) -> Ty {
@@ -174,6 +175,23 @@ impl Checker {
                 }
             }
             ExprKind::Call { callee, args } => self.call(callee, args, e.span),
+            ExprKind::Comprehension {
+                item,
+                var,
+                iter,
+                cond,
+            } => {
+                let var_ty = self.for_iter(iter, "a list comprehension");
+                self.scopes.push(HashMap::new());
+                self.bind(&var.name, var_ty);
+                if let Some(c) = cond {
+                    let t = self.expr(c);
+                    self.expect_ty(&t, &Ty::Bool, c, "the condition of a list comprehension");
+                }
+                let t = self.expr(item);
+                self.scopes.pop();
+                Ty::List(Box::new(t))
+            }
             ExprKind::Profile { kind, args, flags } => {
                 let Some(pk) = schema::profile_kind(&kind.name) else {
                     self.err(CheckError::UnknownName {
@@ -243,6 +261,34 @@ impl Checker {
                     Ty::Profile
                 }
             }
+        }
+    }
+
+    /// The type a loop variable takes from what it runs over: a count from a range, an item
+    /// from a list (`for` statements and list comprehensions alike).
+    pub(super) fn for_iter(&mut self, iter: &ForIter, context: &str) -> Ty {
+        match iter {
+            ForIter::Range { start, end, .. } => {
+                for e in [start, end] {
+                    let t = self.expr(e);
+                    self.expect_count(&t, e, "a range bound");
+                }
+                Ty::Num(Dim::NONE)
+            }
+            ForIter::Expr(e) => match self.expr(e) {
+                Ty::List(t) => *t,
+                Ty::Unknown => Ty::Unknown,
+                other => {
+                    self.err(CheckError::TypeMismatch {
+                        expected: "a list or a range".into(),
+                        found: other.describe(),
+                        context: context.into(),
+                        span: e.span,
+                        help: Some("loop over a list `[a, b]` or a range `0..n`".into()),
+                    });
+                    Ty::Unknown
+                }
+            },
         }
     }
 

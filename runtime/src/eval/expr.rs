@@ -228,8 +228,60 @@ impl Evaluator {
                 }
             }
             ExprKind::Call { callee, args } => self.call(callee, args, e.span, cx),
+            ExprKind::Comprehension {
+                item,
+                var,
+                iter,
+                cond,
+            } => {
+                let items = self.for_items(iter, "a list comprehension", cx)?;
+                let mut out = Vec::new();
+                for v in items {
+                    self.step(var.span)?;
+                    // Each item is a value held at once: the list is bounded before it can
+                    // grow past what memory holds (the step budget alone would allow 20 M).
+                    if out.len() >= MAX_LIST_ITEMS {
+                        return Err(bad(
+                            Kind::TooLarge,
+                            e.span,
+                            &format!("this list would hold more than {MAX_LIST_ITEMS} items"),
+                            "too many items",
+                            Some("filter earlier, or loop with `for` instead of building a list"),
+                        ));
+                    }
+                    self.scopes.push(std::collections::HashMap::new());
+                    self.bind(&var.name, v);
+                    let r = self.comprehension_item(item, cond.as_deref(), cx);
+                    self.scopes.pop();
+                    if let Some(v) = r? {
+                        out.push(v);
+                    }
+                }
+                Ok(Value::List(Rc::new(out)))
+            }
             ExprKind::Profile { kind, args, flags } => self.profile(kind, args, flags, e.span, cx),
         }
+    }
+}
+
+/// Items a list comprehension may build.
+const MAX_LIST_ITEMS: usize = 1_000_000;
+
+impl Evaluator {
+    /// One turn of a list comprehension: the item, unless the condition drops it.
+    fn comprehension_item(
+        &mut self,
+        item: &Expr,
+        cond: Option<&Expr>,
+        cx: &mut Cx,
+    ) -> R<Option<Value>> {
+        if let Some(c) = cond {
+            let keep = self.expr(c, cx)?;
+            if !self.as_bool(&keep, c.span, "the condition of a list comprehension")? {
+                return Ok(None);
+            }
+        }
+        self.expr(item, cx).map(Some)
     }
 }
 
