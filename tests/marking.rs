@@ -293,7 +293,7 @@ fn string_parts_and_format_run_end_to_end() {
 
 #[test]
 fn the_marking_examples_run_on_the_simulated_controller() {
-    for ex in ["serial_number", "codes"] {
+    for ex in ["serial_number", "codes", "material_test"] {
         let recipe = root().join(format!("examples/{ex}.lase"));
         let (code, out, err) = lase(&[
             "run",
@@ -307,4 +307,116 @@ fn the_marking_examples_run_on_the_simulated_controller() {
             "{ex}: {out}{err}"
         );
     }
+}
+
+/// Lit feed moves of a GRBL program with their S word and feed (mm/min).
+fn lit_moves_with_power(nc: &str) -> Vec<([f64; 2], [f64; 2], f64, f64)> {
+    let (mut x, mut y, mut s, mut g, mut f) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut out = Vec::new();
+    for line in nc.lines() {
+        let (x0, y0) = (x, y);
+        let mut moved = false;
+        for (c, v) in nc_words(line) {
+            match c {
+                'G' if v == 0.0 || v == 1.0 => g = v,
+                'X' => (x, moved) = (v, true),
+                'Y' => (y, moved) = (v, true),
+                'S' => s = v,
+                'F' => f = v,
+                _ => {}
+            }
+        }
+        if moved && g == 1.0 && s > 0.0 {
+            out.push(([x0, y0], [x, y], s, f));
+        }
+    }
+    out
+}
+
+#[test]
+fn the_material_test_grid_steps_power_by_row_and_speed_by_column() {
+    // The preset's numbers: 4..20 W over 5 rows, 20..100 mm/s over 5 columns, 5 mm cells
+    // 2 mm apart after a 6 mm label margin, hatched every 0.2 mm; labels at 6 W.
+    let nc = emit(&root().join("examples/material_test.lase"), "grbl");
+    let lit = lit_moves_with_power(&nc);
+    let (cell, step, margin, hatch) = (5.0, 7.0, 6.0, 0.2);
+    let mut s_of_row = Vec::new();
+    for r in 0..5 {
+        let power = 4.0 + 16.0 * r as f64 / 4.0;
+        for c in 0..5 {
+            let speed = 20.0 + 80.0 * c as f64 / 4.0;
+            let (x0, y0) = (margin + c as f64 * step, r as f64 * step);
+            let inside = |p: [f64; 2]| {
+                p[0] >= x0 - 1e-6
+                    && p[0] <= x0 + cell + 1e-6
+                    && p[1] >= y0 - 1e-6
+                    && p[1] <= y0 + cell + 1e-6
+            };
+            let lines: Vec<_> = lit.iter().filter(|m| inside(m.0) && inside(m.1)).collect();
+            assert_eq!(lines.len(), (cell / hatch) as usize, "cell ({r}, {c})");
+            for (a, b, s, f) in &lines {
+                assert!(
+                    (a[1] - b[1]).abs() < 1e-9 && ((a[0] - b[0]).abs() - cell).abs() < 1e-3,
+                    "a full-width hatch line"
+                );
+                assert!((f - speed * 60.0).abs() < 1e-6, "cell ({r}, {c}): F{f}");
+                assert_eq!(*s, lines[0].2, "one power per cell");
+            }
+            if c == 0 {
+                s_of_row.push((power, lines[0].2));
+            } else {
+                assert_eq!(lines[0].2, s_of_row[r].1, "one power per row");
+            }
+        }
+    }
+    // The S word is proportional to the row's power.
+    for (p, s) in &s_of_row {
+        assert!(
+            (s / s_of_row[0].1 - p / s_of_row[0].0).abs() < 1e-3,
+            "{p} W: S{s}"
+        );
+    }
+    // Everything else lit is a label stroke at the label power: 6 W is 1.5 × the first row's.
+    let grid = |p: [f64; 2]| {
+        p[0] >= margin - 1e-6 && p[1] <= 5.0 * step - 2.0 + 1e-6 && p[0] <= margin + 5.0 * step
+    };
+    let labels: Vec<_> = lit
+        .iter()
+        .filter(|m| {
+            !(grid(m.0)
+                && grid(m.1)
+                && (m.0[1] - m.1[1]).abs() < 1e-9
+                && ((m.0[0] - m.1[0]).abs() - cell).abs() < 1e-3)
+        })
+        .collect();
+    assert!(labels.len() > 50, "{}", labels.len());
+    for (_, _, s, f) in labels {
+        assert!((s / s_of_row[0].1 - 1.5).abs() < 1e-3, "label S{s}");
+        assert!((f - 30.0 * 60.0).abs() < 1e-6);
+    }
+}
+
+#[test]
+fn the_material_test_labels_read_the_grids_numbers() {
+    // The labels' glyph strokes: "4" … "20" beside the rows and "20" … "100" above the
+    // columns are what `format` made of the preset's ranges, laid out in the Hershey font.
+    let (code, out, err) = lase(&[
+        "check",
+        root().join("examples/material_test.lase").to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{out}{err}");
+    let dir = tempfile::tempdir().unwrap();
+    let r = write(
+        dir.path(),
+        "l.lase",
+        &format!(
+            "{HEADER}use stdlib::presets::material_test\nlet powers = [format(\"{{:.0}}\", (power_min + (power_max - power_min) * r / (rows - 1)) / 1 W) for r in 0..rows]\nlet speeds = [format(\"{{:.0}}\", (speed_min + (speed_max - speed_min) * c / (cols - 1)) / 1 mm/s) for c in 0..cols]\nif powers[4] == \"20\" and powers[1] == \"8\" and speeds[2] == \"60\" and speeds[4] == \"100\" {{ dwell 1 s }}\n"
+        ),
+    );
+    let (code, out, err) = lase(&["plan", r.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("cycle time      1.0000 s"),
+        "the labels' numbers: {out}"
+    );
 }
