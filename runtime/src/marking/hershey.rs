@@ -103,9 +103,11 @@ mod tests {
                 .flatten()
                 .map(|p| p.y)
                 .fold(f64::MAX, f64::min);
-            // Round capitals overshoot the cap line and baseline by a unit at most.
+            // Round capitals overshoot the cap line and baseline by a unit at most; Q's tail
+            // reaches two units below the baseline.
+            let below = if c == 'Q' { 2.0 * u } else { u };
             assert!((top - 1.0).abs() <= u + 1e-12, "{c}: top {top}");
-            assert!(bottom.abs() <= u + 1e-12, "{c}: bottom {bottom}");
+            assert!(bottom.abs() <= below + 1e-12, "{c}: bottom {bottom}");
         }
     }
 }
