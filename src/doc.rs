@@ -63,7 +63,10 @@ const STATEMENTS: &[(&str, &str)] = &[
         "`return expr` ends a `fn` with its value; a `fn` without one returns nothing.",
     ),
     ("if", "`if cond { } else if cond { } else { }`."),
-    ("for", "`for i in 0..n { }`, `0..=n`, `for p in list { }`."),
+    (
+        "for",
+        "`for i in 0..n { }`, `0..=n`, `for p in list { }`. The same clause builds a list: `[x * 2 for x in xs if x > 0 mm]` (map and filter in one form; at most 1 000 000 items).",
+    ),
     (
         "move",
         "`move to P rapid`, `move to P at 5 mm/s`, `move by V ...`: positioning.",
@@ -279,6 +282,8 @@ fn ret(r: Ret) -> String {
         Ret::Point => "a point".into(),
         Ret::Profile => "a profile".into(),
         Ret::Points => "a list of points".into(),
+        Ret::Str => "a string".into(),
+        Ret::Profiles => "a list of profiles".into(),
         Ret::SameAsFirst => "the first argument's kind".into(),
         Ret::SqrtOfFirst => "the square root of the first argument's dimension".into(),
     }

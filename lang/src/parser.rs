@@ -557,7 +557,49 @@ impl Builder {
                 }
             }
             Rule::list => {
-                let (items, h) = self.exprs_h(p.into_inner());
+                let inner: Vec<P> = p.into_inner().collect();
+                if let [first, tail] = &inner[..]
+                    && tail.as_rule() == Rule::comp_tail
+                {
+                    let (item, mut h) = self.expr_h(first.clone());
+                    let mut it = tail.clone().into_inner().filter(|c| {
+                        !matches!(c.as_rule(), Rule::kw_for | Rule::kw_in | Rule::kw_if)
+                    });
+                    let var = self.ident(it.next().expect("comprehension variable"));
+                    let iter_p = it.next().expect("comprehension source");
+                    let iter = if iter_p.as_rule() == Rule::range {
+                        let mut ri = iter_p.into_inner();
+                        let (start, sh) = self.expr_h(ri.next().expect("range start"));
+                        let op = ri.next().expect("range op");
+                        let (end, eh) = self.expr_h(ri.next().expect("range end"));
+                        h = h.max(sh).max(eh);
+                        ForIter::Range {
+                            start,
+                            end,
+                            inclusive: op.as_str() == "..=",
+                        }
+                    } else {
+                        let (e, eh) = self.expr_h(iter_p);
+                        h = h.max(eh);
+                        ForIter::Expr(e)
+                    };
+                    let cond = it.next().map(|c| {
+                        let (e, ch) = self.expr_h(c);
+                        h = h.max(ch);
+                        Box::new(e)
+                    });
+                    return self.node(
+                        ExprKind::Comprehension {
+                            item: Box::new(item),
+                            var,
+                            iter: Box::new(iter),
+                            cond,
+                        },
+                        span,
+                        h + 1,
+                    );
+                }
+                let (items, h) = self.exprs_h(inner.into_iter());
                 self.node(ExprKind::List(items), span, h + 1)
             }
             Rule::call => {
@@ -732,6 +774,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         Rule::call_args => "arguments `( ... )`",
         Rule::arg => "an argument",
         Rule::list => "a list `[ ... ]`",
+        Rule::comp_tail => "`for` (a list comprehension)",
         Rule::paren => "`(`",
         Rule::cmp_op => "a comparison",
         Rule::add_op | Rule::mul_op => "an operator",

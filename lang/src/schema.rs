@@ -21,6 +21,10 @@ pub enum PTy {
     /// A list of points.
     Points,
     List,
+    /// A list or a string (`len`).
+    ListOrStr,
+    /// Any value (the values `format` fills in).
+    Any,
     Bool,
     Str,
     /// One word of a fixed set, written as a bare name (`ramp scurve`).
@@ -39,6 +43,8 @@ impl PTy {
             PTy::Profile => "a profile".into(),
             PTy::Points => "a list of points".into(),
             PTy::List => "a list".into(),
+            PTy::ListOrStr => "a list or a string".into(),
+            PTy::Any => "any value".into(),
             PTy::Bool => "a bool".into(),
             PTy::Str => "a string".into(),
             PTy::Word(w) => format!("one of {}", w.join(", ")),
@@ -77,6 +83,9 @@ pub enum Ret {
     Point,
     Profile,
     Points,
+    Str,
+    /// A list of profiles (2D codes' modules).
+    Profiles,
     /// The dimension of the first argument (abs, min, max).
     SameAsFirst,
     /// The square root of the first argument's dimension.
@@ -236,11 +245,79 @@ pub const BUILTINS: &[Builtin] = &[
     },
     Builtin {
         name: "len",
-        params: &[req("list", PTy::List)],
+        params: &[req("list", PTy::ListOrStr)],
         ret: Ret::Dim(Dim::NONE),
-        doc: "Number of items in a list.",
+        doc: "Number of items in a list, or of characters in a string.",
+    },
+    // Marking (issue 19): string formatting and 2D codes.
+    Builtin {
+        name: "format",
+        params: &[req("template", PTy::Str), opt("values", PTy::Any)],
+        ret: Ret::Str,
+        doc: "A string from a template and any number of values: `format(\"SN {:04}\", n)`. \
+              Each `{}` takes the next value; `{{` and `}}` are literal braces. A spec after a \
+              colon: an alignment `<` `^` `>` (default: right for numbers, left for the rest), \
+              a `0` to pad numbers with zeros after their sign, a width, and `.N` digits after \
+              the point. A plain number without `.N` prints as a whole number when it is one; \
+              a quantity with a unit prints with its unit (`12.5 mm`) and takes no `0` or `.N` \
+              (divide by a unit first: `format(\"{:.2}\", d / 1 mm)`).",
+    },
+    Builtin {
+        name: "qr",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Profiles,
+        doc: "A QR code of the text (byte mode, error correction M, the smallest version that \
+              holds it) as closed profiles to fill with a `raster` scan: one rectangle per run of \
+              dark modules in a row, `module` wide per module. `origin` is the lower-left corner of \
+              the symbol's quiet zone (default the origin); `quiet` is the quiet zone in modules \
+              (default 4, the standard's), which the size counts but no profile fills.",
+    },
+    Builtin {
+        name: "qr_dots",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Points,
+        doc: "The QR code of `qr` as the centres of its dark modules, for a `dots` scan (one \
+              pulse per module).",
+    },
+    Builtin {
+        name: "datamatrix",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Profiles,
+        doc: "A Data Matrix (ECC 200, the smallest square symbol that holds the text) as closed \
+              profiles to fill with a `raster` scan, as `qr` does; the quiet zone defaults to 1 \
+              module, the standard's minimum.",
+    },
+    Builtin {
+        name: "datamatrix_dots",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Points,
+        doc: "The Data Matrix of `datamatrix` as the centres of its dark modules, for \
+              a `dots` scan.",
     },
 ];
+
+/// Builtins whose last parameter takes any number of positional arguments.
+pub const VARIADIC: &[&str] = &["format"];
 
 /// Names bound in every recipe.
 pub const CONSTANTS: &[(&str, f64, &str)] = &[
@@ -359,6 +436,33 @@ pub const PROFILE_KINDS: &[ProfileKind] = &[
               without transforms; `id: \"outline\"` picks the path with that id; `index` \
               picks one of several contours (subpaths, or the paths of a file in document \
               order).",
+        unsupported: false,
+    },
+    // Marking (issue 19): text.
+    ProfileKind {
+        name: "text",
+        params: &[
+            req("text", PTy::Str),
+            req("height", L),
+            opt("origin", PTy::Point),
+            opt("align", PTy::Str),
+            opt("spacing", L),
+            opt("angle", ANG),
+            opt("radius", L),
+            opt("font", PTy::Str),
+        ],
+        flags: &[],
+        doc: "Text as a list of profiles. Without `font`, lase's built-in single-stroke font \
+              (Hershey Simplex, ASCII 32–126): open strokes to `follow`. With `font: \
+              \"file.ttf\"` (TrueType or OpenType, relative to the recipe): each glyph's closed \
+              outlines, curves flattened within the planner's tolerance, to fill with a `raster` \
+              scan. `height` is the height of a capital letter; `origin` the anchor on the \
+              baseline (default the origin); `align` is \"left\" (default), \"center\" or \
+              \"right\" of the anchor; `spacing` is added between letters; `angle` turns the \
+              baseline (default 0 deg). With `radius` the baseline is an arc of that radius \
+              about `origin`, the anchor at polar angle `angle` (default 90 deg), the letters \
+              upright outward and reading clockwise (a negative radius puts them inside, \
+              reading counter-clockwise).",
         unsupported: false,
     },
 ];

@@ -32,6 +32,11 @@ pub trait Files {
     /// `importer` is empty for the main recipe). Returns the resolved name (what diagnostics
     /// show) and the text, or why it cannot.
     fn read(&mut self, importer: &str, path: &str) -> Result<(String, String), String>;
+    /// Reads a binary file (a font) as `read` reads text, under the same limits.
+    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
+        let _ = importer;
+        Err(format!("binary files are not available here (\"{path}\")"))
+    }
 }
 
 /// Every file the evaluator asks for (machine, data, extension) is read the same way.
@@ -46,6 +51,10 @@ impl<F: Files> Host for F {
 
     fn extension_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
         self.read(importer, path)
+    }
+
+    fn binary_file(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
+        self.read_bytes(importer, path)
     }
 }
 
@@ -73,6 +82,13 @@ impl Files for FsFiles {
         let text = read_regular(Path::new(&full)).map_err(|e| format!("{shown}: {e}"))?;
         Ok((shown, text))
     }
+
+    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
+        let full = resolve(importer, path);
+        let shown = full.to_string_lossy().into_owned();
+        let bytes = read_regular_bytes(Path::new(&full)).map_err(|e| format!("{shown}: {e}"))?;
+        Ok((shown, bytes))
+    }
 }
 
 /// `path` next to `importer` (its directory), as written when absolute or when `importer`
@@ -92,6 +108,17 @@ fn resolve(importer: &str, path: &str) -> std::path::PathBuf {
 /// directory, which could be endless or block), at most [`MAX_FILE_BYTES`] (checked while
 /// reading too, in case it grows), UTF-8 (the first bad byte located).
 fn read_regular(path: &Path) -> Result<String, String> {
+    let bytes = read_regular_bytes(path)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = good.iter().filter(|&&b| b == b'\n').count() + 1;
+        let col = good.len() - good.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1) + 1;
+        format!("not UTF-8 text (line {line}, byte {col} of the line)")
+    })
+}
+
+/// A regular file's bytes, at most [`MAX_FILE_BYTES`].
+fn read_regular_bytes(path: &Path) -> Result<Vec<u8>, String> {
     let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let meta = file.metadata().map_err(|e| e.to_string())?;
     if !meta.is_file() {
@@ -113,12 +140,7 @@ fn read_regular(path: &Path) -> Result<String, String> {
     if bytes.len() as u64 > MAX_FILE_BYTES {
         return Err(too_big());
     }
-    String::from_utf8(bytes).map_err(|e| {
-        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-        let line = good.iter().filter(|&&b| b == b'\n').count() + 1;
-        let col = good.len() - good.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1) + 1;
-        format!("not UTF-8 text (line {line}, byte {col} of the line)")
-    })
+    Ok(bytes)
 }
 
 /// Files from a map of names to texts, for tests: names resolve as on the file system
@@ -151,6 +173,15 @@ impl Files for MemFiles {
             Some(text) => Ok((name, text.clone())),
             None => Err(format!("no file {name}")),
         }
+    }
+
+    /// A file's bytes: tests that need a binary file (a font) read it from the disk by its
+    /// absolute path; names in the map read as their text's bytes.
+    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
+        if Path::new(path).is_absolute() {
+            return FsFiles.read_bytes(importer, path);
+        }
+        self.read(importer, path).map(|(n, t)| (n, t.into_bytes()))
     }
 }
 

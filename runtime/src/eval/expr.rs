@@ -198,12 +198,87 @@ impl Evaluator {
                                 )
                             })
                     }
-                    other => Err(type_err("a list", &other, expr.span, "indexing")),
+                    // A string's items are its characters (Unicode scalar values), so a
+                    // serial number's digits can be taken one by one.
+                    Value::Str(text) => {
+                        let len = text.chars().count() as i64;
+                        let k = if i < 0 { len + i } else { i };
+                        text.chars()
+                            .nth(k as usize)
+                            .filter(|_| k >= 0)
+                            .map(|c| Value::Str(c.to_string().into()))
+                            .ok_or_else(|| {
+                                bad(
+                                    Kind::OutOfRange,
+                                    index.span,
+                                    &format!(
+                                        "index {i} is out of range for a string of {len} characters"
+                                    ),
+                                    "out of range",
+                                    Some("indices run from 0; negative ones count from the end"),
+                                )
+                            })
+                    }
+                    other => Err(type_err(
+                        "a list or a string",
+                        &other,
+                        expr.span,
+                        "indexing",
+                    )),
                 }
             }
             ExprKind::Call { callee, args } => self.call(callee, args, e.span, cx),
+            ExprKind::Comprehension {
+                item,
+                var,
+                iter,
+                cond,
+            } => {
+                let items = self.for_items(iter, "a list comprehension", cx)?;
+                let mut out = Vec::new();
+                for v in items {
+                    self.step(var.span)?;
+                    // Each item is a value held at once: the list is bounded before it can
+                    // grow past what memory holds (the step budget alone would allow 20 M).
+                    if out.len() >= MAX_LIST_ITEMS {
+                        return Err(bad(
+                            Kind::TooLarge,
+                            e.span,
+                            &format!("this list would hold more than {MAX_LIST_ITEMS} items"),
+                            "too many items",
+                            Some("filter earlier, or loop with `for` instead of building a list"),
+                        ));
+                    }
+                    self.scopes.push(std::collections::HashMap::new());
+                    self.bind(&var.name, v);
+                    let r = self.comprehension_item(item, cond.as_deref(), cx);
+                    self.scopes.pop();
+                    if let Some(v) = r? {
+                        out.push(v);
+                    }
+                }
+                Ok(Value::List(Rc::new(out)))
+            }
             ExprKind::Profile { kind, args, flags } => self.profile(kind, args, flags, e.span, cx),
         }
+    }
+}
+
+impl Evaluator {
+    /// One turn of a list comprehension: the item, unless the condition drops it.
+    fn comprehension_item(
+        &mut self,
+        item: &Expr,
+        cond: Option<&Expr>,
+        cx: &mut Cx,
+    ) -> R<Option<Value>> {
+        if let Some(c) = cond {
+            let keep = self.expr(c, cx)?;
+            if !self.as_bool(&keep, c.span, "the condition of a list comprehension")? {
+                return Ok(None);
+            }
+        }
+        self.expr(item, cx).map(Some)
     }
 }
 
@@ -329,7 +404,7 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
     }
 }
 
-/// Items a list made by `+` may hold (as many as an extension's arrays).
+/// Items a list made by `+` or by a comprehension may hold (as many as an extension's arrays).
 pub(crate) const MAX_LIST_ITEMS: usize = 1_000_000;
 
 /// `x / 0`: the error at the divisor.

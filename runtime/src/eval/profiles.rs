@@ -65,6 +65,9 @@ impl Evaluator {
             }
             Ok(r)
         };
+        if pk.name == "text" {
+            return self.text_profile(&a, span, cx);
+        }
         let r = match pk.name {
             "polyline" => {
                 let (v, sp) = get(0)?;
