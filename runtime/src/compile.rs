@@ -32,6 +32,8 @@ pub trait Files {
     /// `importer` is empty for the main recipe). Returns the resolved name (what diagnostics
     /// show) and the text, or why it cannot.
     fn read(&mut self, importer: &str, path: &str) -> Result<(String, String), String>;
+    /// Reads `path` as bytes (an image), resolved as [`Files::read`] does.
+    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String>;
 }
 
 /// Every file the evaluator asks for (machine, data, extension) is read the same way.
@@ -46,6 +48,10 @@ impl<F: Files> Host for F {
 
     fn extension_file(&mut self, importer: &str, path: &str) -> Result<(String, String), String> {
         self.read(importer, path)
+    }
+
+    fn binary_file(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
+        self.read_bytes(importer, path)
     }
 }
 
@@ -73,6 +79,13 @@ impl Files for FsFiles {
         let text = read_regular(Path::new(&full)).map_err(|e| format!("{shown}: {e}"))?;
         Ok((shown, text))
     }
+
+    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
+        let full = resolve(importer, path);
+        let shown = full.to_string_lossy().into_owned();
+        let bytes = read_regular_bytes(Path::new(&full)).map_err(|e| format!("{shown}: {e}"))?;
+        Ok((shown, bytes))
+    }
 }
 
 /// `path` next to `importer` (its directory), as written when absolute or when `importer`
@@ -92,6 +105,17 @@ fn resolve(importer: &str, path: &str) -> std::path::PathBuf {
 /// directory, which could be endless or block), at most [`MAX_FILE_BYTES`] (checked while
 /// reading too, in case it grows), UTF-8 (the first bad byte located).
 fn read_regular(path: &Path) -> Result<String, String> {
+    let bytes = read_regular_bytes(path)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = good.iter().filter(|&&b| b == b'\n').count() + 1;
+        let col = good.len() - good.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1) + 1;
+        format!("not UTF-8 text (line {line}, byte {col} of the line)")
+    })
+}
+
+/// [`read_regular`]'s limits but the UTF-8 check: the bytes of a binary file.
+fn read_regular_bytes(path: &Path) -> Result<Vec<u8>, String> {
     let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let meta = file.metadata().map_err(|e| e.to_string())?;
     if !meta.is_file() {
@@ -113,12 +137,7 @@ fn read_regular(path: &Path) -> Result<String, String> {
     if bytes.len() as u64 > MAX_FILE_BYTES {
         return Err(too_big());
     }
-    String::from_utf8(bytes).map_err(|e| {
-        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
-        let line = good.iter().filter(|&&b| b == b'\n').count() + 1;
-        let col = good.len() - good.iter().rposition(|&b| b == b'\n').map_or(0, |i| i + 1) + 1;
-        format!("not UTF-8 text (line {line}, byte {col} of the line)")
-    })
+    Ok(bytes)
 }
 
 /// Files from a map of names to texts, for tests: names resolve as on the file system
@@ -126,6 +145,7 @@ fn read_regular(path: &Path) -> Result<String, String> {
 #[derive(Debug, Default, Clone)]
 pub struct MemFiles {
     files: HashMap<String, String>,
+    blobs: HashMap<String, Vec<u8>>,
 }
 
 impl MemFiles {
@@ -135,12 +155,18 @@ impl MemFiles {
                 .into_iter()
                 .map(|(n, t)| (n.into(), t.into()))
                 .collect(),
+            blobs: HashMap::new(),
         }
     }
 
     /// Adds (or replaces) a file.
     pub fn insert(&mut self, name: impl Into<String>, text: impl Into<String>) {
         self.files.insert(name.into(), text.into());
+    }
+
+    /// Adds (or replaces) a binary file (an image).
+    pub fn insert_bytes(&mut self, name: impl Into<String>, bytes: impl Into<Vec<u8>>) {
+        self.blobs.insert(name.into(), bytes.into());
     }
 }
 
@@ -150,6 +176,15 @@ impl Files for MemFiles {
         match self.files.get(&name) {
             Some(text) => Ok((name, text.clone())),
             None => Err(format!("no file {name}")),
+        }
+    }
+
+    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
+        let name = resolve(importer, path).to_string_lossy().into_owned();
+        match (self.blobs.get(&name), self.files.get(&name)) {
+            (Some(b), _) => Ok((name, b.clone())),
+            (None, Some(t)) => Ok((name, t.clone().into_bytes())),
+            (None, None) => Err(format!("no file {name}")),
         }
     }
 }
