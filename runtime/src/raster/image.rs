@@ -72,9 +72,7 @@ impl std::fmt::Display for ImageError {
             ImageError::Format => write!(f, "not a PNG or JPEG image"),
             ImageError::TooLarge { w, h } => write!(
                 f,
-                "the image is {w} × {h} pixels ({} in all), above the {MAX_IMAGE_PIXELS} lase \
-                 engraves",
-                u64::from(*w) * u64::from(*h)
+                "the image is {w} × {h} pixels, more than the 4096 × 4096 lase engraves"
             ),
             ImageError::Empty => write!(f, "the image has no pixels"),
             ImageError::Decode(m) => write!(f, "the image cannot be decoded: {m}"),
@@ -446,6 +444,30 @@ mod tests {
         };
         // (127/255)² · 255 = 63.25
         assert_eq!(shades(&img, &g2), [0, 63, 255]);
+    }
+
+    /// Encodes `img` with the `image` crate's own encoders (PNG or JPEG).
+    fn encode(img: image::DynamicImage, fmt: image::ImageFormat) -> Vec<u8> {
+        let mut out = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut out, fmt).unwrap();
+        out.into_inner()
+    }
+
+    #[test]
+    fn jpeg_and_png_decode_to_luma_with_transparency_over_white() {
+        // JPEG: a flat gray and a ramp come back within the codec's loss.
+        let gray = image::GrayImage::from_fn(32, 16, |c, _| image::Luma([(c * 8) as u8]));
+        let jpg = encode(gray.clone().into(), image::ImageFormat::Jpeg);
+        let g = decode(&jpg).unwrap();
+        assert_eq!((g.w, g.h), (32, 16));
+        for (a, b) in g.luma.iter().zip(gray.as_raw()) {
+            assert!((i32::from(*a) - i32::from(*b)).abs() <= 6, "{a} vs {b}");
+        }
+        // PNG with alpha: black at alpha 0 is white, at 255 black, at 128 mid-gray.
+        let rgba = image::RgbaImage::from_fn(3, 1, |c, _| image::Rgba([0, 0, 0, [0, 255, 128][c as usize]]));
+        let png = encode(rgba.into(), image::ImageFormat::Png);
+        assert_eq!(decode(&png).unwrap().luma, [255, 0, 127]);
+        assert_eq!(decode(b"GIF89a...."), Err(ImageError::Format));
     }
 
     #[test]
