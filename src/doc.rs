@@ -95,6 +95,8 @@ pub fn topics() -> Vec<&'static str> {
     t.extend(SETTING_GROUPS.iter().map(|g| g.0));
     t.extend(STATEMENTS.iter().map(|s| s.0));
     t.extend(schema::CONSTANTS.iter().map(|c| c.0));
+    t.push("scan");
+    t.extend(schema::SCAN_KINDS.iter().map(|k| k.name));
     t.sort_unstable();
     t.dedup();
     t
@@ -146,6 +148,18 @@ pub fn render(topic: Option<&str>) -> Option<String> {
             for (name, v, doc) in schema::CONSTANTS {
                 let _ = writeln!(out, "{name} = {}  {doc}", units::format_number(*v));
             }
+        }
+        // `scan` and one kind of it (`scan image`, or `image` alone).
+        "scan" | "scans" => {
+            for k in schema::SCAN_KINDS {
+                scan_kind(&mut out, k);
+            }
+        }
+        t if schema::scan_kind(t.trim_start_matches("scan ").trim()).is_some() => {
+            scan_kind(
+                &mut out,
+                schema::scan_kind(t.trim_start_matches("scan ").trim()).expect("matched"),
+            );
         }
         other => {
             let mut found = false;
@@ -275,6 +289,11 @@ fn profile_kind(out: &mut String, k: &ProfileKind) {
     let _ = writeln!(out, "profile {}{flags}", signature(k.name, k.params));
     params(out, k.params);
     wrap(out, k.doc, 2);
+}
+
+fn scan_kind(out: &mut String, k: &schema::ScanKind) {
+    let doc = format!("{} Its region: {}.", k.doc, k.region);
+    settings(out, &format!("scan {} REGION {{ ... }}", k.name), k.settings, &doc);
 }
 
 fn settings(out: &mut String, name: &str, specs: &[SettingSpec], doc: &str) {
@@ -483,6 +502,7 @@ pub fn reference_markdown() -> String {
         ("Statement settings", "settings"),
         ("Functions", "functions"),
         ("Profiles", "profiles"),
+        ("Image engraving", "scan image"),
         ("Units", "units"),
         ("Types", "types"),
         ("Constants", "constants"),
