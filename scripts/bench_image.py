@@ -2,9 +2,9 @@
 """End-to-end image engraving benchmark (issue 19): a generated SIZE x SIZE-pixel "photo"
 (smooth shading, edges and fine texture, 8-bit gray PNG) engraved at 0.1 mm per pixel with
 `scan image`, from recipe to NC with `lase emit` (the release binary), in grayscale and
-dithered modes; reports wall time, peak memory, NC lines and bytes, and the same figures for
-LaserGRBL's line-to-line grayscale as its docs describe it (one G1 with its own S word per
-pixel, every pixel of every row, white included), computed from the same pixels.
+dithered modes; reports wall time, peak memory, NC lines and bytes, and the size of the
+S-per-pixel program (LaserGRBL's line-to-line grayscale modulates the power pixel by pixel:
+here one `X.. S..` block per pixel, white included, no merging), from the same pixels.
 
     cargo build --release --bin lase
     python3 scripts/bench_image.py                  # 1000 x 1000 pixels, 0.1 mm: 100 x 100 mm
@@ -106,7 +106,7 @@ def main():
                 lines = sum(1 for _ in f)
             print(f"{mode:28s} lase: {wall:7.2f} s  {rss:7.1f} MiB  {lines:9d} lines  {size / 1e6:7.2f} MB")
     lines, size = laser_grbl_size(pix, n, a.pitch)
-    print(f"{'LaserGRBL line-to-line':28s} (S per pixel)            {lines:9d} lines  {size / 1e6:7.2f} MB")
+    print(f"{'S per pixel, unmerged':28s}                            {lines:9d} lines  {size / 1e6:7.2f} MB")
 
 
 if __name__ == "__main__":
