@@ -293,7 +293,12 @@ fn profile_kind(out: &mut String, k: &ProfileKind) {
 
 fn scan_kind(out: &mut String, k: &schema::ScanKind) {
     let doc = format!("{} Its region: {}.", k.doc, k.region);
-    settings(out, &format!("scan {} REGION {{ ... }}", k.name), k.settings, &doc);
+    settings(
+        out,
+        &format!("scan {} REGION {{ ... }}", k.name),
+        k.settings,
+        &doc,
+    );
 }
 
 fn settings(out: &mut String, name: &str, specs: &[SettingSpec], doc: &str) {

@@ -30,7 +30,11 @@ fn png_claiming(w: u32, h: u32, luma: &[u8]) -> Vec<u8> {
         for &b in bytes {
             c ^= u32::from(b);
             for _ in 0..8 {
-                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+                c = if c & 1 != 0 {
+                    0xedb8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
             }
         }
         !c
@@ -329,7 +333,12 @@ fn backward_rows_are_shifted_by_the_line_offset_in_the_nc() {
         .flat_map(|_| (0..w).map(|c| if (5..15).contains(&c) { 0 } else { 255 }))
         .collect();
     for dialect in ["grbl", "linuxcnc"] {
-        let j = job(w, h, &luma, "width 2 mm, speed 50 mm/s, line_offset 0.035 mm");
+        let j = job(
+            w,
+            h,
+            &luma,
+            "width 2 mm, speed 50 mm/s, line_offset 0.035 mm",
+        );
         let lit: Vec<Block> = blocks(&emit(&j.recipe, dialect))
             .into_iter()
             .filter(|b| b.pct > 0.0)
@@ -368,8 +377,15 @@ fn image_scans_check_plan_emit_and_run_in_every_flat_bed_dialect() {
         // The first lit block starts after a dark run-up along the row.
         let bl = blocks(&nc);
         if let Some(k) = bl.iter().position(|b| b.pct > 0.0) {
-            assert!(k > 0 && bl[k - 1].pct == 0.0 && bl[k - 1].y == bl[k].y, "{d}");
-            assert!((bl[k - 1].x1 - bl[k - 1].x0).abs() > 0.5, "{d}: run-up {:?}", bl[k - 1]);
+            assert!(
+                k > 0 && bl[k - 1].pct == 0.0 && bl[k - 1].y == bl[k].y,
+                "{d}"
+            );
+            assert!(
+                (bl[k - 1].x1 - bl[k - 1].x0).abs() > 0.5,
+                "{d}: run-up {:?}",
+                bl[k - 1]
+            );
         }
     }
     let (code, out, err) = lase(&["run", r]);
@@ -389,7 +405,11 @@ fn bad_images_are_diagnostics() {
     let cases: [(&str, Vec<u8>, &str); 3] = [
         ("text.png", b"not an image".to_vec(), "not a PNG or JPEG"),
         ("bomb.png", big, "20000 × 20000"),
-        ("cut.png", full[..full.len() - 30].to_vec(), "cannot be decoded"),
+        (
+            "cut.png",
+            full[..full.len() - 30].to_vec(),
+            "cannot be decoded",
+        ),
     ];
     for (name, bytes, says) in cases {
         std::fs::write(dir.path().join(name), bytes).unwrap();

@@ -165,7 +165,11 @@ impl Evaluator {
                 ));
             }
         };
-        for (what, v) in [("width", set.width), ("height", set.height), ("dpi", set.dpi)] {
+        for (what, v) in [
+            ("width", set.width),
+            ("height", set.height),
+            ("dpi", set.dpi),
+        ] {
             if let Some((x, sp)) = v {
                 if !(x > 0.0 && x.is_finite()) {
                     return Err(bad(
@@ -391,7 +395,9 @@ impl Evaluator {
                             }
                             set.line_offset = x;
                         }
-                        "dpi" => set.dpi = Some((self.as_dim(&v, Dim::NONE, e.span, &ctx)?, e.span)),
+                        "dpi" => {
+                            set.dpi = Some((self.as_dim(&v, Dim::NONE, e.span, &ctx)?, e.span))
+                        }
                         "min_power" => {
                             set.min_power =
                                 Some((self.as_dim(&v, Dim::POWER, e.span, &ctx)?, e.span))

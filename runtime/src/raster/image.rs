@@ -121,6 +121,9 @@ pub fn decode(bytes: &[u8]) -> Result<Gray, ImageError> {
     Ok(Gray::new(la.width(), la.height(), luma))
 }
 
+/// An error-diffusion kernel: `(dx, dy, weight)` to the pixels not yet visited.
+type Kernel = &'static [(i32, i32, f32)];
+
 /// An error-diffusion or ordered dither.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Dither {
@@ -147,7 +150,7 @@ impl Dither {
 
     /// Error-diffusion weights `(dx, dy, weight)` and their divisor; `None` for ordered.
     /// Atkinson's six eighths spread only 3/4 of the error on purpose (its crisper look).
-    fn kernel(self) -> Option<(&'static [(i32, i32, f32)], f32)> {
+    fn kernel(self) -> Option<(Kernel, f32)> {
         const FS: &[(i32, i32, f32)] = &[(1, 0, 7.0), (-1, 1, 3.0), (0, 1, 5.0), (1, 1, 1.0)];
         const JJN: &[(i32, i32, f32)] = &[
             (1, 0, 7.0),
@@ -464,7 +467,9 @@ mod tests {
             assert!((i32::from(*a) - i32::from(*b)).abs() <= 6, "{a} vs {b}");
         }
         // PNG with alpha: black at alpha 0 is white, at 255 black, at 128 mid-gray.
-        let rgba = image::RgbaImage::from_fn(3, 1, |c, _| image::Rgba([0, 0, 0, [0, 255, 128][c as usize]]));
+        let rgba = image::RgbaImage::from_fn(3, 1, |c, _| {
+            image::Rgba([0, 0, 0, [0, 255, 128][c as usize]])
+        });
         let png = encode(rgba.into(), image::ImageFormat::Png);
         assert_eq!(decode(&png).unwrap().luma, [255, 0, 127]);
         assert_eq!(decode(b"GIF89a...."), Err(ImageError::Format));
@@ -476,9 +481,21 @@ mod tests {
         assert_eq!(
             row_runs(&s, 8, 0),
             [
-                PixelRun { c0: 2, c1: 5, shade: 5 },
-                PixelRun { c0: 5, c1: 6, shade: 0 },
-                PixelRun { c0: 6, c1: 7, shade: 9 },
+                PixelRun {
+                    c0: 2,
+                    c1: 5,
+                    shade: 5
+                },
+                PixelRun {
+                    c0: 5,
+                    c1: 6,
+                    shade: 0
+                },
+                PixelRun {
+                    c0: 6,
+                    c1: 7,
+                    shade: 9
+                },
             ]
         );
         assert!(row_runs(&[0, 0], 2, 0).is_empty());
@@ -527,8 +544,22 @@ mod tests {
     #[test]
     fn backward_rows_are_shifted_by_the_line_offset() {
         let rows = vec![
-            (0.05, vec![PixelRun { c0: 1, c1: 3, shade: 9 }]),
-            (0.15, vec![PixelRun { c0: 1, c1: 3, shade: 9 }]),
+            (
+                0.05,
+                vec![PixelRun {
+                    c0: 1,
+                    c1: 3,
+                    shade: 9,
+                }],
+            ),
+            (
+                0.15,
+                vec![PixelRun {
+                    c0: 1,
+                    c1: 3,
+                    shade: 9,
+                }],
+            ),
         ];
         let lay = ImageLayout {
             frame: Frame::new(V2::zeros(), 0.0),
