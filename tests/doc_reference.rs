@@ -33,6 +33,8 @@ fn doc_prints_every_kind_of_topic() {
         ),
         ("extensions", "polar_profile"),
         ("presets::cam_hardening", "power = \"1200 W\""),
+        ("image", "line_offset"),
+        ("scan", "scan raster REGION"),
     ] {
         let (code, out, err) = lase(&["doc", topic]);
         assert_eq!(code, 0, "lase doc {topic}: {err}");
