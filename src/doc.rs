@@ -104,6 +104,7 @@ pub fn topics() -> Vec<&'static str> {
     t.extend(schema::CONSTANTS.iter().map(|c| c.0));
     t.push("scan");
     t.push("machines");
+    t.extend(schema::SCAN_KINDS.iter().map(|k| k.name));
     t.sort_unstable();
     t.dedup();
     t
@@ -170,6 +171,18 @@ pub fn render(topic: Option<&str>) -> Option<String> {
             for (name, v, doc) in schema::CONSTANTS {
                 let _ = writeln!(out, "{name} = {}  {doc}", units::format_number(*v));
             }
+        }
+        // Every kind of `scan`, or one of them (`scan image`, or `image` alone).
+        "scans" => {
+            for k in schema::SCAN_KINDS {
+                scan_kind(&mut out, k);
+            }
+        }
+        t if schema::scan_kind(t.trim_start_matches("scan ").trim()).is_some() => {
+            scan_kind(
+                &mut out,
+                schema::scan_kind(t.trim_start_matches("scan ").trim()).expect("matched"),
+            );
         }
         other => {
             let mut found = false;

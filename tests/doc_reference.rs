@@ -33,6 +33,8 @@ fn doc_prints_every_kind_of_topic() {
         ),
         ("extensions", "polar_profile"),
         ("presets::cam_hardening", "power = \"1200 W\""),
+        ("image", "line_offset"),
+        ("scan", "scan raster REGION"),
     ] {
         let (code, out, err) = lase(&["doc", topic]);
         assert_eq!(code, 0, "lase doc {topic}: {err}");
@@ -154,6 +156,12 @@ fn inline_statements(text: &str) -> Vec<String> {
 fn check_snippet(name: &str, recipe: &str) -> (i32, String, String) {
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("doc_snippets");
     std::fs::create_dir_all(&dir).unwrap();
+    // The image the docs' `scan image` snippets name is the example's.
+    std::fs::copy(
+        root().join("examples/image_engrave.png"),
+        dir.join("image_engrave.png"),
+    )
+    .unwrap();
     let path = dir.join(format!("{}.lase", name.replace(['/', '.'], "_")));
     std::fs::write(&path, recipe).unwrap();
     lase(&["check", &path.to_string_lossy()])

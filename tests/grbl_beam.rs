@@ -7,8 +7,9 @@
 //!   before one, the lead-out the feed block right after;
 //! * every `M3`/`M4`/`M5` of any post stands where the plan is at rest (the motion before it
 //!   ends at speed 0), so no switch the controller makes at rest was planned as flying;
-//! * each lit block's S is the power the plan gives its op, scaled to the post's `s_max`; a
-//!   feed block of an op the plan keeps dark is dark.
+//! * each lit block's S is the power the plan gives its op, scaled to the post's `s_max` (S0
+//!   for an op lit at 0 W, a white run inside an image row); a feed block of an op the plan
+//!   keeps dark is dark.
 //!
 //! One trial per example and dialect (`beam::grbl::frame_marking`).
 
@@ -166,7 +167,9 @@ fn check(ex: &Path, dialect: Dialect) {
     for blk in blocks.iter().filter(|b| b.motion == Some(true)) {
         let op = &ops[blk.op.expect("a motion block comes from an op") as usize];
         match op.laser() {
-            Some(l) if blk.lit => {
+            // A lit op at 0 W (a white run inside an image row: the row stays one lit
+            // section) is S0, and checked to be.
+            Some(l) if blk.lit || l.power_w == 0.0 => {
                 let want = l.power_w / machine.laser.max_power_w * post.s_max;
                 assert!(
                     (blk.s - want).abs() <= 0.5e-4,

@@ -14,11 +14,16 @@ fn files() -> MemFiles {
     FILES
         .get_or_init(|| {
             let read = |p: &str| std::fs::read_to_string(common::root().join(p)).unwrap();
-            MemFiles::new([
+            let mut files = MemFiles::new([
                 ("lib/shapes.lase", read("tests/ok/lib/shapes.lase")),
                 ("lib/plate.svg", read("tests/ok/lib/plate.svg")),
                 ("rhai_cam_law.rhai", read("examples/rhai_cam_law.rhai")),
-            ])
+            ]);
+            files.insert_bytes(
+                "image_engrave.png",
+                std::fs::read(common::root().join("examples/image_engrave.png")).unwrap(),
+            );
+            files
         })
         .clone()
 }

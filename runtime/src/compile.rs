@@ -32,11 +32,8 @@ pub trait Files {
     /// `importer` is empty for the main recipe). Returns the resolved name (what diagnostics
     /// show) and the text, or why it cannot.
     fn read(&mut self, importer: &str, path: &str) -> Result<(String, String), String>;
-    /// Reads a binary file (a font) as `read` reads text, under the same limits.
-    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
-        let _ = importer;
-        Err(format!("binary files are not available here (\"{path}\")"))
-    }
+    /// Reads `path` as bytes (an image to engrave, a font), resolved as [`Files::read`] does.
+    fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String>;
 }
 
 /// Every file the evaluator asks for (machine, data, extension) is read the same way.
@@ -117,7 +114,7 @@ fn read_regular(path: &Path) -> Result<String, String> {
     })
 }
 
-/// A regular file's bytes, at most [`MAX_FILE_BYTES`].
+/// [`read_regular`]'s limits but the UTF-8 check: the bytes of a binary file.
 fn read_regular_bytes(path: &Path) -> Result<Vec<u8>, String> {
     let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let meta = file.metadata().map_err(|e| e.to_string())?;
@@ -148,6 +145,7 @@ fn read_regular_bytes(path: &Path) -> Result<Vec<u8>, String> {
 #[derive(Debug, Default, Clone)]
 pub struct MemFiles {
     files: HashMap<String, String>,
+    blobs: HashMap<String, Vec<u8>>,
 }
 
 impl MemFiles {
@@ -157,12 +155,18 @@ impl MemFiles {
                 .into_iter()
                 .map(|(n, t)| (n.into(), t.into()))
                 .collect(),
+            blobs: HashMap::new(),
         }
     }
 
     /// Adds (or replaces) a file.
     pub fn insert(&mut self, name: impl Into<String>, text: impl Into<String>) {
         self.files.insert(name.into(), text.into());
+    }
+
+    /// Adds (or replaces) a binary file (an image).
+    pub fn insert_bytes(&mut self, name: impl Into<String>, bytes: impl Into<Vec<u8>>) {
+        self.blobs.insert(name.into(), bytes.into());
     }
 }
 
@@ -175,13 +179,16 @@ impl Files for MemFiles {
         }
     }
 
-    /// A file's bytes: tests that need a binary file (a font) read it from the disk by its
-    /// absolute path; names in the map read as their text's bytes.
+    /// A file's bytes: blobs and texts from the map; a name not in the map given by an absolute
+    /// path (a system font in a test) is read from the disk under the usual limits.
     fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
-        if Path::new(path).is_absolute() {
-            return FsFiles.read_bytes(importer, path);
+        let name = resolve(importer, path).to_string_lossy().into_owned();
+        match (self.blobs.get(&name), self.files.get(&name)) {
+            (Some(b), _) => Ok((name, b.clone())),
+            (None, Some(t)) => Ok((name, t.clone().into_bytes())),
+            (None, None) if Path::new(path).is_absolute() => FsFiles.read_bytes(importer, path),
+            (None, None) => Err(format!("no file {name}")),
         }
-        self.read(importer, path).map(|(n, t)| (n, t.into_bytes()))
     }
 }
 

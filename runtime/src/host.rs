@@ -14,7 +14,8 @@ pub trait Host {
         let _ = importer;
         Err(format!("data files are not available here (\"{path}\")"))
     }
-    /// Reads a binary data file (a font) given by path, relative to the file `importer`.
+    /// Reads a binary data file (an image to engrave, a font) given by path, relative to the
+    /// file `importer`, with the same IO limits as text. Returns the resolved name and the bytes.
     fn binary_file(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
         let _ = importer;
         Err(format!("binary files are not available here (\"{path}\")"))

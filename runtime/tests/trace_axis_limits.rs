@@ -29,6 +29,8 @@ const WORST: &[(&str, &str, f64, f64, f64)] = &[
     ("dial_marks", "X", 0.8304, 6.623, 263.9),
     ("dial_marks", "Y", 0.8447, 6.735, 268.7),
     ("frame_marking", "X", 0.1502, 2.390, 94.28),
+    ("image_engrave", "X", 0.6108, 3.397, 135.8),
+    ("image_engrave", "Y", 0.2984, 4.446, 177.9),
     ("frame_marking", "Y", 0.1206, 2.439, 97.53),
     ("material_test", "X", 1.0, 5.498, 219.1),
     ("material_test", "Y", 0.7681, 4.953, 198.2),

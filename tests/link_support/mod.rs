@@ -134,7 +134,9 @@ pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
     for m in &job.moves {
         let to = map(&m.target);
         let op = &job.program.ops[m.tag as usize];
-        let lit = op.laser().is_some() && !matches!(op.kind, OpKind::Rapid { .. });
+        // An op lit at 0 W (a white run inside an image row) is dark, as its S0 block is.
+        let lit =
+            op.laser().is_some_and(|l| l.power_w > 0.0) && !matches!(op.kind, OpKind::Rapid { .. });
         let pitch = op
             .laser()
             .and_then(|l| match l.pulse.as_ref().map(|p| p.mode) {

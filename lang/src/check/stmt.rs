@@ -227,11 +227,14 @@ impl Checker {
                         name: kind.name.clone(),
                         span: kind.span,
                         help: did_you_mean(&kind.name, schema::SCAN_KINDS.iter().map(|k| k.name))
-                            .or_else(|| Some("scan kinds: `scan dots`, `scan raster`".into())),
+                            .or_else(|| {
+                                Some("scan kinds: `scan dots`, `scan raster`, `scan image`".into())
+                            }),
                     });
                     return;
                 };
                 let ok = match &t {
+                    _ if sk.name == "image" => matches!(t, Ty::Str | Ty::Unknown),
                     Ty::Profile | Ty::Unknown => true,
                     Ty::Point => sk.name == "dots",
                     Ty::List(inner) => match **inner {
@@ -247,7 +250,11 @@ impl Checker {
                         found: t.describe(),
                         context: format!("the region of `scan {}`", sk.name),
                         span: region.span,
-                        help: Some(if sk.name == "dots" {
+                        help: Some(if sk.name == "image" {
+                            "e.g. `scan image \"logo.png\" { width 40 mm, speed 100 mm/s, power \
+                             20 W }`"
+                                .into()
+                        } else if sk.name == "dots" {
                             "e.g. `scan dots (0, 0) { rows 20, cols 30, pitch 0.2 mm, speed \
                              20 mm/s }` or `scan dots profile rect((0, 0), 4 mm, 2 mm) { ... }`"
                                 .into()

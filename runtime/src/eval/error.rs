@@ -33,7 +33,8 @@
 //! `machine_file`, `machine_changed`, `unknown_axis`, `unknown_event`, `above_machine` (a
 //! setting above the machine's capability), `pulse_rate`, `no_power`; and `type_mismatch`,
 //! `geometry` (a profile that cannot be built, offset or followed, a closed profile that crosses
-//! itself), `limit` (the step budget, the op count and the call depth). Machine files, extensions and presets keep their own
+//! itself), `image` (an image file that cannot be read or decoded, or has too many pixels),
+//! `limit` (the step budget, the op count and the call depth). Machine files, extensions and presets keep their own
 //! codes (`lase::machine::*`, `lase::ext::*`).
 
 use lase_lang::Span;
@@ -338,6 +339,17 @@ pub enum EvalError {
     },
 
     #[error("{message}")]
+    #[diagnostic(code(lase::eval::image))]
+    Image {
+        message: String,
+        #[label("{label}")]
+        span: Span,
+        label: String,
+        #[help]
+        help: Option<String>,
+    },
+
+    #[error("{message}")]
     #[diagnostic(code(lase::eval::geometry))]
     Geometry {
         message: String,
@@ -414,6 +426,7 @@ impl EvalError {
             | EvalError::Marking { span, .. }
             | EvalError::Type { span, .. }
             | EvalError::Geometry { span, .. }
+            | EvalError::Image { span, .. }
             | EvalError::UnknownEvent { span, .. }
             | EvalError::NoPower { span }
             | EvalError::Budget { span, .. } => *span,

@@ -12,6 +12,7 @@ mod builtins;
 mod error;
 mod expr;
 mod marking;
+mod image;
 mod moves;
 mod profiles;
 mod scan;

@@ -1,4 +1,4 @@
-//! `scan dots` and `scan raster`: the recipe side of scan rasters (the geometry is in
+//! `scan dots` and `scan raster` (`scan image` is `image.rs`): the recipe side of scan rasters (the geometry is in
 //! `crate::raster`). Binds the settings (`schema::SCAN_KINDS`), builds the region and the
 //! rows, takes the overscan from the planner's ramps unless the recipe gives one, checks the
 //! pulse rate against the laser before anything runs, and appends the ops:
@@ -59,6 +59,7 @@ impl Evaluator {
         cx: &mut Cx,
     ) -> R<()> {
         let dots = match kind.name.as_str() {
+            "image" => return self.scan_image(region, settings, span, cx),
             "dots" => true,
             "raster" => false,
             _ => {
@@ -492,7 +493,7 @@ impl Evaluator {
     }
 
     /// A motion op, unless it goes nowhere.
-    fn push_motion(&mut self, kind: OpKind, span: Span) {
+    pub(super) fn push_motion(&mut self, kind: OpKind, span: Span) {
         if let Some(to) = match &kind {
             OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => Some(*to),
             _ => None,
@@ -537,7 +538,7 @@ impl Evaluator {
 
     /// Path limits (v, a, j) of a row of `frame` at `speed`, as the planner will derive them
     /// (`planner::move_limits`, the tightest axis along the row).
-    fn row_limits(&self, frame: &Frame, speed: f64) -> (f64, f64, f64) {
+    pub(super) fn row_limits(&self, frame: &Frame, speed: f64) -> (f64, f64, f64) {
         let Some(machine) = self.machine.as_ref() else {
             return (speed, f64::INFINITY, f64::INFINITY);
         };

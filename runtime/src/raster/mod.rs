@@ -30,6 +30,8 @@
 //! * **Positions** are counted from the lattice origin by integer indices (`origin + c·L1·u +
 //!   r·L2·v`), never accumulated from previous moves, so passes hit the same spots exactly.
 
+pub mod image;
+
 use crate::geometry::{GeomError, Profile, Seg, V2};
 
 /// Chord tolerance of the polygons that stand in for arcs in region tests, mm (0.1 µm).
