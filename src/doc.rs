@@ -227,6 +227,7 @@ fn ret(r: Ret) -> String {
         Ret::Point => "a point".into(),
         Ret::Profile => "a profile".into(),
         Ret::Points => "a list of points".into(),
+        Ret::Profiles => "a list of profiles".into(),
         Ret::SameAsFirst => "the first argument's kind".into(),
         Ret::SqrtOfFirst => "the square root of the first argument's dimension".into(),
     }

@@ -264,6 +264,22 @@ fn cmd_plan(
         s.laser_on_length_mm,
         s.laser_on_time_s
     );
+    if let Some(o) = &job.program.ordering {
+        // What `planner { order ... }` saved against the recipe's own order.
+        let saved = o.source_travel_mm - o.travel_mm;
+        outln!(
+            "  cut order       {} paths: travel {:.4} mm, {:.4} mm as written ({:.4} mm saved, {:.1} %)",
+            o.paths,
+            o.travel_mm,
+            o.source_travel_mm,
+            saved,
+            if o.source_travel_mm > 0.0 {
+                100.0 * saved / o.source_travel_mm
+            } else {
+                0.0
+            }
+        );
+    }
     outln!("  pulses          {}", s.pulses);
     outln!(
         "  blocks          {} planned moves from {} ops",

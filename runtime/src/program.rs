@@ -40,6 +40,14 @@ pub struct Laser {
     /// How power follows the motion (`laser { couple speed }`).
     #[serde(default)]
     pub couple: Coupling,
+    /// Width of the cut, mm (`laser { kerf }`): half of it is added outward on outlines and
+    /// inward on holes when the job's paths are ordered (`eval::order`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub kerf_mm: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// Whether laser power follows the planned speed.
@@ -264,6 +272,29 @@ pub struct PlannerSettings {
     /// Lead-ins and lead-outs around lit sections (`planner { leadin auto|none }`).
     #[serde(default)]
     pub leadin: LeadIn,
+    /// The order the job's paths are cut in (`planner { order ... }`).
+    #[serde(default, skip_serializing_if = "CutOrder::is_source")]
+    pub order: CutOrder,
+}
+
+/// The order a job's paths are cut in (`planner { order source|nearest|inner_first }`; see
+/// `eval::order`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CutOrder {
+    /// As written.
+    #[default]
+    Source,
+    /// Nearest path next, each entered where it is nearest.
+    Nearest,
+    /// As `Nearest`, with every path inside a closed path cut before it.
+    InnerFirst,
+}
+
+impl CutOrder {
+    fn is_source(&self) -> bool {
+        *self == CutOrder::Source
+    }
 }
 
 /// Whether lase adds lead-ins and lead-outs so that the beam is only on at the programmed speed
@@ -331,6 +362,20 @@ pub struct ProcessProgram {
     /// Where the spot is when the program starts (part coordinates).
     pub start: P3,
     pub ops: Vec<Op>,
+    /// What `planner { order ... }` did, when it ordered the paths.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ordering: Option<OrderReport>,
+}
+
+/// The travel of a job's paths as written and as ordered (`planner { order ... }`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OrderReport {
+    /// Paths (a rapid and the cut after it) the order moved among.
+    pub paths: usize,
+    /// Length of the rapids in source order, mm.
+    pub source_travel_mm: f64,
+    /// Length of the rapids as ordered, mm.
+    pub travel_mm: f64,
 }
 
 /// An op that asks more of the machine's laser than it can give. The codes and wording are
@@ -568,8 +613,10 @@ mod tests {
                 arc_tolerance_mm: m.arc_tolerance_mm,
                 lookahead: None,
                 leadin: LeadIn::Auto,
+                order: CutOrder::Source,
             },
             start: [0.0; 3],
+            ordering: None,
             ops,
             machine: m,
         }
@@ -589,6 +636,7 @@ mod tests {
                         energy_j: None,
                     }),
                     couple: Coupling::None,
+                    kerf_mm: 0.0,
                 }),
                 orient: None,
             },

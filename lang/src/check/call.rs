@@ -107,6 +107,7 @@ impl Checker {
             Ret::Point => Ty::Point,
             Ret::Profile => Ty::Profile,
             Ret::Points => Ty::List(Box::new(Ty::Point)),
+            Ret::Profiles => Ty::List(Box::new(Ty::Profile)),
             Ret::SameAsFirst => match (first, tys.get(1).cloned().flatten()) {
                 (Ty::Zero, Some(t)) => t,
                 (t, _) => t,
