@@ -197,7 +197,16 @@ impl Evaluator {
             "segment" => {
                 let p = prof(self, 0)?;
                 let (from, to) = (len(self, 1)?, len(self, 2)?);
-                let piece = p.segment(from, to).map_err(|g| geom_error(g, span, None))?;
+                let piece = p.segment(from, to).map_err(|g| EvalError::Geometry {
+                    message: g.to_string(),
+                    span,
+                    label: "no such piece".into(),
+                    help: Some(
+                        "`segment(p, from, to)` takes arc lengths from 0 to `length(p)`, \
+                         `from` before `to` (past it only on a closed profile)"
+                            .into(),
+                    ),
+                })?;
                 Value::Profile(Rc::new(piece))
             }
             "tabs" => {
@@ -246,8 +255,18 @@ impl Evaluator {
                     TabLayout::Count(n) => n as f64,
                     TabLayout::Spacing(d) => (p.length() / d).round().max(1.0),
                 };
-                self.room_for_ops(n + p.segs.len() as f64, "these tabs", "use fewer tabs", span)?;
-                let pieces = p.tabs(layout, w).map_err(|g| geom_error(g, wsp, None))?;
+                self.room_for_ops(
+                    n + p.segs.len() as f64,
+                    "these tabs",
+                    "use fewer tabs",
+                    span,
+                )?;
+                let pieces = p.tabs(layout, w).map_err(|g| EvalError::Geometry {
+                    message: g.to_string(),
+                    span: wsp,
+                    label: "too wide for the tabs' spacing".into(),
+                    help: Some("use narrower tabs, or fewer of them".into()),
+                })?;
                 Value::List(Rc::new(
                     pieces
                         .into_iter()

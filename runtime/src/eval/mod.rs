@@ -261,8 +261,12 @@ impl Evaluator {
     pub fn program(&self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let machine = self.machine.clone().ok_or_else(|| no_machine(span))?;
         let planner = self.planner_settings_now();
-        let (ops, ordering) =
-            order::order_ops(&self.ops, self.start, planner.order, planner.arc_tolerance_mm)?;
+        let (ops, ordering) = order::order_ops(
+            &self.ops,
+            self.start,
+            planner.order,
+            planner.arc_tolerance_mm,
+        )?;
         Ok(ProcessProgram {
             recipe: recipe.to_string(),
             limits: self.limits.clone(),

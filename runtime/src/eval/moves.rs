@@ -3,8 +3,8 @@
 //! toolpath of poses on machines that orient the beam).
 
 use super::{Cx, EvalError, Evaluator, Kind, LaserSet, R, Value, bad, geom_error, type_err};
-use crate::geometry::toolpath::{HeadSide, Normals, Station, ToolpathError, oriented_stations};
 use crate::geometry::Profile;
+use crate::geometry::toolpath::{HeadSide, Normals, Station, ToolpathError, oriented_stations};
 use crate::program::*;
 use lase_lang::Span;
 use lase_lang::ast::*;

@@ -157,13 +157,7 @@ fn split(ops: &[Op]) -> Vec<Item> {
 
 /// Orders the paths of one run (kerf first, so each is entered on the line it is cut on) and
 /// appends them to `out`.
-fn flush(
-    run: &mut Vec<Path>,
-    out: &mut Vec<Op>,
-    start: P3,
-    how: CutOrder,
-    tol_mm: f64,
-) -> R<()> {
+fn flush(run: &mut Vec<Path>, out: &mut Vec<Op>, start: P3, how: CutOrder, tol_mm: f64) -> R<()> {
     if run.is_empty() {
         return Ok(());
     }
@@ -254,13 +248,17 @@ fn kerf(path: &mut Path, shape: &PathShape, depth: usize, tol_mm: f64) -> R<()> 
     if laser.kerf_mm == 0.0 || !shape.encloses {
         return Ok(());
     }
-    let feed = path.feeds.iter().find_map(Op::lit_feed).map_or(0.0, |f| f.0);
+    let feed = path
+        .feeds
+        .iter()
+        .find_map(Op::lit_feed)
+        .map_or(0.0, |f| f.0);
     let z = shape.ends[0][2];
     let uniform = shape.closed
         && path.feeds.iter().all(|o| {
-        o.lit_feed().is_some_and(|(f, l)| f == feed && *l == laser)
-            && o.target().is_some_and(|t| t[2] == z)
-    });
+            o.lit_feed().is_some_and(|(f, l)| f == feed && *l == laser)
+                && o.target().is_some_and(|t| t[2] == z)
+        });
     if !uniform {
         return Err(EvalError::Geometry {
             message: "a kerf needs the closed path cut whole, at one speed and power, in one plane"
@@ -296,7 +294,7 @@ fn kerf(path: &mut Path, shape: &PathShape, depth: usize, tol_mm: f64) -> R<()> 
         })
         .collect();
     let profile = Profile::from_segs(segs, true);
-    let d = if depth % 2 == 0 { 1.0 } else { -1.0 } * laser.kerf_mm / 2.0;
+    let d = if depth.is_multiple_of(2) { 1.0 } else { -1.0 } * laser.kerf_mm / 2.0;
     let opts = OffsetOptions {
         trim: false,
         tol_mm,
