@@ -73,6 +73,9 @@ enum Command {
     /// `~/.local/state/lase/journals/`, one file per recipe path; the run prints where); after
     /// a dropped link, `lase run FILE --resume` (or `--resume JOURNAL`) continues the job.
     Run(live::RunArgs),
+    /// Trace the bounding box of a recipe's lit work with the beam off over the link (the
+    /// built-in simulator by default) and return to the job's start: where will it burn?
+    Frame(live::FrameArgs),
     /// Run the simulated controller as a TCP server: GRBL 1.1, or grblHAL with up to six axes
     /// for a machine with axes beyond X, Y, Z.
     Sim(live::SimArgs),
@@ -122,6 +125,7 @@ fn main() -> ExitCode {
         ),
         Command::Plot { file, output } => cmd_plot(&file, output.as_deref()),
         Command::Run(args) => live::cmd_run(args),
+        Command::Frame(args) => live::cmd_frame(args),
         Command::Sim(args) => live::cmd_sim(args),
         Command::Repl { file, link } => return repl::run(file.as_deref(), link.as_deref(), color),
         Command::Doc { name, markdown } => return cmd_doc(name.as_deref(), markdown),
