@@ -420,10 +420,10 @@ pub const LASER_SETTINGS: &[SettingSpec] = &[
     set(
         "kerf",
         L,
-        "Width of the cut (issue 20): with `planner { order inner_first }` (or `nearest`), every \
-         closed path is moved half of it outward when it is an outline and inward when it is \
-         a hole (inside an odd number of closed paths), so the part and its holes come out \
-         at their drawn size. Default 0.",
+        "Width of the cut (issue 20): every closed path cut with it is moved half of it \
+         outward when it is an outline and inward when it is a hole (inside an odd number of \
+         closed paths), so the part and its holes come out at their drawn size; open paths \
+         stay as drawn. Default 0.",
     ),
 ];
 

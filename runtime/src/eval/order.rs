@@ -1,6 +1,6 @@
 //! Cut order and kerf over a finished list of ops (`planner { order nearest | inner_first }`,
-//! `laser { kerf }`): the job's paths are found in the ops, moved out or in by half the kerf,
-//! and put in the order `geometry::order` chooses.
+//! `laser { kerf }`): the job's paths are found in the ops, moved out or in by half the kerf
+//! (in any order, `source` included), and put in the order `geometry::order` chooses.
 //!
 //! A *path* is a rapid followed by the feed moves after it (lit, or unlit across a tab's gap)
 //! up to the next op that is not a feed move. Paths only trade places with paths next to them:
@@ -11,7 +11,7 @@
 
 use super::{EvalError, R, geom_error};
 use crate::geometry::offset::OffsetOptions;
-use crate::geometry::order::{PathShape, containment, order, ring};
+use crate::geometry::order::{PathShape, Visit, containment, order, ring};
 use crate::geometry::{Profile, Seg, V2};
 use crate::program::{CutOrder, Laser, Op, OpKind, OrderReport, P3, dist};
 use lase_lang::Span;
@@ -88,7 +88,11 @@ pub(super) fn order_ops(
     how: CutOrder,
     tol_mm: f64,
 ) -> R<(Vec<Op>, Option<OrderReport>)> {
-    if how == CutOrder::Source || ops.iter().any(|o| o.orient().is_some()) {
+    // A kerf is applied whatever the order; in source order the paths keep their places.
+    let kerfed = ops
+        .iter()
+        .any(|o| o.laser().is_some_and(|l| l.kerf_mm > 0.0));
+    if (how == CutOrder::Source && !kerfed) || ops.iter().any(|o| o.orient().is_some()) {
         return Ok((ops.to_vec(), None));
     }
     let items = split(ops);
@@ -107,12 +111,12 @@ pub(super) fn order_ops(
     }
     paths += run.len();
     flush(&mut run, &mut out, start, how, tol_mm)?;
-    let report = OrderReport {
+    let report = (how != CutOrder::Source).then(|| OrderReport {
         paths,
         source_travel_mm: travel(ops, start),
         travel_mm: travel(&out, start),
-    };
-    Ok((out, Some(report)))
+    });
+    Ok((out, report))
 }
 
 /// Length of the rapids, mm.
@@ -168,7 +172,17 @@ fn flush(run: &mut Vec<Path>, out: &mut Vec<Op>, start: P3, how: CutOrder, tol_m
         kerf(path, &shapes[k], inside[k].len(), tol_mm)?;
     }
     let (shapes, rings): (Vec<_>, Vec<_>) = run.iter().map(Path::shape).unzip();
-    let visits = order(&shapes, &rings, from, how == CutOrder::InnerFirst);
+    let visits = if how == CutOrder::Source {
+        (0..run.len())
+            .map(|path| Visit {
+                path,
+                entry: 0,
+                reversed: false,
+            })
+            .collect()
+    } else {
+        order(&shapes, &rings, from, how == CutOrder::InnerFirst)
+    };
     for v in visits {
         let p = &run[v.path];
         let ends = &shapes[v.path].ends;
