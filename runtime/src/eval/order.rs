@@ -21,6 +21,12 @@ use lase_lang::Span;
 /// wider than any tab and far narrower than the opening of an open shape such as an arc.
 const TAB_GAP_SHARE: f64 = 0.1;
 
+/// Paths one run may order or give a kerf: containment and the nearest-next search compare
+/// every path with every other (some seconds for 10 000 paths in a debug build), so a job of
+/// more paths is refused before it is worked on rather than left to run for minutes. Real
+/// sheets hold hundreds of paths.
+const MAX_ORDERED_PATHS: usize = 10_000;
+
 /// One path: its leading rapid and its feed moves.
 struct Path {
     span: Span,
@@ -164,6 +170,21 @@ fn split(ops: &[Op]) -> Vec<Item> {
 fn flush(run: &mut Vec<Path>, out: &mut Vec<Op>, start: P3, how: CutOrder, tol_mm: f64) -> R<()> {
     if run.is_empty() {
         return Ok(());
+    }
+    if run.len() > MAX_ORDERED_PATHS {
+        return Err(EvalError::TooLarge {
+            message: format!(
+                "{} paths in a row: lase orders (or gives a kerf to) at most {MAX_ORDERED_PATHS}",
+                run.len()
+            ),
+            span: run[MAX_ORDERED_PATHS].span,
+            label: "this path is one too many".into(),
+            help: Some(
+                "write `planner { order source }` and `laser { kerf 0 }` and order the paths in \
+                 the recipe, or split the job into several recipes"
+                    .into(),
+            ),
+        });
     }
     let from = out.iter().rev().find_map(Op::target).unwrap_or(start);
     let (shapes, rings): (Vec<_>, Vec<_>) = run.iter().map(Path::shape).unzip();
