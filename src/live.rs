@@ -206,6 +206,69 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .map_err(|failure| (map.clone(), failure))
 }
 
+/// `lase frame`: what a job's frame needs to know.
+#[derive(Debug, Clone, clap::Args)]
+pub struct FrameArgs {
+    /// The recipe whose lit work is framed.
+    pub file: PathBuf,
+    /// Controller link URL (default: the built-in simulator).
+    #[arg(long)]
+    pub link: Option<String>,
+    /// Speed of the trace, with a unit.
+    #[arg(long, default_value = "50 mm/s")]
+    pub speed: String,
+}
+
+/// Traces the bounding box of a recipe's lit work with the beam off over the live link and
+/// returns to where the job starts (`ProcessProgram::frame`), through the same job start as
+/// `lase run` (`link::job`: every line checked, the controller's settings against the plan,
+/// the controller idle), so the operator can check the sheet's place before anything burns.
+pub fn cmd_frame(args: FrameArgs) -> CmdResult {
+    let url = LinkUrl::parse(args.link.as_deref().unwrap_or("sim"))
+        .map_err(|e| (SourceMap::new(), Failure::one(e)))?;
+    let speed = lase_lang::units::parse_quantity(&args.speed)
+        .ok()
+        .filter(|q| q.dim == lase_lang::units::Dim::SPEED && q.value > 0.0 && q.value.is_finite())
+        .ok_or_else(|| {
+            io_fail(format!(
+                "--speed {}: give a speed above zero with its unit, e.g. 50 mm/s",
+                args.speed
+            ))
+        })?;
+    let (recipe, job) = driver::compile(&args.file)?;
+    if job.kin.oriented() {
+        return Err(io_fail(format!(
+            "{}: machine `{}` orients the beam; a frame traces the work on a flat bed",
+            recipe.name(),
+            job.program.machine.name
+        )));
+    }
+    let Some(frame) = job.program.frame(speed.value) else {
+        return Err(io_fail(format!(
+            "{}: nothing is lit, so there is no work to frame",
+            recipe.name()
+        )));
+    };
+    let job = lase_runtime::compile::plan(frame).map_err(|f| (recipe.map.clone(), f))?;
+    let dialect = link::live_dialect(&job.program.machine);
+    let map = recipe.map.clone();
+    let fail = |e: LinkError| (map.clone(), Failure::one(e));
+    let nc = nc_lines(&recipe, &job, dialect)?;
+    let lines = JobLines::new(&job, &nc, dialect);
+    let mut link = link::connect(&url, &job.program.machine, &ConnectOptions::default())
+        .map_err(|e| fail(job::not_started(e)))?;
+    let ready = job::preflight(&mut *link, &lines, Origin::Fresh(None))
+        .map_err(|r| refused(r, &lines, &map))?;
+    let mut started = ready.start(&mut *link, &lines).map_err(fail)?;
+    stream_run(
+        &format!("{} (frame)", recipe.name()),
+        &mut *link,
+        &lines,
+        &mut started,
+    )
+    .map_err(|failure| (map.clone(), failure))
+}
+
 /// The journal `--resume` names, read; a job that ended has nothing to resume.
 fn read_resumed(path: Option<&Path>) -> Result<Option<journal::State>, (SourceMap, Failure)> {
     let Some(path) = path else {

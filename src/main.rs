@@ -86,6 +86,9 @@ enum Command {
     /// `~/.local/state/lase/journals/`, one file per recipe path; the run prints where); after
     /// a dropped link, `lase run FILE --resume` (or `--resume JOURNAL`) continues the job.
     Run(live::RunArgs),
+    /// Trace the bounding box of a recipe's lit work with the beam off over the link (the
+    /// built-in simulator by default) and return to the job's start: where will it burn?
+    Frame(live::FrameArgs),
     /// Run the simulated controller as a TCP server: GRBL 1.1, or grblHAL with up to six axes
     /// for a machine with axes beyond X, Y, Z.
     Sim(live::SimArgs),
@@ -140,6 +143,7 @@ fn main() -> ExitCode {
             speed_unit,
         } => cmd_plot(&file, output.as_deref(), full, speed_unit.as_deref()),
         Command::Run(args) => live::cmd_run(args),
+        Command::Frame(args) => live::cmd_frame(args),
         Command::Sim(args) => live::cmd_sim(args),
         Command::Repl { file, link } => return repl::run(file.as_deref(), link.as_deref(), color),
         Command::Doc { name, markdown } => return cmd_doc(name.as_deref(), markdown),
@@ -282,6 +286,22 @@ fn cmd_plan(
         s.laser_on_length_mm,
         s.laser_on_time_s
     );
+    if let Some(o) = &job.program.ordering {
+        // What `planner { order ... }` saved against the recipe's own order.
+        let saved = o.source_travel_mm - o.travel_mm;
+        outln!(
+            "  cut order       {} paths: travel {:.4} mm, {:.4} mm as written ({:.4} mm saved, {:.1} %)",
+            o.paths,
+            o.travel_mm,
+            o.source_travel_mm,
+            saved,
+            if o.source_travel_mm > 0.0 {
+                100.0 * saved / o.source_travel_mm
+            } else {
+                0.0
+            }
+        );
+    }
     // Dot mode fires with the spot at rest: say so, or "laser on 0 mm" next to a pulse count
     // reads as a contradiction.
     if s.pulses_standstill > 0 {

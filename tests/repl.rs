@@ -122,6 +122,26 @@ move to (10 mm, 0 mm) at 5 mm/s
     assert!(out.contains("Idle | X10 Y0"), "{out}");
 }
 
+/// `:frame` traces the box of the pending work dark and returns to where the session stands;
+/// the work itself stays pending for `:run`.
+#[test]
+fn frame_traces_the_pending_work_and_returns_to_the_start() {
+    let input = "\
+machine xy_table
+laser { power 10 W }
+follow profile rect((10 mm, 5 mm), 20 mm, 10 mm) at 20 mm/s
+:frame
+:status
+:run
+";
+    let (code, out, err) = session(input);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("frame: done"), "{out}");
+    // Back at the start after the frame; the cut then runs and ends at its corner.
+    assert!(out.contains("Idle | X0 Y0"), "{out}");
+    assert!(out.contains("repl: done"), "{out}");
+}
+
 /// A job the REPL streams keeps a journal: when the link drops mid-job, a new job is refused
 /// until the operator decides, and `:resume` reconnects, finds where the controller stopped
 /// and cuts the rest — every lit millimetre exactly once.

@@ -84,7 +84,7 @@ pub enum Ret {
     Profile,
     Points,
     Str,
-    /// A list of profiles (2D codes' modules).
+    /// A list of profiles (2D codes' modules, `tabs`' pieces).
     Profiles,
     /// The dimension of the first argument (abs, min, max).
     SameAsFirst,
@@ -314,6 +314,31 @@ pub const BUILTINS: &[Builtin] = &[
         doc: "The Data Matrix of `datamatrix` as the centres of its dark modules, for \
               a `dots` scan.",
     },
+    // Job setup (issue 20): pieces of a profile by arc length and tabs.
+    Builtin {
+        name: "segment",
+        params: &[req("profile", PTy::Profile), req("from", L), req("to", L)],
+        ret: Ret::Profile,
+        doc: "The open piece of a profile from arc length `from` to `to` (both from 0 to \
+              `length(p)`). On a closed profile `from` past `to` runs across the start. Lines \
+              and arcs are cut exactly; a spline is cut on its line/arc rendition (within \
+              1 µm).",
+    },
+    Builtin {
+        name: "tabs",
+        params: &[
+            req("profile", PTy::Profile),
+            opt("count", NUM),
+            opt("spacing", L),
+            req("width", L),
+        ],
+        ret: Ret::Profiles,
+        doc: "The lit pieces of a profile with tabs: `width`-wide gaps left uncut so the part \
+              stays held in the sheet, either `count` of them or about one every `spacing`, \
+              evenly spaced (on a closed profile centred at (k + ½)·L/n, piece k running from \
+              tab k to tab k + 1; on an open one at k·L/(n + 1), both ends cut). `follow` takes \
+              the list and crosses each gap with the beam off at the cutting speed.",
+    },
 ];
 
 /// Builtins whose last parameter takes any number of positional arguments.
@@ -502,6 +527,14 @@ pub const LASER_SETTINGS: &[SettingSpec] = &[
         "Distance from the lens to the spot along the beam, held constant on machines that \
          orient the beam (cam_xwb, arm_3r); required there.",
     ),
+    set(
+        "kerf",
+        L,
+        "Width of the cut (issue 20): every closed path cut with it is moved half of it \
+         outward when it is an outline and inward when it is a hole (inside an odd number of \
+         closed paths), so the part and its holes come out at their drawn size; open paths \
+         stay as drawn. Default 0.",
+    ),
 ];
 
 pub const COUPLINGS: &[&str] = &["none", "speed"];
@@ -601,9 +634,21 @@ pub const PLANNER_SETTINGS: &[SettingSpec] = &[
         "`auto` (default): lead-ins and lead-outs so that the beam is only on at the programmed \
          speed; `none`: the program as written (`off` is a keyword).",
     ),
+    set(
+        "order",
+        PTy::Word(CUT_ORDERS),
+        "Cut order of the job's paths (each a rapid and the cut after it): `source` (default), \
+         as written; `nearest`, the nearest path next (greedy), entering a closed path at its \
+         vertex nearest the spot and an open one at its nearer end; `inner_first`, as \
+         `nearest` but a path inside a closed path is cut before it (holes before the \
+         outline, so the part does not drop first). `lase plan` reports the travel saved.",
+    ),
 ];
 
 pub const LEADINS: &[&str] = &["auto", "none"];
+
+/// Cut orders of `planner { order ... }` (issue 20).
+pub const CUT_ORDERS: &[&str] = &["source", "nearest", "inner_first"];
 
 pub const LIMIT_SETTINGS: &[SettingSpec] = &[
     set(

@@ -40,6 +40,14 @@ pub struct Laser {
     /// How power follows the motion (`laser { couple speed }`).
     #[serde(default)]
     pub couple: Coupling,
+    /// Width of the cut, mm (`laser { kerf }`): half of it is added outward on outlines and
+    /// inward on holes when the job's paths are ordered (`eval::order`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub kerf_mm: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// Whether laser power follows the planned speed.
@@ -264,6 +272,29 @@ pub struct PlannerSettings {
     /// Lead-ins and lead-outs around lit sections (`planner { leadin auto|none }`).
     #[serde(default)]
     pub leadin: LeadIn,
+    /// The order the job's paths are cut in (`planner { order ... }`).
+    #[serde(default, skip_serializing_if = "CutOrder::is_source")]
+    pub order: CutOrder,
+}
+
+/// The order a job's paths are cut in (`planner { order source|nearest|inner_first }`; see
+/// `eval::order`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CutOrder {
+    /// As written.
+    #[default]
+    Source,
+    /// Nearest path next, each entered where it is nearest.
+    Nearest,
+    /// As `Nearest`, with every path inside a closed path cut before it.
+    InnerFirst,
+}
+
+impl CutOrder {
+    fn is_source(&self) -> bool {
+        *self == CutOrder::Source
+    }
 }
 
 /// Whether lase adds lead-ins and lead-outs so that the beam is only on at the programmed speed
@@ -331,6 +362,103 @@ pub struct ProcessProgram {
     /// Where the spot is when the program starts (part coordinates).
     pub start: P3,
     pub ops: Vec<Op>,
+    /// What `planner { order ... }` did, when it ordered the paths.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ordering: Option<OrderReport>,
+}
+
+/// The travel of a job's paths as written and as ordered (`planner { order ... }`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct OrderReport {
+    /// Paths (a rapid and the cut after it) the order moved among.
+    pub paths: usize,
+    /// Length of the rapids in source order, mm.
+    pub source_travel_mm: f64,
+    /// Length of the rapids as ordered, mm.
+    pub travel_mm: f64,
+}
+
+impl ProcessProgram {
+    /// The frame of the lit work (`lase frame`, issue 20): the bounding box of every lit move
+    /// (arcs by their extreme points, not their ends only), traced once with the beam off at
+    /// `feed_mm_s` from the corner nearest the start, then a rapid back to the start, so the
+    /// operator sees where the job will burn before it does. `None` when nothing is lit.
+    pub fn frame(&self, feed_mm_s: f64) -> Option<ProcessProgram> {
+        let mut lo = [f64::INFINITY; 2];
+        let mut hi = [f64::NEG_INFINITY; 2];
+        let mut grow = |p: [f64; 2]| {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        };
+        let mut at = self.start;
+        let mut first: Option<(P3, Span)> = None;
+        for op in &self.ops {
+            if op.lit_feed().is_some() {
+                first.get_or_insert((at, op.span));
+                grow([at[0], at[1]]);
+                let to = op.target().unwrap_or(at);
+                grow([to[0], to[1]]);
+                if let (Some((r, a0, sweep)), OpKind::Arc { center, .. }) =
+                    (op.arc_from(at), &op.kind)
+                {
+                    // The circle's extreme points (0°, 90°, 180°, 270°) the sweep passes.
+                    for q in -6..=6 {
+                        let a = f64::from(q) * std::f64::consts::FRAC_PI_2;
+                        let t = (a - a0) / sweep;
+                        if t > 0.0 && t < 1.0 {
+                            grow([center[0] + r * a.cos(), center[1] + r * a.sin()]);
+                        }
+                    }
+                }
+            }
+            if let Some(t) = op.target() {
+                at = t;
+            }
+        }
+        let (z_at, span) = first?;
+        let z = z_at[2];
+        let corners = [
+            [lo[0], lo[1], z],
+            [hi[0], lo[1], z],
+            [hi[0], hi[1], z],
+            [lo[0], hi[1], z],
+        ];
+        let k0 = (0..4)
+            .min_by(|&i, &j| dist(corners[i], self.start).total_cmp(&dist(corners[j], self.start)))
+            .unwrap_or(0);
+        let mut ops = vec![Op {
+            kind: OpKind::Rapid {
+                to: corners[k0],
+                orient: None,
+            },
+            span,
+        }];
+        for k in 1..=4 {
+            ops.push(Op {
+                kind: OpKind::Line {
+                    to: corners[(k0 + k) % 4],
+                    feed_mm_s,
+                    laser: None,
+                    orient: None,
+                },
+                span,
+            });
+        }
+        ops.push(Op {
+            kind: OpKind::Rapid {
+                to: self.start,
+                orient: None,
+            },
+            span,
+        });
+        Some(ProcessProgram {
+            ops,
+            ordering: None,
+            ..self.clone()
+        })
+    }
 }
 
 /// An op that asks more of the machine's laser than it can give. The codes and wording are
@@ -568,8 +696,10 @@ mod tests {
                 arc_tolerance_mm: m.arc_tolerance_mm,
                 lookahead: None,
                 leadin: LeadIn::Auto,
+                order: CutOrder::Source,
             },
             start: [0.0; 3],
+            ordering: None,
             ops,
             machine: m,
         }
@@ -589,6 +719,7 @@ mod tests {
                         energy_j: None,
                     }),
                     couple: Coupling::None,
+                    kerf_mm: 0.0,
                 }),
                 orient: None,
             },
@@ -679,5 +810,77 @@ mod tests {
             errs[1].to_string(),
             "laser power 150 W is above the machine's 100 W"
         );
+    }
+}
+
+#[cfg(test)]
+mod frame_tests {
+    use super::*;
+
+    #[test]
+    fn a_frame_bounds_arcs_by_their_extreme_points_and_returns_to_the_start() {
+        let m =
+            crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
+        let laser = Laser {
+            power_w: 10.0,
+            spot_mm: 0.1,
+            pulse: None,
+            couple: Coupling::None,
+            kerf_mm: 0.0,
+        };
+        let arc = |to: P3| Op {
+            kind: OpKind::Arc {
+                to,
+                center: [10.0, 0.0],
+                ccw: true,
+                feed_mm_s: 5.0,
+                laser: Some(laser.clone()),
+            },
+            span: Span::default(),
+        };
+        let rapid = Op {
+            kind: OpKind::Rapid {
+                to: [15.0, 0.0, 0.0],
+                orient: None,
+            },
+            span: Span::default(),
+        };
+        // A circle of radius 5 about (10, 0) in two half turns: its ends alone span y = 0.
+        let p = ProcessProgram {
+            recipe: "t".into(),
+            limits: AxisLimit::of_machine(&m),
+            path_limits: PathLimits::default(),
+            planner: PlannerSettings {
+                ramp: m.ramp,
+                junction_deviation_mm: m.junction_deviation_mm,
+                arc_tolerance_mm: m.arc_tolerance_mm,
+                lookahead: None,
+                leadin: LeadIn::Auto,
+                order: CutOrder::Source,
+            },
+            start: [0.0; 3],
+            ops: vec![rapid, arc([5.0, 0.0, 0.0]), arc([15.0, 0.0, 0.0])],
+            ordering: None,
+            machine: m,
+        };
+        let f = p.frame(20.0).unwrap();
+        // The box, without the rapid back to the start.
+        let pts: Vec<P3> = f.ops[..f.ops.len() - 1]
+            .iter()
+            .filter_map(Op::target)
+            .collect();
+        let (lo, hi) = pts
+            .iter()
+            .fold(([f64::MAX; 2], [f64::MIN; 2]), |(lo, hi), q| {
+                (
+                    [lo[0].min(q[0]), lo[1].min(q[1])],
+                    [hi[0].max(q[0]), hi[1].max(q[1])],
+                )
+            });
+        assert_eq!((lo, hi), ([5.0, -5.0], [15.0, 5.0]));
+        assert!(f.ops.iter().all(|o| o.laser().is_none()));
+        assert_eq!(f.ops.last().and_then(Op::target), Some([0.0; 3]));
+        // The frame starts at the corner nearest the start, (5, -5).
+        assert_eq!(f.ops[0].target(), Some([5.0, -5.0, 0.0]));
     }
 }

@@ -32,6 +32,7 @@ fn lit(power_w: f64) -> Option<Laser> {
         spot_mm: 0.1,
         pulse: None,
         couple: Coupling::None,
+        kerf_mm: 0.0,
     })
 }
 

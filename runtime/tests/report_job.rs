@@ -33,6 +33,7 @@ fn laser(power_w: f64, pulse: Option<PulseMode>) -> Option<Laser> {
             energy_j: None,
         }),
         couple: Coupling::None,
+        kerf_mm: 0.0,
     })
 }
 

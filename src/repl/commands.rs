@@ -69,6 +69,11 @@ pub const COMMANDS: &[Command] = &[
         "[NAME | FILE]",
         "stream what the session produced since the last run, a process `fn NAME()`, or a recipe file",
     ),
+    cmd(
+        ":frame",
+        "[FILE]",
+        "trace the box of what would run now (or a recipe file) beam off at 50 mm/s, back to the start",
+    ),
     cmd(":hold", "", "feed hold now (the laser goes off while held)"),
     cmd(
         ":resume",
@@ -217,6 +222,7 @@ impl Session {
                 self.show(r);
             }
             ":run" => self.run(arg),
+            ":frame" => self.frame(arg),
             ":set" => self.set(rest),
             ":clear" => {
                 let n = self.eval.ops().len();
@@ -783,6 +789,48 @@ impl Session {
                 }
                 self.run_pending("repl");
             }
+        }
+    }
+
+    /// `:frame`: the lit work's bounding box traced dark (`ProcessProgram::frame`), as `lase
+    /// frame` does, over the session's controller; the session's moves stay pending.
+    fn frame(&mut self, arg: Option<&str>) {
+        let (map, program) = match arg {
+            Some(file) => {
+                let mut recipe = match compile::load(&mut FsFiles, file) {
+                    Ok(r) => r,
+                    Err((map, f)) => return self.report_in(&map, &f),
+                };
+                match compile::check(&recipe)
+                    .and_then(|()| compile::evaluate(&mut recipe, &mut FsFiles))
+                {
+                    Ok(p) => (recipe.map, p),
+                    Err(f) => return self.report_in(&recipe.map, &f),
+                }
+            }
+            None => {
+                if let Err(Trouble::Say(m)) = self.sync_start(true) {
+                    return self.say_error(&m);
+                }
+                match self.pending() {
+                    Ok(p) => (self.map.clone(), p),
+                    Err(f) => return self.report(&f),
+                }
+            }
+        };
+        if lase_runtime::kinematics::for_machine(&program.machine).oriented() {
+            return self.say_error("this machine orients the beam: a frame traces a flat bed");
+        }
+        let Some(frame) = program.frame(50.0) else {
+            return self.say_error("nothing lit to frame: `follow` a path first, or `:frame FILE`");
+        };
+        let job = match compile::plan(frame) {
+            Ok(j) => j,
+            Err(f) => return self.report_in(&map, &f),
+        };
+        let dialect = link::live_dialect(&job.program.machine);
+        if let Some(nc) = self.nc_lines_in(&map, &job, dialect) {
+            let _ = self.stream(&map, &job, &nc, "frame");
         }
     }
 

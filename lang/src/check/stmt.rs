@@ -202,7 +202,10 @@ impl Checker {
                 settings,
             } => {
                 let t = self.expr(path);
-                self.expect_ty(&t, &Ty::Profile, path, "the path of `follow`");
+                // A list of profiles is the lit pieces of one path (`tabs`).
+                if t != Ty::List(Box::new(Ty::Profile)) {
+                    self.expect_ty(&t, &Ty::Profile, path, "the path of `follow`");
+                }
                 let t = self.expr(speed);
                 self.expect_dim(&t, Dim::SPEED, speed, "the speed of `follow`");
                 self.settings("follow", settings, schema::FOLLOW_SETTINGS);

@@ -5,7 +5,7 @@
 use super::{
     Cx, EvalError, Evaluator, Flow, Kind, MAX_DEPTH, R, Value, bad, geom_error, point2, type_err,
 };
-use crate::geometry::{GeomError, Profile, V2};
+use crate::geometry::{GeomError, Profile, TabLayout, V2};
 use lase_lang::ast::*;
 use lase_lang::units::{self, Dim};
 use lase_lang::{Span, schema};
@@ -199,6 +199,87 @@ impl Evaluator {
                 Value::Profile(Rc::new(o))
             }
             "reverse" => Value::Profile(Rc::new(prof(self, 0)?.reversed())),
+            // Job setup (issue 20): pieces by arc length, tabs.
+            "segment" => {
+                let p = prof(self, 0)?;
+                let (from, to) = (len(self, 1)?, len(self, 2)?);
+                let piece = p.segment(from, to).map_err(|g| EvalError::Geometry {
+                    message: g.to_string(),
+                    span,
+                    label: "no such piece".into(),
+                    help: Some(
+                        "`segment(p, from, to)` takes arc lengths from 0 to `length(p)`, \
+                         `from` before `to` (past it only on a closed profile)"
+                            .into(),
+                    ),
+                })?;
+                Value::Profile(Rc::new(piece))
+            }
+            "tabs" => {
+                let p = prof(self, 0)?;
+                let opt = |i: usize| a.get(i).cloned().flatten();
+                let layout = match (opt(1), opt(2)) {
+                    (Some((v, sp)), None) => {
+                        let n = self.as_count(&v, sp, "`count`")?;
+                        if n < 1 {
+                            return Err(bad(
+                                Kind::OutOfRange,
+                                sp,
+                                "at least one tab is needed",
+                                "too few",
+                                None,
+                            ));
+                        }
+                        TabLayout::Count(n as usize)
+                    }
+                    (None, Some((v, sp))) => {
+                        TabLayout::Spacing(self.positive_length(&v, sp, "`spacing`")?)
+                    }
+                    (Some(_), Some((_, sp))) => {
+                        return Err(bad(
+                            Kind::Conflict,
+                            sp,
+                            "`tabs` takes `count` or `spacing`, not both",
+                            "second way to place the tabs",
+                            Some("keep one of `count: n` and `spacing: d`"),
+                        ));
+                    }
+                    (None, None) => {
+                        return Err(bad(
+                            Kind::MissingArgument,
+                            span,
+                            "`tabs` needs `count` or `spacing`",
+                            "where do the tabs go?",
+                            Some("write `count: 4` for four tabs or `spacing: 50 mm`"),
+                        ));
+                    }
+                };
+                let (wv, wsp) = arg(3)?;
+                let w = self.positive_length(&wv, wsp, "`width`")?;
+                // Counted before any piece is made: `count: 1e12` must not fill the memory.
+                let n = match layout {
+                    TabLayout::Count(n) => n as f64,
+                    TabLayout::Spacing(d) => (p.length() / d).round().max(1.0),
+                };
+                self.room_for_ops(
+                    n + p.segs.len() as f64,
+                    "these tabs",
+                    "use fewer tabs",
+                    span,
+                )?;
+                let pieces = p.tabs(layout, w).map_err(|g| EvalError::Geometry {
+                    message: g.to_string(),
+                    span: wsp,
+                    label: "too wide for the tabs' spacing".into(),
+                    help: Some("use narrower tabs, or fewer of them".into()),
+                })?;
+                Value::List(Rc::new(
+                    pieces
+                        .into_iter()
+                        .map(|q| Value::Profile(Rc::new(q)))
+                        .collect(),
+                ))
+            }
             "translate" => {
                 let p = prof(self, 0)?;
                 let v = pt(self, 1)?;

@@ -292,6 +292,8 @@ impl Evaluator {
                 spot_mm: laser.spot_mm,
                 pulse: None,
                 couple: Coupling::Speed,
+                // Rows are lines across the image, not outlines: no kerf to apply.
+                kerf_mm: 0.0,
             })
             .collect();
         let z = self.pos[2];

@@ -14,6 +14,7 @@ mod expr;
 mod marking;
 mod image;
 mod moves;
+mod order;
 mod profiles;
 mod scan;
 mod sheet;
@@ -62,6 +63,8 @@ struct LaserState {
     couple: Coupling,
     /// Lens-to-spot distance on machines that orient the beam.
     standoff_mm: Option<f64>,
+    /// Width of the cut (`laser { kerf }`), mm.
+    kerf_mm: f64,
     on: bool,
 }
 
@@ -73,6 +76,7 @@ struct LaserSet {
     spot: Option<f64>,
     couple: Option<Coupling>,
     standoff: Option<f64>,
+    kerf: Option<f64>,
     side: Option<(HeadSide, Span)>,
     step: Option<f64>,
     /// `normals chord`: seed 1's discrete method instead of exact normals.
@@ -135,6 +139,7 @@ impl Evaluator {
                 spot_mm: 0.05,
                 couple: Coupling::None,
                 standoff_mm: None,
+                kerf_mm: 0.0,
                 on: false,
             },
             pulse: None,
@@ -248,6 +253,8 @@ impl Evaluator {
     pub fn take_program(&mut self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let p = self.program(recipe, span)?;
         self.ops.clear();
+        // An ordered program may end elsewhere than the ops as written.
+        self.pos = p.ops.iter().rev().find_map(Op::target).unwrap_or(self.pos);
         self.start = self.pos;
         Ok(p)
     }
@@ -256,13 +263,20 @@ impl Evaluator {
     pub fn program(&self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let machine = self.machine.clone().ok_or_else(|| no_machine(span))?;
         let planner = self.planner_settings_now();
+        let (ops, ordering) = order::order_ops(
+            &self.ops,
+            self.start,
+            planner.order,
+            planner.arc_tolerance_mm,
+        )?;
         Ok(ProcessProgram {
             recipe: recipe.to_string(),
             limits: self.limits.clone(),
             path_limits: self.path_limits.clone(),
             planner,
             start: self.start,
-            ops: self.ops.clone(),
+            ops,
+            ordering,
             machine,
         })
     }

@@ -3,12 +3,13 @@
 //! toolpath of poses on machines that orient the beam).
 
 use super::{Cx, EvalError, Evaluator, Kind, LaserSet, R, Value, bad, geom_error, type_err};
+use crate::geometry::Profile;
 use crate::geometry::toolpath::{HeadSide, Normals, Station, ToolpathError, oriented_stations};
-use crate::geometry::{Profile, Seg, V2};
 use crate::program::*;
 use lase_lang::Span;
 use lase_lang::ast::*;
 use lase_lang::units::{Dim, format_quantity};
+use std::rc::Rc;
 
 impl Evaluator {
     pub(super) fn move_stmt(
@@ -105,8 +106,30 @@ impl Evaluator {
         cx: &mut Cx,
     ) -> R<()> {
         let v = self.expr(path, cx)?;
-        let Value::Profile(profile) = v else {
-            return Err(type_err("a profile", &v, path.span, "the path of `follow`"));
+        // One profile, or the lit pieces of one (`tabs`), cut in turn with the beam off
+        // across the gaps between them.
+        let pieces: Vec<Rc<Profile>> = match &v {
+            Value::Profile(p) => vec![p.clone()],
+            Value::List(items) if !items.is_empty() => items
+                .iter()
+                .map(|it| match it {
+                    Value::Profile(p) => Ok(p.clone()),
+                    other => Err(type_err(
+                        "a profile",
+                        other,
+                        path.span,
+                        "each piece of the path of `follow`",
+                    )),
+                })
+                .collect::<R<_>>()?,
+            _ => {
+                return Err(type_err(
+                    "a profile or a list of profiles",
+                    &v,
+                    path.span,
+                    "the path of `follow`",
+                ));
+            }
         };
         let sv = self.expr(speed, cx)?;
         let feed = self.feed(&sv, speed.span)?;
@@ -115,7 +138,10 @@ impl Evaluator {
         let laser = self.current_laser(span, &set)?;
         self.check_pulse_rate(&laser, feed, speed.span)?;
         if self.oriented() {
-            return self.follow_oriented(&profile, feed, laser, &set, span);
+            for profile in &pieces {
+                self.follow_oriented(profile, feed, laser.clone(), &set, span)?;
+            }
+            return Ok(());
         }
         if let Some((_, side_span)) = set.side {
             return Err(bad(
@@ -127,63 +153,33 @@ impl Evaluator {
             ));
         }
         self.room_for_ops(
-            profile.segs.len() as f64,
+            pieces.iter().map(|p| p.segs.len() as f64 + 1.0).sum(),
             "this path",
             "use fewer points (a path this fine is finer than the machine resolves)",
             span,
         )?;
         let z = self.pos[2];
-        let start = profile.start();
-        if (start.x - self.pos[0]).hypot(start.y - self.pos[1]) > 1e-9 {
-            // Going to the start of a path is part of following it: a rapid, laser off.
-            self.push(
-                OpKind::Rapid {
-                    to: [start.x, start.y, z],
-                    orient: None,
-                },
-                span,
-            );
-        }
-        for seg in &profile.segs {
-            match seg {
-                Seg::Line { b, .. } => self.push(
+        for (k, profile) in pieces.iter().enumerate() {
+            let start = profile.start();
+            if (start.x - self.pos[0]).hypot(start.y - self.pos[1]) > 1e-9 {
+                let to = [start.x, start.y, z];
+                let kind = if k == 0 {
+                    // Going to the start of a path is part of following it: a rapid, laser off.
+                    OpKind::Rapid { to, orient: None }
+                } else {
+                    // A tab: crossed at the cutting speed with the beam off, so the path stays
+                    // one cut (ordered, entered and given its kerf as one).
                     OpKind::Line {
-                        to: [b.x, b.y, z],
+                        to,
                         feed_mm_s: feed,
-                        laser: Some(laser.clone()),
+                        laser: None,
                         orient: None,
-                    },
-                    span,
-                ),
-                Seg::Arc {
-                    center,
-                    r,
-                    a0,
-                    sweep,
-                } => {
-                    // Arcs longer than a half turn are split so every dialect reads them
-                    // unambiguously.
-                    let pieces =
-                        (sweep.abs() / std::f64::consts::PI - 1e-9).ceil().max(1.0) as usize;
-                    for k in 1..=pieces {
-                        let a = a0 + sweep * k as f64 / pieces as f64;
-                        let to = if k == pieces {
-                            seg.end()
-                        } else {
-                            center + V2::new(a.cos(), a.sin()) * *r
-                        };
-                        self.push(
-                            OpKind::Arc {
-                                to: [to.x, to.y, z],
-                                center: [center.x, center.y],
-                                ccw: *sweep > 0.0,
-                                feed_mm_s: feed,
-                                laser: Some(laser.clone()),
-                            },
-                            span,
-                        );
                     }
-                }
+                };
+                self.push(kind, span);
+            }
+            for kind in super::order::profile_ops(profile, z, feed, &laser) {
+                self.push(kind, span);
             }
         }
         Ok(())

@@ -166,6 +166,7 @@ impl Evaluator {
         let mut spot = None;
         let mut couple = None;
         let mut standoff = None;
+        let mut kerf = None;
         let mut side = None;
         let mut step = None;
         let mut chord_normals = false;
@@ -226,6 +227,24 @@ impl Evaluator {
                     standoff = Some(d);
                 }
                 "step" => step = Some(self.positive_length(&v, e.span, "`step`")?),
+                "kerf" => {
+                    let k = self.as_dim(&v, Dim::LENGTH, e.span, "`kerf`")?;
+                    if !(k >= 0.0) {
+                        return Err(bad(
+                            Kind::Negative,
+                            e.span,
+                            "the kerf cannot be negative",
+                            "negative",
+                            Some("the kerf is the width the beam cuts away, e.g. `kerf 0.15 mm`"),
+                        ));
+                    }
+                    // 0 turns the kerf off; anything else is a width a beam can cut.
+                    kerf = Some(if k == 0.0 {
+                        0.0
+                    } else {
+                        self.in_range(k, &bounds::FINE_LENGTH, "the kerf", e.span)?
+                    });
+                }
                 _ => {
                     let d = self.as_dim(&v, Dim::LENGTH, e.span, "`spot`")?;
                     if !(d > 0.0) {
@@ -246,6 +265,7 @@ impl Evaluator {
             spot,
             couple,
             standoff,
+            kerf,
             side,
             step,
             chord_normals,
@@ -380,6 +400,13 @@ impl Evaluator {
                     let v = self.expr(e, cx)?;
                     self.scan_step_mm = Some(self.positive_length(&v, e.span, "`step`")?);
                 }
+                "order" => {
+                    p.order = match &e.kind {
+                        ExprKind::Var(w) if w == "nearest" => CutOrder::Nearest,
+                        ExprKind::Var(w) if w == "inner_first" => CutOrder::InnerFirst,
+                        _ => CutOrder::Source,
+                    }
+                }
                 "leadin" => {
                     p.leadin = match &e.kind {
                         ExprKind::Var(w) if w == "none" => LeadIn::Off,
@@ -436,6 +463,7 @@ impl Evaluator {
             spot_mm: set.spot.unwrap_or(self.laser.spot_mm),
             pulse: self.pulse.clone(),
             couple: set.couple.unwrap_or(self.laser.couple),
+            kerf_mm: self.laser.kerf_mm,
         })
     }
 
@@ -462,6 +490,7 @@ impl Evaluator {
                 arc_tolerance_mm: m.map_or(0.001, |m| m.arc_tolerance_mm),
                 lookahead: None,
                 leadin: LeadIn::Auto,
+                order: CutOrder::Source,
             }
         })
     }

@@ -175,6 +175,9 @@ impl Evaluator {
                     if let Some(d) = ls.standoff {
                         self.laser.standoff_mm = Some(d);
                     }
+                    if let Some(k) = ls.kerf {
+                        self.laser.kerf_mm = k;
+                    }
                 }
             },
             StmtKind::Pulse(PulseStmt::Off) => self.pulse = None,

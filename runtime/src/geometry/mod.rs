@@ -10,12 +10,16 @@
 //! Submodules: `spline` (interpolation, arc length), `biarc` (line/arc approximation of smooth
 //! curves), `resample` (constant arc-length steps with a chord bound), `offset` (C0 = C ± d·n
 //! and the seed-2 fold-over rule), `cam` (lift tables and motion laws), `import` (DXF, SVG),
-//! `toolpath` (oriented toolpaths: beam normals, exact or by chords, and the fold-over rule).
+//! `toolpath` (oriented toolpaths: beam normals, exact or by chords, and the fold-over rule),
+//! `pieces` (sub-profiles by arc length, tabs), `order` (cut order: inner before outer,
+//! nearest next).
 
 pub mod biarc;
 pub mod cam;
 pub mod import;
 pub mod offset;
+pub mod order;
+pub mod pieces;
 pub mod resample;
 pub mod spline;
 pub mod svg_file;
@@ -24,6 +28,7 @@ pub mod toolpath;
 pub use cam::{CamLaw, CamSegment, CamSegmentKind};
 pub use import::{ImportError, ImportOptions};
 pub use offset::{FoldRegion, OffsetOptions};
+pub use pieces::TabLayout;
 pub use resample::{Resampled, Sample};
 pub use spline::Spline;
 

@@ -173,6 +173,7 @@ mod tests {
                     spot_mm: 0.1,
                     pulse: None,
                     couple,
+                    kerf_mm: 0.0,
                 }),
             },
             span: Span::default(),

@@ -426,6 +426,7 @@ fn lead_laser(l: Option<&Laser>) -> Laser {
         spot_mm: 0.0,
         pulse: None,
         couple: Default::default(),
+        kerf_mm: 0.0,
     });
     l.pulse = None;
     l

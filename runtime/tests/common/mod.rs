@@ -40,8 +40,10 @@ pub fn program(
             arc_tolerance_mm: m.arc_tolerance_mm,
             lookahead: None,
             leadin: LeadIn::Off,
+            order: Default::default(),
         },
         start: [0.0; 3],
+        ordering: None,
         ops,
         machine: m,
     }
