@@ -6,14 +6,23 @@ use std::fmt::Write as _;
 /// A number as NC text: 4 decimals (0.1 µm in mm, 0.1 ms in s), trailing zeros and a trailing
 /// point trimmed, never `-0`.
 pub fn number(x: f64) -> String {
+    let mut s = String::with_capacity(12);
+    number_into(&mut s, x);
+    s
+}
+
+/// [`number`] appended to `out`: the emitter writes every coordinate of a multi-million-line
+/// program through here, into buffers it reuses, so formatting allocates nothing.
+pub fn number_into(out: &mut String, x: f64) {
     // Fast path, byte for byte what `{:.4}` writes: away from a rounding tie the product
     // x·10⁴ (within an ulp of the exact value) rounds to the same integer as the exact decimal
     // expansion `{:.4}` rounds. Ties and huge values take the exact formatter.
     let y = x * 1e4;
     if y.is_finite() && y.abs() < 9e15 && ((y - y.floor()) - 0.5).abs() > 1e-6 {
-        return fixed4(y.round() as i64);
+        fixed4_into(out, y.round() as i64);
+        return;
     }
-    trimmed(format!("{x:.4}"))
+    out.push_str(&trimmed(format!("{x:.4}")));
 }
 
 /// A fixed-point number with trailing zeros and a trailing point trimmed, never `-0`.
@@ -43,8 +52,8 @@ pub fn inverse_time(x: f64) -> String {
     trimmed(format!("{x:.decimals$}"))
 }
 
-/// `n / 10⁴` with trailing zeros and point trimmed, never `-0`.
-fn fixed4(n: i64) -> String {
+/// `n / 10⁴` with trailing zeros and point trimmed, never `-0`, appended to `out`.
+fn fixed4_into(out: &mut String, n: i64) {
     let a = n.unsigned_abs();
     let (mut int, mut frac) = (a / 10_000, a % 10_000);
     // Digits right to left into a small buffer: sign, up to 20 integer digits, point, 4.
@@ -76,7 +85,8 @@ fn fixed4(n: i64) -> String {
         i -= 1;
         buf[i] = b'-';
     }
-    String::from_utf8_lossy(&buf[i..]).into_owned()
+    // Only ASCII digits, '.' and '-' were written.
+    out.push_str(std::str::from_utf8(&buf[i..]).unwrap_or_default());
 }
 
 /// A comment in parentheses. Parentheses inside would end it early (and nested comments are an
