@@ -173,7 +173,7 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
         let mut lines = 0u64;
         let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
             lines += 1;
-            if lines % (1 << 16) == 0 && busy.shown() {
+            if lines.is_multiple_of(1 << 16) && busy.shown() {
                 busy.say(format!("writing {dialect} NC: {lines} lines"));
             }
             w.write_all(l.text.as_bytes())

@@ -50,7 +50,7 @@ impl Source for Raster {
             _ => {
                 let k = i - 4;
                 let y = -90.0 + (k + 1) as f64 * 180.0 / self.n as f64;
-                let x = if k % 2 == 0 { -60.0 } else { 60.0 };
+                let x = if k.is_multiple_of(2) { -60.0 } else { 60.0 };
                 format!(
                     "X{} Y{}",
                     lase_runtime::emit::number(x),
