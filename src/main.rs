@@ -199,12 +199,15 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
             output::write_atomic(path, |w| write(w))?;
             drop(busy);
             // A one-line result, as `plot -o` prints: the file holds the program.
+            let size = match written.1 {
+                b if b >= 1_000_000 => format!("{:.1} MB", b as f64 / 1e6),
+                b => format!("{:.1} kB", b as f64 / 1e3),
+            };
             outln!(
-                "{}: wrote {} ({} lines, {:.1} MB, {dialect})",
+                "{}: wrote {} ({} lines, {size}, {dialect})",
                 recipe.name(),
                 path.display(),
                 written.0,
-                written.1 as f64 / 1e6
             );
             Ok(())
         }
