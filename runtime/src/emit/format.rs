@@ -1,8 +1,6 @@
 //! NC words: numbers, comments, post templates and the M words inside a line of machine-file
 //! text.
 
-use std::fmt::Write as _;
-
 /// A number as NC text: 4 decimals (0.1 µm in mm, 0.1 ms in s), trailing zeros and a trailing
 /// point trimmed, never `-0`.
 pub fn number(x: f64) -> String {
@@ -85,8 +83,12 @@ fn fixed4_into(out: &mut String, n: i64) {
         i -= 1;
         buf[i] = b'-';
     }
-    // Only ASCII digits, '.' and '-' were written.
-    out.push_str(std::str::from_utf8(&buf[i..]).unwrap_or_default());
+    // Only ASCII digits, '.' and '-' were written: pushed one by one, which is cheaper for a
+    // handful of bytes than a UTF-8 check and a copy call.
+    out.reserve(buf.len() - i);
+    for &b in &buf[i..] {
+        out.push(b as char);
+    }
 }
 
 /// A comment in parentheses. Parentheses inside would end it early (and nested comments are an
@@ -129,13 +131,19 @@ pub struct LaserWords {
 /// would be left as written.
 pub fn fill(template: &str, w: LaserWords) -> String {
     let mut out = String::with_capacity(template.len() + 8);
+    fill_into(&mut out, template, w);
+    out
+}
+
+/// [`fill`] appended to `out` (the pulse lines of a dot raster, millions of them).
+pub fn fill_into(out: &mut String, template: &str, w: LaserWords) {
     let mut rest = template;
     while let Some(open) = rest.find('{') {
         out.push_str(&rest[..open]);
         let after = &rest[open + 1..];
         let Some(close) = after.find('}') else {
             out.push_str(&rest[open..]);
-            return out;
+            return;
         };
         let value = match &after[..close] {
             "power" => Some(w.power_w),
@@ -144,15 +152,12 @@ pub fn fill(template: &str, w: LaserWords) -> String {
             _ => None,
         };
         match value {
-            Some(v) => {
-                let _ = write!(out, "{}", number(v));
-            }
+            Some(v) => number_into(out, v),
             None => out.push_str(&rest[open..open + close + 2]),
         }
         rest = &after[close + 1..];
     }
     out.push_str(rest);
-    out
 }
 
 /// The placeholders of a template that are not known, or a description of a broken brace.

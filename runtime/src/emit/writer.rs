@@ -63,6 +63,22 @@ impl Out<'_> {
         self.send(op)
     }
 
+    /// Writes one block, numbered in ISO, that `write` builds in place (no copy of its own).
+    fn put_with(&mut self, write: impl FnOnce(&mut String), op: Option<u32>) -> io::Result<()> {
+        self.line.text.clear();
+        if self.dialect == Dialect::Iso {
+            self.block = if self.block >= BLOCK_WRAP {
+                BLOCK_STEP
+            } else {
+                self.block + BLOCK_STEP
+            };
+            use std::fmt::Write as _;
+            let _ = write!(self.line.text, "N{} ", self.block);
+        }
+        write(&mut self.line.text);
+        self.send(op)
+    }
+
     /// Writes a line as is (ISO's `%` and program number).
     fn raw(&mut self, text: &str, op: Option<u32>) -> io::Result<()> {
         self.line.text.clear();
