@@ -13,8 +13,10 @@
 //! link (a simulator, TCP to grblHAL: hundreds of thousands of lines per second) then syncs a
 //! few hundred times a second instead of ten thousand, while a slow one (GRBL over 115 200
 //! baud, a few hundred lines per second) keeps small windows, and with them a narrow range
-//! for the resume logic to search after a crash. `s`/`a` records of each line sent and
-//! acknowledged follow as they happen and reach the disk with the next sync.
+//! for the resume logic to search after a crash. Acknowledgements are written as `a N`
+//! records, one for every [`ACKS_PER_RECORD`] lines and one at every sync (the reader keeps
+//! the highest, so the latest says all); no record is written per line sent, since the synced
+//! reservation already bounds it (older journals' `s` records are still read).
 //!
 //! After a crash the journal therefore bounds what the controller may have received from
 //! above (`w`, `s`) and what it surely received from below (`a`, `r`); the resume logic
@@ -32,8 +34,7 @@
 //! hash 0f3a…
 //! start 0 0 0
 //! w 32
-//! s 0
-//! a 0
+//! a 1023
 //! …
 //! t 40            the link dropped after exactly 40 lines were sent
 //! r 17 6          resumed: 17 lines had run, 6 re-approach lines follow
@@ -52,10 +53,14 @@ use std::path::{Path, PathBuf};
 pub const RESERVE: usize = 32;
 
 /// The largest window one synced reservation covers.
-pub const RESERVE_MAX: usize = 4096;
+pub const RESERVE_MAX: usize = 16384;
 
 /// A window used up faster than this doubles the next one.
-pub const FAST_WINDOW: std::time::Duration = std::time::Duration::from_millis(20);
+pub const FAST_WINDOW: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// Acknowledgements between two `a` records: only the latest counts (the reader takes the
+/// highest), so one record stands for a run of them.
+const ACKS_PER_RECORD: usize = 1024;
 
 /// A window that lasts longer than this halves the next one.
 pub const SLOW_WINDOW: std::time::Duration = std::time::Duration::from_millis(200);
@@ -135,6 +140,9 @@ pub struct Journal {
     window: usize,
     /// When the last reservation was synced.
     reserved_at: Option<std::time::Instant>,
+    /// The latest acknowledged line not yet in an `a` record, and how many acks since one.
+    acked: Option<usize>,
+    acks: usize,
     buf: String,
 }
 
@@ -199,6 +207,8 @@ impl Journal {
             reserved: 0,
             window: RESERVE,
             reserved_at: None,
+            acked: None,
+            acks: 0,
             buf: String::new(),
         })
     }
@@ -223,6 +233,8 @@ impl Journal {
                 reserved: st.sent_bound,
                 window: RESERVE,
                 reserved_at: None,
+                acked: None,
+                acks: 0,
                 buf: String::new(),
             },
             st,
@@ -234,6 +246,13 @@ impl Journal {
     }
 
     fn flush(&mut self, sync: bool) -> Result<(), LinkError> {
+        if let Some(a) = self.acked.take() {
+            // Before what was appended since: the records stay in the order things happened.
+            let rest = std::mem::take(&mut self.buf);
+            let _ = writeln!(self.buf, "a {a}");
+            self.buf.push_str(&rest);
+            self.acks = 0;
+        }
         if !self.buf.is_empty() {
             self.file
                 .write_all(self.buf.as_bytes())
@@ -284,13 +303,21 @@ impl Journal {
         Ok(())
     }
 
+    /// Line `index` went out. Nothing is written: the synced reservation that had to cover
+    /// it (see [`Journal::will_send`]) bounds it already.
     pub fn sent(&mut self, index: usize) {
-        let _ = writeln!(self.buf, "s {index}");
+        debug_assert!(
+            self.covers(index),
+            "line {index} sent outside a reservation"
+        );
     }
 
+    /// Line `index` was acknowledged: recorded with the next `a` record (see the module
+    /// header), written to the file every [`ACKS_PER_RECORD`] lines.
     pub fn acked(&mut self, index: usize) {
-        let _ = writeln!(self.buf, "a {index}");
-        if self.buf.len() > 1 << 16 {
+        self.acked = Some(self.acked.map_or(index, |a| a.max(index)));
+        self.acks += 1;
+        if self.acks >= ACKS_PER_RECORD {
             let _ = self.flush(false);
         }
     }
