@@ -6,7 +6,7 @@
 use crate::driver::{self, Failure, IoError};
 use crate::output::{self, outln};
 use lase_lang::{SourceMap, Span};
-use lase_runtime::emit::{Dialect, NcLine};
+use lase_runtime::emit::Dialect;
 use lase_runtime::link::job::{self, JobLines, NewJournal, Origin, Refused, Started};
 use lase_runtime::link::journal;
 use lase_runtime::link::sim::{self, Faults, SimOptions, TimeScale};
@@ -156,12 +156,21 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             .parse()
             .map_err(|e: String| io_fail(format!("--time-scale: {e}")))?;
     }
+    // A sign of life until the progress bar takes over: a texturing job takes seconds to
+    // compile and to write once before it streams.
+    let busy = crate::output::Busy::start(&format!("compiling {}", file.display()));
     let (recipe, job) = driver::compile(&file)?;
     let dialect = run_dialect(&args, resumed.as_ref(), &job, &url)?;
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
-    let nc = nc_lines(&recipe, &job, dialect)?;
-    let lines = JobLines::new(&job, &nc, dialect);
+    busy.say(format!("writing the {dialect} program"));
+    // The lines are made again as they stream, never held whole (`JobLines::emitted`).
+    // Located from the source map alone: the emitter runs on a helper thread while streaming.
+    let source_map = &recipe.map;
+    let locate = |s: Span| lase_runtime::compile::locate_in(source_map, s);
+    let lines = JobLines::emitted(&job, dialect, &locate)
+        .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
+    busy.say(format!("connecting to {url}"));
     let origin = match (resumed, &resume) {
         (Some(st), Some(path)) => Origin::resume(
             &lines,
@@ -192,7 +201,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             "{}: {} of {} lines had run (the controller's state fits {}); re-approach: {}",
             recipe.name(),
             plan.executed,
-            lines.lines().len(),
+            lines.len(),
             plan.candidates
                 .iter()
                 .map(|c| c.to_string())
@@ -202,6 +211,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         );
     }
     let mut started = ready.start(&mut *link, &lines).map_err(fail)?;
+    drop(busy);
     stream_run(&recipe.name(), &mut *link, &lines, &mut started)
         .map_err(|failure| (map.clone(), failure))
 }
@@ -253,8 +263,11 @@ pub fn cmd_frame(args: FrameArgs) -> CmdResult {
     let dialect = link::live_dialect(&job.program.machine);
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
-    let nc = nc_lines(&recipe, &job, dialect)?;
-    let lines = JobLines::new(&job, &nc, dialect);
+    // A frame is a dozen lines, made as they stream like any job's.
+    let source_map = &recipe.map;
+    let locate = |s: Span| lase_runtime::compile::locate_in(source_map, s);
+    let lines = JobLines::emitted(&job, dialect, &locate)
+        .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
     let mut link = link::connect(&url, &job.program.machine, &ConnectOptions::default())
         .map_err(|e| fail(job::not_started(e)))?;
     let ready = job::preflight(&mut *link, &lines, Origin::Fresh(None))
@@ -341,7 +354,7 @@ fn stream_run(
     lines: &JobLines<'_>,
     started: &mut Started,
 ) -> Result<(), Failure> {
-    let total = lines.lines().len();
+    let total = lines.len();
     let summary = lase_runtime::report::summarize(lines.job());
     let journal_name = started.journal_path().map(|j| j.display().to_string());
     eprintln!(
@@ -354,7 +367,7 @@ fn stream_run(
             .map(|p| format!(", journal {p}"))
             .unwrap_or_default()
     );
-    let eta = lase_runtime::link::eta::Eta::new(lines.job(), lines.nc());
+    let eta = lase_runtime::link::eta::Eta::from_runs(lines.job(), lines.runs(), total);
     // Ctrl-C is a feed hold from here until the job has ended, as in the REPL: the machine
     // stops on the path with the laser off, and a second Ctrl-C (or `a`) aborts.
     let sig = SigGuard::new();
@@ -427,7 +440,7 @@ fn stream_run(
 /// The diagnostic of a job that did not finish (any outcome but `Done`), for `lase run` and
 /// the REPL's jobs alike; `resume` says how a job stopped by a lost link continues.
 pub(crate) fn job_failure(report: Report, lines: &JobLines<'_>, resume: String) -> Failure {
-    let total = lines.lines().len();
+    let total = lines.len();
     let stop = report.stop_note.unwrap_or_default();
     match report.outcome {
         Outcome::Aborted => Failure::one(output::JobAborted {
@@ -454,7 +467,6 @@ pub(crate) fn job_failure(report: Report, lines: &JobLines<'_>, resume: String) 
 /// The diagnostic of a job the controller refused a line of or stopped with an alarm: the
 /// line, the recipe statement it came from, and what stopping the machine did.
 fn controller_stop(outcome: Outcome, lines: &JobLines<'_>, stop: String) -> Failure {
-    let text = lines.lines();
     match outcome {
         Outcome::Rejected {
             index,
@@ -462,7 +474,7 @@ fn controller_stop(outcome: Outcome, lines: &JobLines<'_>, stop: String) -> Fail
             message,
         } => Failure::one(output::ControllerRejected {
             line_no: index + 1,
-            line: text[index].clone(),
+            line: lines.line(index),
             code,
             message,
             span: lines.span_of(index),
@@ -474,7 +486,7 @@ fn controller_stop(outcome: Outcome, lines: &JobLines<'_>, stop: String) -> Fail
             message,
         } => Failure::one(output::ControllerAlarm {
             line: index
-                .map(|i| format!(" at line {} `{}`", i + 1, text[i]))
+                .map(|i| format!(" at line {} `{}`", i + 1, lines.line(i)))
                 .unwrap_or_default(),
             code,
             message,
@@ -495,7 +507,7 @@ fn run_check(name: &str, link: &mut dyn Link, lines: &JobLines<'_>, map: &Source
         Outcome::Done => {
             outln!(
                 "{name}: check mode — the controller accepted all {} lines",
-                lines.lines().len()
+                lines.len()
             );
             Ok(())
         }
@@ -845,6 +857,7 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
         },
         settings,
         log: true,
+        keep: Some(sim::KEEP_LIVE),
     };
     let handle = sim::serve(&machine, addr, opts)
         .map_err(|e| io_fail(format!("cannot listen on {addr}: {e}")))?;
@@ -865,16 +878,4 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
     let _ = std::io::stdout().flush();
     handle.join();
     Ok(())
-}
-
-/// The NC lines of a job, exactly as `lase emit` writes them.
-pub fn nc_lines(
-    recipe: &driver::Recipe,
-    job: &lase_runtime::motion::Job,
-    dialect: Dialect,
-) -> Result<Vec<NcLine>, (SourceMap, Failure)> {
-    let locate = |s: Span| recipe.locate(s);
-    lase_runtime::emit::emit_lines(job, dialect, &crate::emit_options(&locate))
-        .map(|(lines, _)| lines)
-        .map_err(|e| (recipe.map.clone(), Failure::one(e)))
 }

@@ -179,19 +179,35 @@ fn parse_dialect(d: &str) -> Result<Dialect, (SourceMap, Failure)> {
 
 fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
     let dialect = parse_dialect(dialect)?;
+    // No spinner over NC text printed on the terminal itself.
+    let busy = if output.is_none() && std::io::stdout().is_terminal() {
+        output::Busy::off()
+    } else {
+        output::Busy::start(&format!("compiling {}", file.display()))
+    };
     let (recipe, job) = driver::compile(file)?;
     let locate = |s: lase_lang::Span| recipe.locate(s);
     let options = emit_options(&locate);
-    let write = |w: &mut dyn Write| -> Result<(), (SourceMap, Failure)> {
+    let mut written = (0u64, 0u64);
+    let mut write = |w: &mut dyn Write| -> Result<(), (SourceMap, Failure)> {
         let mut io_err = None;
+        busy.say(format!("writing {dialect} NC"));
+        let mut lines = 0u64;
         let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
-            writeln!(w, "{}", l.text).inspect_err(|e| io_err = Some(e.to_string()))
+            lines += 1;
+            if lines.is_multiple_of(1 << 16) && busy.shown() {
+                busy.say(format!("writing {dialect} NC: {lines} lines"));
+            }
+            w.write_all(l.text.as_bytes())
+                .and_then(|()| w.write_all(b"\n"))
+                .inspect_err(|e| io_err = Some(e.to_string()))
         });
         match r {
             Ok(stats) => {
                 for warn in &stats.warnings {
                     eprintln!("warning: {warn}");
                 }
+                written = (stats.lines, stats.bytes);
                 Ok(())
             }
             Err(e) => match io_err {
@@ -201,10 +217,28 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
         }
     };
     match output {
-        Some(path) => output::write_atomic(path, |w| write(w)),
+        Some(path) => {
+            output::write_atomic(path, |w| write(w))?;
+            drop(busy);
+            // A one-line result, as `plot -o` prints: the file holds the program.
+            let size = match written.1 {
+                b if b >= 1_000_000 => format!("{:.1} MB", b as f64 / 1e6),
+                b => format!("{:.1} kB", b as f64 / 1e3),
+            };
+            outln!(
+                "{}: wrote {} ({} lines, {size}, {dialect})",
+                recipe.name(),
+                path.display(),
+                written.0,
+            );
+            Ok(())
+        }
         None => {
             // A reader that stops early (`| head`) ends lase quietly, as it would `cat`.
-            let mut out = std::io::BufWriter::new(output::Stdout(std::io::stdout().lock()));
+            let mut out = std::io::BufWriter::with_capacity(
+                1 << 16,
+                output::Stdout(std::io::stdout().lock()),
+            );
             write(&mut out)?;
             out.flush().map_err(|e| io_fail(format!("stdout: {e}")))
         }

@@ -142,7 +142,7 @@ pub fn write_atomic(
                 .write(true)
                 .open(&p)
                 .map_err(|e| fail(format!("cannot write {}: {e}", p.display())))?;
-            let mut w = io::BufWriter::new(f);
+            let mut w = io::BufWriter::with_capacity(1 << 16, f);
             body(&mut w)?;
             return w
                 .flush()
@@ -180,7 +180,7 @@ pub fn write_atomic(
             }
         })
         .map_err(|e| fail(format!("cannot write in {}: {e}", dir.display())))?;
-    let mut w = io::BufWriter::new(file);
+    let mut w = io::BufWriter::with_capacity(1 << 16, file);
     body(&mut w)?;
     let file: File = w
         .into_inner()
@@ -326,5 +326,63 @@ pub(crate) fn ops_count(job: &lase_runtime::motion::Job) -> String {
         format!("{written} ops")
     } else {
         format!("{written} ops + {leads} lead-ins/outs")
+    }
+}
+
+/// A sign of life on the terminal while a command works: a spinner on stderr with what it is
+/// doing, drawn within 100 ms of the start (texturing jobs take seconds to compile and
+/// write), and nothing at all when stderr is not a terminal, so logs and goldens stay clean.
+pub struct Busy {
+    bar: Option<indicatif::ProgressBar>,
+}
+
+impl Busy {
+    /// Starts the spinner with `what` (e.g. "compiling recipe.lase").
+    pub fn start(what: &str) -> Busy {
+        use std::io::IsTerminal;
+        let bar = io::stderr().is_terminal().then(|| {
+            let b = indicatif::ProgressBar::new_spinner();
+            b.set_style(
+                indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+            );
+            b.set_message(what.to_string());
+            b.enable_steady_tick(std::time::Duration::from_millis(100));
+            b
+        });
+        Busy { bar }
+    }
+
+    /// No spinner.
+    pub fn off() -> Busy {
+        Busy { bar: None }
+    }
+
+    /// What it is doing now.
+    pub fn say(&self, what: impl Into<String>) {
+        if let Some(b) = &self.bar {
+            b.set_message(what.into());
+        }
+    }
+
+    /// Whether anybody sees it (callers skip building messages otherwise).
+    pub fn shown(&self) -> bool {
+        self.bar.is_some()
+    }
+}
+
+impl Drop for Busy {
+    fn drop(&mut self) {
+        if let Some(b) = &self.bar {
+            b.finish_and_clear();
+        }
+    }
+}
+
+impl std::fmt::Debug for Busy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Busy")
+            .field("shown", &self.bar.is_some())
+            .finish()
     }
 }

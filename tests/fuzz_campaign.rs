@@ -46,6 +46,7 @@ enum Reached {
 /// Runs one recipe through every phase, as `lase emit` and `lase plan` do.
 fn pipeline(text: &str) -> Reached {
     let mut files = MemFiles::new([("fuzz.lase", text)]);
+    files.insert_bytes("image_engrave.png", image());
     let Ok(mut recipe) = compile::load(&mut files, "fuzz.lase") else {
         return Reached::Load;
     };
@@ -63,6 +64,19 @@ fn pipeline(text: &str) -> Reached {
     }
     let _ = lase_runtime::report::summarize(&job);
     Reached::Emitted
+}
+
+/// The example's PNG, which generated `scan image` statements name.
+fn image() -> Vec<u8> {
+    static PNG: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    PNG.get_or_init(|| {
+        std::fs::read(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/examples/image_engrave.png"
+        ))
+        .unwrap_or_default()
+    })
+    .clone()
 }
 
 struct Campaign {

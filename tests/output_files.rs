@@ -225,3 +225,21 @@ fn a_closed_pipe_ends_lase_quietly() {
         assert!(err.is_empty(), "{args:?} said: {err}");
     }
 }
+
+/// `emit -o` says what it wrote in one line, as `plot -o` does (issue 18: a long job printed
+/// nothing when done): the numbers are the file's own.
+#[test]
+fn emit_to_a_file_reports_the_lines_and_bytes_it_wrote() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("job.ngc");
+    let p = out.to_string_lossy().into_owned();
+    let (code, stdout, err) = common::lase(&["emit", RECIPE, "-o", &p]);
+    assert_eq!(code, 0, "{err}");
+    let text = std::fs::read_to_string(&out).unwrap();
+    let expect = format!(
+        "frame_marking.lase: wrote {p} ({} lines, {:.1} kB, linuxcnc)\n",
+        text.lines().count(),
+        text.len() as f64 / 1e3
+    );
+    assert_eq!(stdout, expect);
+}

@@ -3,6 +3,7 @@
 //!
 //! ```text
 //! cargo run --release --example bench_plan -- 1000000
+//! cargo run --release --example bench_plan -- --sweep
 //! cargo run --release --example bench_plan -- --polyline path.csv [--jd 0.01] [--v 250]
 //!     [--a 2000] [--j 50000] [--profile trapezoid|scurve]
 //! ```
@@ -10,11 +11,13 @@
 //! The first form (`--profile` picks one profile) generates an N-segment cornered 2-axis path (chords of 0.2–2 mm turning by
 //! 0–150° at every junction, kept inside a 200 × 200 mm field, a stop every 10 000 moves) and
 //! an N-segment path of an oriented machine (X and three joints, part-space chords, corners
-//! judged per axis), plans each offline with the trapezoid and the S-curve profile, and prints segments/s (best of
-//! three runs, one core; by the wall clock and by the planning thread's own CPU time, which
-//! other processes on a shared machine do not inflate), the memory planning takes per segment (peak resident memory during
-//! `plan` above the resident memory before it, over N: the output segments plus the look-ahead
-//! scratch) and the cycle time.
+//! judged per axis), plans each offline with the trapezoid and the S-curve profile, and prints segments/s (one
+//! core; the best run by the wall clock, and the mean of the planning thread's own CPU time, which
+//! other processes on a shared machine do not inflate), the memory planning takes per segment
+//! (counted by a counting global allocator: the bytes the plan holds, and all bytes allocated
+//! while planning, scratch included, over N) and the cycle time. Small N are planned more times
+//! (at least 3, about 2 M segments in all) so the clock has something to measure.
+//! `--sweep` runs N = 10⁴, 10⁵, 10⁶ and 10⁷, to show the cost per segment stays flat.
 //!
 //! The second form plans the polyline in a CSV file (one `x,y` point in mm per line, the first
 //! is the start) and prints `{"segments": n, "duration_s": t, ...}` as JSON.
@@ -24,23 +27,10 @@ use lase_runtime::planner::{
 };
 use std::time::Instant;
 
-/// Peak resident memory of the process since the last [`reset_peak`], bytes (Linux
-/// `/proc/self/status` VmHWM). The workspace forbids unsafe code, so a counting global allocator
-/// is out; the planner writes every byte it allocates, so the resident peak is its heap peak.
-fn peak_rss() -> Option<usize> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
-
-/// Current resident memory, bytes (VmRSS).
-fn rss() -> Option<usize> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
-    let kb: usize = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
+/// Every allocation counted (a counting global allocator, not RSS: resident memory moves in
+/// pages and lags the heap, which made small runs print 0 or 16 bytes per segment).
+#[global_allocator]
+static ALLOC: cap::Cap<std::alloc::System> = cap::Cap::new(std::alloc::System, usize::MAX);
 
 /// CPU time this thread has run, in s (`/proc/thread-self/schedstat`, ns on the CPU): on a
 /// machine shared with other work, the wall clock counts the time other processes hold the
@@ -49,11 +39,6 @@ fn cpu_time() -> Option<f64> {
     let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
     let ns: u64 = s.split_whitespace().next()?.parse().ok()?;
     Some(ns as f64 * 1e-9)
-}
-
-/// Resets the VmHWM peak to the current RSS (`echo 5 > /proc/self/clear_refs`, Linux ≥ 4.0).
-fn reset_peak() -> bool {
-    std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
 struct Options {
@@ -75,6 +60,7 @@ fn main() {
     };
     let mut n = 1_000_000usize;
     let mut polyline: Option<String> = None;
+    let mut sweep = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = |name: &str| -> f64 {
@@ -95,6 +81,7 @@ fn main() {
                 }
             }
             "--polyline" => polyline = it.next().cloned(),
+            "--sweep" => sweep = true,
             s => {
                 n = s
                     .parse()
@@ -104,6 +91,11 @@ fn main() {
     }
     match polyline {
         Some(path) => plan_polyline(&path, &opts),
+        None if sweep => {
+            for n in [10_000, 100_000, 1_000_000, 10_000_000] {
+                throughput(n, &opts);
+            }
+        }
         None => throughput(n, &opts),
     }
 }
@@ -253,28 +245,31 @@ fn throughput(n: usize, o: &Options) {
             ..config(profile, o.jd)
         };
         let mut best = f64::INFINITY;
-        let mut best_cpu = f64::INFINITY;
-        let mut bytes = None;
+        // CPU time is summed over the runs: the scheduler's count is too coarse for one run of
+        // a small N (it read 0 s, and the rate came out infinite).
+        let (mut cpu_total, mut cpu_runs) = (0.0, 0usize);
+        let (mut held, mut churn) = (0usize, 0usize);
         let mut cycle = 0.0;
         let mut print = 0;
-        for _ in 0..3 {
-            let base = if reset_peak() { rss() } else { None };
+        let runs = (2_000_000 / n.max(1)).clamp(3, 200);
+        for _ in 0..runs {
+            let (live0, total0) = (ALLOC.allocated(), ALLOC.total_allocated());
             let t0 = Instant::now();
             let c0 = cpu_time();
             let p = plan([0.0; MAX_AXES], moves, &lim, &cfg)
                 .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
             best = best.min(t0.elapsed().as_secs_f64());
             if let (Some(c0), Some(c1)) = (c0, cpu_time()) {
-                best_cpu = best_cpu.min(c1 - c0);
+                cpu_total += c1 - c0;
+                cpu_runs += 1;
             }
-            if let (Some(b), Some(peak)) = (base, peak_rss()) {
-                bytes = Some(peak.saturating_sub(b));
-            }
+            held = ALLOC.allocated().saturating_sub(live0);
+            churn = ALLOC.total_allocated().saturating_sub(total0);
             cycle = p.duration();
             print = fingerprint(&p);
             std::hint::black_box(&p);
         }
-        let per = bytes.map_or("n/a".to_string(), |b| format!("{:.1}", b as f64 / n as f64));
+        let per_n = |b: usize| b as f64 / n.max(1) as f64;
         // The streaming look-ahead on the first 100 000 moves, for its fingerprint.
         let window = PlannerConfig {
             lookahead: Some(64),
@@ -283,11 +278,17 @@ fn throughput(n: usize, o: &Options) {
         let streamed = plan([0.0; MAX_AXES], &moves[..n.min(100_000)], &lim, &window)
             .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
         println!(
-            "{name:>19}: {:6.2} M segments/s wall, {:6.2} M/s CPU time, {per} bytes/segment (peak \
-             RSS of plan; Segment is {} bytes), cycle time {:.3} s, fingerprint {print:016x} \
-             (window 64: {:016x})",
-            n as f64 / best / 1e6,
-            n as f64 / best_cpu / 1e6,
+            "{name:>19}: {:6.2} M segments/s wall (best of {runs}), {:6.2} M/s CPU time (mean), {:.1} bytes/segment \
+             held by the plan ({:.1} allocated while planning; Segment is {} bytes), cycle time \
+             {:.3} s, fingerprint {print:016x} (window 64: {:016x})",
+            n as f64 / best.max(1e-9) / 1e6,
+            if cpu_total > 0.0 {
+                (n * cpu_runs) as f64 / cpu_total / 1e6
+            } else {
+                f64::NAN
+            },
+            per_n(held),
+            per_n(churn),
             std::mem::size_of::<Segment>(),
             cycle,
             fingerprint(&streamed)

@@ -277,16 +277,23 @@ impl Recipe {
 
     /// `file:line` of a span, for NC comments.
     pub fn locate(&self, span: Span) -> String {
-        match self.map.locate(span) {
-            Some((f, lc)) => format!("{}:{}", file_name(self.map.name(f)), lc.line),
-            None => String::new(),
-        }
+        locate_in(&self.map, span)
     }
 
     /// The empty span at the end of the main file (where a missing `machine` is reported).
     fn end(&self) -> Span {
         let end = self.map.base(self.main) + self.map.text(self.main).len();
         Span::new(end, end)
+    }
+}
+
+/// [`Recipe::locate`] from the source map alone, which (unlike the recipe, whose extensions
+/// hold Rhai's single-threaded values) can be shared with the emitter's thread while
+/// `lase run` streams.
+pub fn locate_in(map: &SourceMap, span: Span) -> String {
+    match map.locate(span) {
+        Some((f, lc)) => format!("{}:{}", file_name(map.name(f)), lc.line),
+        None => String::new(),
     }
 }
 

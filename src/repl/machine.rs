@@ -477,7 +477,7 @@ impl Station {
             format!(
                 "{} of {} lines had run; re-approach: {}",
                 plan.executed,
-                lines.lines().len(),
+                lines.len(),
                 plan.reapproach.all().join(" | ")
             )
         });
@@ -504,10 +504,10 @@ impl Station {
         let link = &mut conn.link;
         let name = lost.name.as_str();
         let from = started.from();
-        let total = lines.lines().len();
+        let total = lines.len();
         let letters = lines.letters();
         let summary = lase_runtime::report::summarize(lines.job());
-        let eta = lase_runtime::link::eta::Eta::new(lines.job(), lines.nc());
+        let eta = lase_runtime::link::eta::Eta::from_runs(lines.job(), lines.runs(), total);
         // Ctrl-C is ours from here until the job has ended.
         let sig = SigGuard::new();
         let keys = interactive.then(Keys::start);

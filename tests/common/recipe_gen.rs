@@ -280,6 +280,16 @@ impl Gen<'_, '_> {
         let kind = *self.u.choose(schema::SCAN_KINDS)?;
         let _ = write!(self.out, "scan {} ", kind.name);
         let dots = kind.name == "dots";
+        if kind.name == "image" {
+            // An image file: the stored test image or a name that is not there.
+            self.out.push_str(if self.u.ratio(1, 2)? {
+                "\"image_engrave.png\""
+            } else {
+                "\"nope.png\""
+            });
+            self.out.push(' ');
+            return self.settings_stmt_body(kind.settings);
+        }
         match self.u.int_in_range(0..=5)? {
             0 if dots => self.value(PTy::Point)?,
             1 if dots => self.value(PTy::Points)?,
@@ -659,6 +669,7 @@ impl Gen<'_, '_> {
                 Ok(())
             }
             PTy::Flag => Ok(()),
+            PTy::ListOrStr | PTy::Any => self.leaf(PTy::Str),
         }
     }
 

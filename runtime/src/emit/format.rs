@@ -1,19 +1,26 @@
 //! NC words: numbers, comments, post templates and the M words inside a line of machine-file
 //! text.
 
-use std::fmt::Write as _;
-
 /// A number as NC text: 4 decimals (0.1 µm in mm, 0.1 ms in s), trailing zeros and a trailing
 /// point trimmed, never `-0`.
 pub fn number(x: f64) -> String {
+    let mut s = String::with_capacity(12);
+    number_into(&mut s, x);
+    s
+}
+
+/// [`number`] appended to `out`: the emitter writes every coordinate of a multi-million-line
+/// program through here, into buffers it reuses, so formatting allocates nothing.
+pub fn number_into(out: &mut String, x: f64) {
     // Fast path, byte for byte what `{:.4}` writes: away from a rounding tie the product
     // x·10⁴ (within an ulp of the exact value) rounds to the same integer as the exact decimal
     // expansion `{:.4}` rounds. Ties and huge values take the exact formatter.
     let y = x * 1e4;
     if y.is_finite() && y.abs() < 9e15 && ((y - y.floor()) - 0.5).abs() > 1e-6 {
-        return fixed4(y.round() as i64);
+        fixed4_into(out, y.round() as i64);
+        return;
     }
-    trimmed(format!("{x:.4}"))
+    out.push_str(&trimmed(format!("{x:.4}")));
 }
 
 /// A fixed-point number with trailing zeros and a trailing point trimmed, never `-0`.
@@ -43,8 +50,8 @@ pub fn inverse_time(x: f64) -> String {
     trimmed(format!("{x:.decimals$}"))
 }
 
-/// `n / 10⁴` with trailing zeros and point trimmed, never `-0`.
-fn fixed4(n: i64) -> String {
+/// `n / 10⁴` with trailing zeros and point trimmed, never `-0`, appended to `out`.
+fn fixed4_into(out: &mut String, n: i64) {
     let a = n.unsigned_abs();
     let (mut int, mut frac) = (a / 10_000, a % 10_000);
     // Digits right to left into a small buffer: sign, up to 20 integer digits, point, 4.
@@ -76,7 +83,12 @@ fn fixed4(n: i64) -> String {
         i -= 1;
         buf[i] = b'-';
     }
-    String::from_utf8_lossy(&buf[i..]).into_owned()
+    // Only ASCII digits, '.' and '-' were written: pushed one by one, which is cheaper for a
+    // handful of bytes than a UTF-8 check and a copy call.
+    out.reserve(buf.len() - i);
+    for &b in &buf[i..] {
+        out.push(b as char);
+    }
 }
 
 /// A comment in parentheses. Parentheses inside would end it early (and nested comments are an
@@ -119,13 +131,19 @@ pub struct LaserWords {
 /// would be left as written.
 pub fn fill(template: &str, w: LaserWords) -> String {
     let mut out = String::with_capacity(template.len() + 8);
+    fill_into(&mut out, template, w);
+    out
+}
+
+/// [`fill`] appended to `out` (the pulse lines of a dot raster, millions of them).
+pub fn fill_into(out: &mut String, template: &str, w: LaserWords) {
     let mut rest = template;
     while let Some(open) = rest.find('{') {
         out.push_str(&rest[..open]);
         let after = &rest[open + 1..];
         let Some(close) = after.find('}') else {
             out.push_str(&rest[open..]);
-            return out;
+            return;
         };
         let value = match &after[..close] {
             "power" => Some(w.power_w),
@@ -134,15 +152,12 @@ pub fn fill(template: &str, w: LaserWords) -> String {
             _ => None,
         };
         match value {
-            Some(v) => {
-                let _ = write!(out, "{}", number(v));
-            }
+            Some(v) => number_into(out, v),
             None => out.push_str(&rest[open..open + close + 2]),
         }
         rest = &after[close + 1..];
     }
     out.push_str(rest);
-    out
 }
 
 /// The placeholders of a template that are not known, or a description of a broken brace.

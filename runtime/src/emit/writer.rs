@@ -41,31 +41,83 @@ struct Out<'s> {
     stats: EmitStats,
     /// The last lines written were the laser-off lines.
     after_off: bool,
+    /// The line handed to the sink, reused: a texturing job writes millions of lines, and a
+    /// fresh `String` for each was a large part of emission time.
+    line: NcLine,
 }
 
 impl Out<'_> {
     /// Writes one block, numbered in ISO.
     fn put(&mut self, text: &str, op: Option<u32>) -> io::Result<()> {
-        let text = if self.dialect == Dialect::Iso {
+        self.line.text.clear();
+        if self.dialect == Dialect::Iso {
             self.block = if self.block >= BLOCK_WRAP {
                 BLOCK_STEP
             } else {
                 self.block + BLOCK_STEP
             };
-            format!("N{} {text}", self.block)
-        } else {
-            text.to_string()
-        };
-        self.raw(text, op)
+            use std::fmt::Write as _;
+            let _ = write!(self.line.text, "N{} ", self.block);
+        }
+        self.line.text.push_str(text);
+        self.send(op)
+    }
+
+    /// Writes one block, numbered in ISO, that `write` builds in place (no copy of its own).
+    fn put_with(&mut self, write: impl FnOnce(&mut String), op: Option<u32>) -> io::Result<()> {
+        self.line.text.clear();
+        if self.dialect == Dialect::Iso {
+            self.block = if self.block >= BLOCK_WRAP {
+                BLOCK_STEP
+            } else {
+                self.block + BLOCK_STEP
+            };
+            use std::fmt::Write as _;
+            let _ = write!(self.line.text, "N{} ", self.block);
+        }
+        write(&mut self.line.text);
+        self.send(op)
     }
 
     /// Writes a line as is (ISO's `%` and program number).
-    fn raw(&mut self, text: String, op: Option<u32>) -> io::Result<()> {
+    fn raw(&mut self, text: &str, op: Option<u32>) -> io::Result<()> {
+        self.line.text.clear();
+        self.line.text.push_str(text);
+        self.send(op)
+    }
+
+    /// Hands `self.line` to the sink.
+    fn send(&mut self, op: Option<u32>) -> io::Result<()> {
+        let len = self.line.text.len();
         self.stats.lines += 1;
-        self.stats.bytes += text.len() as u64 + 1;
-        self.stats.longest_line = self.stats.longest_line.max(text.len());
+        self.stats.bytes += len as u64 + 1;
+        self.stats.longest_line = self.stats.longest_line.max(len);
         self.after_off = false;
-        (self.sink)(&NcLine { text, op })
+        self.line.op = op;
+        (self.sink)(&self.line)
+    }
+}
+
+/// A word's value as last written, in a buffer that is reused (`set` copies into it).
+#[derive(Default)]
+struct Last {
+    text: String,
+    written: bool,
+}
+
+impl Last {
+    fn is(&self, v: &str) -> bool {
+        self.written && self.text == v
+    }
+
+    fn set(&mut self, v: &str) {
+        self.text.clear();
+        self.text.push_str(v);
+        self.written = true;
+    }
+
+    fn unset(&mut self) {
+        self.written = false;
     }
 }
 
@@ -73,10 +125,12 @@ impl Out<'_> {
 struct Modal {
     /// Current motion mode (G0, G1, G2, G3).
     motion: Option<&'static str>,
-    /// Last F word, None after a rapid so the next feed move repeats it.
-    feed: Option<String>,
-    /// Last written value of each machine axis; None before the first move.
-    words: Vec<Option<String>>,
+    /// Last F word, unset after a rapid so the next feed move repeats it.
+    feed: Last,
+    /// Last written value of each machine axis; unset before the first move.
+    words: Vec<Last>,
+    /// Scratch buffer a word's value is formatted into before it is compared with the last.
+    scratch: String,
     /// Where the spot is, part coordinates.
     pos: P3,
     /// Axis positions of `pos`: the planned axes of the last block written.
@@ -108,6 +162,10 @@ pub(super) fn write(
         block: 0,
         stats: EmitStats::default(),
         after_off: false,
+        line: NcLine {
+            text: String::with_capacity(128),
+            op: None,
+        },
     };
     let words = |power_w: f64| LaserWords {
         power_w,
@@ -117,8 +175,8 @@ pub(super) fn write(
 
     // Header.
     if dialect == Dialect::Iso {
-        out.raw("%".into(), None)?;
-        out.raw("O0001".into(), None)?;
+        out.raw("%", None)?;
+        out.raw("O0001", None)?;
     }
     let version = env!("CARGO_PKG_VERSION");
     for c in [
@@ -160,8 +218,9 @@ pub(super) fn write(
 
     let mut m = Modal {
         motion: None,
-        feed: None,
-        words: vec![None; machine.axes.len()],
+        feed: Last::default(),
+        words: (0..machine.axes.len()).map(|_| Last::default()).collect(),
+        scratch: String::with_capacity(32),
         pos: program.start,
         q: job.start,
         laser_on: false,
@@ -368,7 +427,7 @@ pub(super) fn write(
     match dialect {
         Dialect::Iso => {
             out.put("M30", None)?;
-            out.raw("%".into(), None)?;
+            out.raw("%", None)?;
         }
         Dialect::LinuxCnc | Dialect::Grbl | Dialect::GrblHal => out.put("M2", None)?,
     }
@@ -506,15 +565,17 @@ fn motion_line(
         (OpKind::Arc { .. }, Some((x, y, _))) => Some((x, y)),
         _ => None,
     };
+    let mut v = std::mem::take(&mut m.scratch);
     for (k, axis) in machine.axes.iter().enumerate() {
-        let v = match axis.kind {
-            AxisKind::Linear => format::number(q[k]),
-            AxisKind::Rotary => format::degrees(axes::to_external(axis.kind, q[k])),
-        };
+        v.clear();
+        match axis.kind {
+            AxisKind::Linear => format::number_into(&mut v, q[k]),
+            AxisKind::Rotary => v.push_str(&format::degrees(axes::to_external(axis.kind, q[k]))),
+        }
         let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
-        if forced || m.words[k].as_deref() != Some(v.as_str()) {
+        if forced || !m.words[k].is(&v) {
             word(&mut line, &axis.name, &v);
-            m.words[k] = Some(v);
+            m.words[k].set(&v);
         }
     }
     if let OpKind::Arc { center, .. } = &op.kind {
@@ -538,17 +599,19 @@ fn motion_line(
                     .fold(1e-9, f64::max)
             };
             word(&mut line, "F", &format::inverse_time(1.0 / minutes));
-            m.feed = None;
+            m.feed.unset();
         }
         Some(f) => {
-            let f = format::number(f * 60.0);
-            if m.feed.as_deref() != Some(f.as_str()) {
-                word(&mut line, "F", &f);
-                m.feed = Some(f);
+            v.clear();
+            format::number_into(&mut v, f * 60.0);
+            if !m.feed.is(&v) {
+                word(&mut line, "F", &v);
+                m.feed.set(&v);
             }
         }
-        None => m.feed = None,
+        None => m.feed.unset(),
     }
+    m.scratch = v;
     m.pos = to;
     m.q = q;
     line

@@ -16,8 +16,12 @@ const WINDOW: usize = 256;
 
 #[derive(Debug, Clone)]
 pub struct Eta {
-    /// Planned job time when each line's op has finished, s.
-    line_end: Vec<f64>,
+    /// Planned job time when each line's op has finished, s, run-length: (first line, time)
+    /// wherever it changes (from 0 s at line 0). By ops, not by lines: a job of millions of
+    /// lines has far fewer ops.
+    line_end: Vec<(usize, f64)>,
+    /// Lines in the job.
+    lines: usize,
     /// Planned segments: job time at start and end of motion, start and end point in the
     /// controller's X Y Z A B C (machine axes mapped by letter), mm and degrees.
     segs: Vec<(f64, f64, AxisPos, AxisPos)>,
@@ -31,7 +35,20 @@ pub struct Eta {
 }
 
 impl Eta {
+    /// The progress of `job` streamed as `lines`.
     pub fn new(job: &Job, lines: &[NcLine]) -> Eta {
+        let mut runs: Vec<(usize, Option<u32>)> = Vec::new();
+        for (i, l) in lines.iter().enumerate() {
+            if runs.last().is_none_or(|r| r.1 != l.op) {
+                runs.push((i, l.op));
+            }
+        }
+        Eta::from_runs(job, &runs, lines.len())
+    }
+
+    /// The progress of `job` streamed as `n_lines` lines whose ops are `runs`: (first line,
+    /// op) wherever the op changes (`link::job::JobLines::runs`).
+    pub fn from_runs(job: &Job, runs: &[(usize, Option<u32>)], n_lines: usize) -> Eta {
         let plan = &job.plan;
         let t0 = job.initial_dwell_s;
         let axes = ControllerAxes::of(&job.program.machine);
@@ -49,16 +66,17 @@ impl Eta {
                 map(&plan.segment_target(i)),
             ));
         }
-        let mut line_end = Vec::with_capacity(lines.len());
+        let mut line_end = Vec::new();
         let mut t = 0.0f64;
-        for l in lines {
-            if let Some(e) =
-                l.op.and_then(|o| op_end.get(o as usize))
-                    .filter(|e| !e.is_nan())
+        for &(first, op) in runs {
+            if let Some(e) = op
+                .and_then(|o| op_end.get(o as usize))
+                .filter(|e| !e.is_nan())
+                && *e > t
             {
-                t = t.max(*e);
+                t = *e;
+                line_end.push((first, t));
             }
-            line_end.push(t);
         }
         // Pulses by segment, in one pass over the (lazy, time-ordered) pulse events.
         let mut pulses_by = vec![0u64; segs.len()];
@@ -80,6 +98,7 @@ impl Eta {
         }
         Eta {
             line_end,
+            lines: n_lines,
             segs,
             total: job.cycle_time(),
             pulses_by,
@@ -124,8 +143,11 @@ impl Eta {
     /// controller's position (work coordinates X Y Z A B C) when it is known. Degrees count
     /// as mm in the distance to a segment, as a GRBL-family controller counts them.
     pub fn done(&self, acked: usize, pos: Option<&[f64]>) -> f64 {
-        let upper = match acked.checked_sub(1).and_then(|i| self.line_end.get(i)) {
-            Some(t) => *t,
+        let upper = match acked.checked_sub(1).filter(|&i| i < self.lines) {
+            Some(i) => {
+                let k = self.line_end.partition_point(|r| r.0 <= i);
+                k.checked_sub(1).map_or(0.0, |k| self.line_end[k].1)
+            }
             None if acked == 0 => return 0.0,
             None => self.total,
         };

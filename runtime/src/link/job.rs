@@ -20,12 +20,12 @@
 use super::journal::{self, Header, Journal};
 use super::modal::Tracker;
 use super::resume::{self, ResumePlan};
-use super::stream::{self, Control, Progress, Report, StreamJob, StreamOptions};
+use super::stream::{self, Control, Lines, Progress, Report, Source, StreamJob, StreamOptions};
 use super::{
     AxisPos, ControllerAxes, Event, Link, LinkError, MachineState, ModalState, Requirements,
     SettingMismatch, Status,
 };
-use crate::emit::{Dialect, NcLine};
+use crate::emit::{Dialect, EmitError, EmitOptions, NcLine};
 use crate::motion::Job;
 use lase_lang::Span;
 use std::path::{Path, PathBuf};
@@ -39,46 +39,222 @@ const RESUME_WAIT: Duration = Duration::from_secs(600);
 
 /// A job's NC lines as they go to a controller, with the planned job they came from (for the
 /// settings it needs and the recipe statement behind each line).
+///
+/// The lines are either kept in memory ([`JobLines::new`], the REPL's jobs) or made again by
+/// the emitter each time they are read ([`JobLines::emitted`], `lase run`): a texturing job
+/// of tens of millions of lines is then never held as a whole. Checking every line, streaming
+/// and the progress display read them in order; a journaled job's send guards and a resume
+/// read them all ([`JobLines::all`]), which holds them for as long as that takes.
 #[derive(Debug)]
 pub struct JobLines<'a> {
     job: &'a Job,
-    nc: &'a [NcLine],
-    lines: Vec<String>,
     dialect: Dialect,
+    text: Text<'a>,
+    /// The op each line came from, run-length: (first line, op) wherever it changes.
+    runs: Vec<(usize, Option<u32>)>,
+    len: usize,
+    hash: u64,
+}
+
+/// Where a job's lines come from.
+enum Text<'a> {
+    Kept(Vec<String>),
+    /// Written with comments, each op located by this (`Sync`: the emitter runs on a helper
+    /// thread while the job streams).
+    Emitted(&'a (dyn Fn(Span) -> String + Sync)),
+}
+
+impl std::fmt::Debug for Text<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Text::Kept(l) => write!(f, "Kept({} lines)", l.len()),
+            Text::Emitted(_) => f.write_str("Emitted"),
+        }
+    }
+}
+
+/// The options every emitted job is written with: what `lase emit` writes, comments and
+/// recipe locations included.
+fn options(locate: &(dyn Fn(Span) -> String + Sync)) -> EmitOptions<'_> {
+    EmitOptions {
+        locate: Some(locate),
+        comments: true,
+    }
+}
+
+/// Lines handed from the emitter's thread to the streaming side at a time.
+const BATCH: usize = 4096;
+
+/// Run-length ops of lines, pushed one line at a time.
+fn push_run(runs: &mut Vec<(usize, Option<u32>)>, line: usize, op: Option<u32>) {
+    if runs.last().is_none_or(|r| r.1 != op) {
+        runs.push((line, op));
+    }
 }
 
 impl<'a> JobLines<'a> {
-    /// The lines `nc` of `job`, written in `dialect`.
+    /// The lines `nc` of `job`, written in `dialect`, kept in memory.
     pub fn new(job: &'a Job, nc: &'a [NcLine], dialect: Dialect) -> JobLines<'a> {
+        let mut runs = Vec::new();
+        for (i, l) in nc.iter().enumerate() {
+            push_run(&mut runs, i, l.op);
+        }
+        let lines: Vec<String> = nc.iter().map(|l| l.text.clone()).collect();
         JobLines {
             job,
-            nc,
-            lines: nc.iter().map(|l| l.text.clone()).collect(),
             dialect,
+            len: lines.len(),
+            hash: journal::program_hash(lines.iter().map(String::as_str)),
+            text: Text::Kept(lines),
+            runs,
         }
     }
 
-    pub fn lines(&self) -> &[String] {
-        &self.lines
+    /// The lines of `job` in `dialect` as `lase emit` writes them (comments located by
+    /// `locate`), made by the emitter whenever they are read: this first pass validates the
+    /// program, counts and hashes its lines and notes the op of each, and keeps none of them.
+    pub fn emitted(
+        job: &'a Job,
+        dialect: Dialect,
+        locate: &'a (dyn Fn(Span) -> String + Sync),
+    ) -> Result<JobLines<'a>, EmitError> {
+        let mut runs = Vec::new();
+        let mut hash = journal::ProgramHash::new();
+        let mut len = 0;
+        crate::emit::emit(job, dialect, &options(locate), &mut |l: &NcLine| {
+            push_run(&mut runs, len, l.op);
+            hash.add(&l.text);
+            len += 1;
+            Ok(())
+        })?;
+        Ok(JobLines {
+            job,
+            dialect,
+            text: Text::Emitted(locate),
+            runs,
+            len,
+            hash: hash.finish(),
+        })
+    }
+
+    /// How many lines the job has.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Reads every line in order (`f` gets its index and text) until `f` returns false.
+    pub fn scan(&self, f: &mut dyn FnMut(usize, &str) -> bool) {
+        match &self.text {
+            Text::Kept(lines) => {
+                for (i, l) in lines.iter().enumerate() {
+                    if !f(i, l) {
+                        return;
+                    }
+                }
+            }
+            Text::Emitted(locate) => {
+                let mut i = 0;
+                // Validated by `emitted`: only the stop below ends it early.
+                let options = options(*locate);
+                let _ = crate::emit::emit(self.job, self.dialect, &options, &mut |l: &NcLine| {
+                    let go = f(i, &l.text);
+                    i += 1;
+                    if go {
+                        Ok(())
+                    } else {
+                        Err(std::io::Error::other("enough lines read"))
+                    }
+                });
+            }
+        }
+    }
+
+    /// Line `index` (empty past the end). Reading one line of an emitted job writes the
+    /// program up to it: for diagnostics, not for loops.
+    pub fn line(&self, index: usize) -> String {
+        let mut out = String::new();
+        self.scan(&mut |i, l| {
+            if i == index {
+                out = l.to_string();
+            }
+            i < index
+        });
+        out
+    }
+
+    /// Every line, in memory while the result lives (borrowed when kept anyway).
+    pub fn all(&self) -> std::borrow::Cow<'_, [String]> {
+        match &self.text {
+            Text::Kept(lines) => lines.as_slice().into(),
+            Text::Emitted(_) => {
+                let mut v = Vec::with_capacity(self.len);
+                self.scan(&mut |_, l| {
+                    v.push(l.to_string());
+                    true
+                });
+                v.into()
+            }
+        }
+    }
+
+    /// Runs `f` with the lines as streaming reads them: the kept ones, or an emitter running
+    /// on a helper thread that hands over [`BATCH`] lines at a time through a channel of a
+    /// few batches, so at most a few batches are in memory whatever the job's length. When
+    /// `f` returns early (a stop, a lost link) the channel closes and the emitter ends.
+    pub fn with_lines<R>(&self, f: impl FnOnce(Lines<'_>) -> R) -> R {
+        match &self.text {
+            Text::Kept(lines) => f(Lines::All(lines)),
+            Text::Emitted(locate) => std::thread::scope(|s| {
+                let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<String>>(4);
+                let (job, dialect, locate) = (self.job, self.dialect, *locate);
+                s.spawn(move || {
+                    let mut batch = Vec::with_capacity(BATCH);
+                    let options = options(locate);
+                    let r = crate::emit::emit(job, dialect, &options, &mut |l: &NcLine| {
+                        batch.push(l.text.clone());
+                        if batch.len() == BATCH {
+                            let full = std::mem::replace(&mut batch, Vec::with_capacity(BATCH));
+                            tx.send(full)
+                                .map_err(|_| std::io::Error::other("streaming ended"))?;
+                        }
+                        Ok(())
+                    });
+                    if r.is_ok() && !batch.is_empty() {
+                        let _ = tx.send(batch);
+                    }
+                });
+                let feed = Feed {
+                    len: self.len,
+                    rx,
+                    batch: std::cell::RefCell::new((0, Vec::new())),
+                };
+                f(Lines::Made(&feed))
+            }),
+        }
     }
 
     pub fn job(&self) -> &'a Job {
         self.job
     }
 
-    pub fn nc(&self) -> &'a [NcLine] {
-        self.nc
-    }
-
     pub fn dialect(&self) -> Dialect {
         self.dialect
     }
 
+    /// The op each line came from, run-length: (first line, op) wherever it changes.
+    pub fn runs(&self) -> &[(usize, Option<u32>)] {
+        &self.runs
+    }
+
     /// The recipe statement that produced line `index` (empty for header and footer lines).
     pub fn span_of(&self, index: usize) -> Span {
-        self.nc
-            .get(index)
-            .and_then(|l| l.op)
+        let k = self.runs.partition_point(|r| r.0 <= index);
+        k.checked_sub(1)
+            .and_then(|k| self.runs[k].1)
             .and_then(|o| self.job.program.ops.get(o as usize))
             .map(|o| o.span)
             .unwrap_or_default()
@@ -92,7 +268,40 @@ impl<'a> JobLines<'a> {
     }
 
     fn hash(&self) -> u64 {
-        journal::program_hash(self.lines.iter().map(String::as_str))
+        self.hash
+    }
+}
+
+/// The streaming side of [`JobLines::with_lines`]: the current batch, and the channel the
+/// next ones come through.
+#[derive(Debug)]
+struct Feed {
+    len: usize,
+    rx: std::sync::mpsc::Receiver<Vec<String>>,
+    /// The first line's index and the lines of the current batch.
+    batch: std::cell::RefCell<(usize, Vec<String>)>,
+}
+
+impl Source for Feed {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn line(&self, index: usize) -> String {
+        let mut b = self.batch.borrow_mut();
+        // Streaming reads forward: batches before `index` are done with.
+        while index >= b.0 + b.1.len() {
+            match self.rx.recv() {
+                Ok(next) => {
+                    b.0 += b.1.len();
+                    b.1 = next;
+                }
+                Err(_) => return String::new(),
+            }
+        }
+        b.1.get(index.wrapping_sub(b.0))
+            .cloned()
+            .unwrap_or_default()
     }
 }
 
@@ -161,12 +370,12 @@ impl Origin {
         resume_at: Option<usize>,
         recipe: &str,
     ) -> Result<Origin, LinkError> {
-        if state.header.hash != job.hash() || state.header.lines != job.lines.len() {
+        if state.header.hash != job.hash() || state.header.lines != job.len() {
             return Err(LinkError::Resume {
                 reason: format!(
                     "{recipe} no longer produces the program the journal recorded ({} lines then, {} now)",
                     state.header.lines,
-                    job.lines.len()
+                    job.len()
                 ),
                 help: "resume with the recipe (and machine file) exactly as they were when the job started".into(),
             });
@@ -251,16 +460,24 @@ pub fn preflight(
 ) -> Result<Ready, Refused> {
     let fresh = matches!(origin, Origin::Fresh(_));
     let setup = |e: LinkError| if fresh { not_started(e) } else { e };
-    for (i, l) in job.lines.iter().enumerate() {
-        if let Err(reason) = link.validate_line(l) {
-            return Err(Refused::Link(LinkError::Unsendable {
-                line_no: i + 1,
-                line: l.clone(),
-                reason,
-                span: job.span_of(i),
-                help: "change the recipe text that ends up in this line (names in comments, for instance)".into(),
-            }));
+    let mut unsendable = None;
+    job.scan(&mut |i, l| match link.validate_line(l) {
+        Ok(()) => true,
+        Err(reason) => {
+            unsendable = Some((i, l.to_string(), reason));
+            false
         }
+    });
+    if let Some((i, line, reason)) = unsendable {
+        return Err(Refused::Link(LinkError::Unsendable {
+            line_no: i + 1,
+            line,
+            reason,
+            span: job.span_of(i),
+            help:
+                "change the recipe text that ends up in this line (names in comments, for instance)"
+                    .into(),
+        }));
     }
     // A resumed job first waits for the controller to finish what it had received (`$$` is
     // refused while it moves) and finds where the job stands.
@@ -272,7 +489,7 @@ pub fn preflight(
         } => {
             let plan = resume::plan(
                 link,
-                &job.lines,
+                &job.all(),
                 &state,
                 &job.letters(),
                 resume_at,
@@ -328,7 +545,7 @@ impl Ready {
                     recipe: nj.recipe,
                     link: nj.link,
                     dialect: job.dialect.to_string(),
-                    lines: job.lines.len(),
+                    lines: job.len(),
                     hash: job.hash(),
                     start: self.start,
                 };
@@ -344,7 +561,8 @@ impl Ready {
         // Closed lit contours wait for acknowledgements, so that a drop can always be
         // resumed; without a journal there is nothing to resume.
         let guards = if journal.is_some() {
-            resume::send_guards(&Tracker::new(self.start), &job.lines)
+            // They hold every line while they are worked out (see `JobLines`).
+            resume::send_guards(&Tracker::new(self.start), &job.all())
         } else {
             Vec::new()
         };
@@ -386,20 +604,23 @@ impl Started {
         job: &JobLines<'_>,
         observer: &mut dyn FnMut(&Progress, Option<&Event>) -> Option<Control>,
     ) -> Report {
-        stream::stream(
-            link,
-            &StreamJob {
-                lines: &job.lines,
-                from: self.from,
-                lead: &self.lead,
-                restored: self.restored.clone(),
-                guards: &self.guards,
-                letters: &job.letters(),
-            },
-            self.journal.as_mut(),
-            &StreamOptions::default(),
-            observer,
-        )
+        let letters = job.letters();
+        job.with_lines(|lines| {
+            stream::stream(
+                link,
+                &StreamJob {
+                    lines,
+                    from: self.from,
+                    lead: &self.lead,
+                    restored: self.restored.clone(),
+                    guards: &self.guards,
+                    letters: &letters,
+                },
+                self.journal.as_mut(),
+                &StreamOptions::default(),
+                observer,
+            )
+        })
     }
 }
 
@@ -407,13 +628,18 @@ impl Started {
 /// preflight and moves nothing; the controller leaves check mode afterwards.
 pub fn check_mode(link: &mut dyn Link, job: &JobLines<'_>) -> Result<Report, LinkError> {
     link.set_check_mode(true)?;
-    let report = stream::stream(
-        link,
-        &StreamJob::new(&job.lines),
-        None,
-        &StreamOptions::default(),
-        &mut |_: &Progress, _: Option<&Event>| None,
-    );
+    let report = job.with_lines(|lines| {
+        stream::stream(
+            link,
+            &StreamJob {
+                lines,
+                ..StreamJob::new(&[])
+            },
+            None,
+            &StreamOptions::default(),
+            &mut |_: &Progress, _: Option<&Event>| None,
+        )
+    });
     let _ = link.set_check_mode(false);
     Ok(report)
 }

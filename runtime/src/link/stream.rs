@@ -88,11 +88,55 @@ pub struct Report {
     pub stop_note: Option<String>,
 }
 
+/// Lines made on demand, in order: a program that is never held in memory as a whole (a
+/// generated benchmark, an emitter run again), so that a job of any length streams in
+/// bounded memory.
+pub trait Source: std::fmt::Debug {
+    /// How many lines the job has.
+    fn len(&self) -> usize;
+
+    /// Line `index`. Streaming asks for indices that never decrease, and may ask for the same
+    /// one again (when the controller's buffer was full the first time).
+    fn line(&self, index: usize) -> String;
+
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// A job's lines: all in memory, or made on demand.
+#[derive(Debug, Clone, Copy)]
+pub enum Lines<'a> {
+    All(&'a [String]),
+    Made(&'a dyn Source),
+}
+
+impl<'a> Lines<'a> {
+    pub fn len(&self) -> usize {
+        match self {
+            Lines::All(l) => l.len(),
+            Lines::Made(s) => s.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Line `index` (see [`Source::line`]); borrowed when it is in memory.
+    pub fn get(&self, index: usize) -> std::borrow::Cow<'a, str> {
+        match self {
+            Lines::All(l) => l[index].as_str().into(),
+            Lines::Made(s) => s.line(index).into(),
+        }
+    }
+}
+
 /// What to stream.
 #[derive(Debug, Clone)]
 pub struct StreamJob<'a> {
     /// The job's lines; the journal counts in their indices.
-    pub lines: &'a [String],
+    pub lines: Lines<'a>,
     /// The first line to send.
     pub from: usize,
     /// Lines sent just before `lines[from]`, in the same burst: the end of a re-approach that
@@ -111,10 +155,18 @@ pub struct StreamJob<'a> {
 }
 
 impl<'a> StreamJob<'a> {
+    /// Lines made by `source`, from the start.
+    pub fn made(source: &'a dyn Source) -> StreamJob<'a> {
+        StreamJob {
+            lines: Lines::Made(source),
+            ..StreamJob::new(&[])
+        }
+    }
+
     /// All of `lines`, from the start.
     pub fn new(lines: &'a [String]) -> StreamJob<'a> {
         StreamJob {
-            lines,
+            lines: Lines::All(lines),
             from: 0,
             lead: &[],
             restored: None,
@@ -179,15 +231,16 @@ pub fn stream(
         }
         // Fill the controller's buffer.
         while next < total && !held && lead_sent == job.lead.len() {
+            let line = lines.get(next);
             let how = match &continuation {
-                Some(state) => link.continue_line(state, &lines[next]),
+                Some(state) => link.continue_line(state, &line),
                 None => Continue::Settled,
             };
-            let text: std::borrow::Cow<str> = match &how {
-                Continue::Replace(s) => s.as_str().into(),
-                _ => lines[next].as_str().into(),
+            let text: &str = match &how {
+                Continue::Replace(s) => s.as_str(),
+                _ => &line,
             };
-            if !link.can_send(&text) {
+            if !link.can_send(text) {
                 break;
             }
             if let Some(Some(c)) = guards.get(next).filter(|g| g.is_some_and(|c| c < next)) {
@@ -202,19 +255,23 @@ pub fn stream(
                     end!(Outcome::Failed(e), Some(note));
                 }
             }
-            // Reservations stop at the next guarded line.
-            let limit = (next + 1..(next + super::journal::RESERVE).min(total))
-                .find(|&k| guards.get(k).is_some_and(Option::is_some))
-                .unwrap_or(usize::MAX);
             if let Some(j) = journal.as_deref_mut()
-                && let Err(e) = j.will_send(next, limit)
+                && !j.covers(next)
             {
-                let note = stop_safely(link, job.letters);
-                end!(Outcome::Failed(e), Some(note));
+                // Reservations stop at the next guarded line (looked for only when a new
+                // reservation is made: a window is thousands of lines on a fast link).
+                let limit = (next + 1..(next + j.window()).min(total))
+                    .find(|&k| guards.get(k).is_some_and(Option::is_some))
+                    .unwrap_or(usize::MAX);
+                if let Err(e) = j.will_send(next, limit) {
+                    let note = stop_safely(link, job.letters);
+                    end!(Outcome::Failed(e), Some(note));
+                }
             }
-            if let Err(e) = link.send_line(&text) {
+            if let Err(e) = link.send_line(text) {
                 if let Some(j) = journal.as_deref_mut() {
-                    let _ = j.sync();
+                    // Part of this line may have gone out: count it as sent.
+                    let _ = j.settle(next + 1);
                 }
                 end!(Outcome::Lost(e), None);
             }
@@ -246,7 +303,7 @@ pub fn stream(
             Ok(e) => e,
             Err(e @ LinkError::Lost { .. }) => {
                 if let Some(j) = journal.as_deref_mut() {
-                    let _ = j.sync();
+                    let _ = j.settle(next);
                 }
                 end!(Outcome::Lost(e), None);
             }
@@ -260,7 +317,7 @@ pub fn stream(
             None => {
                 if last_heard.elapsed() > options.stall_timeout {
                     if let Some(j) = journal.as_deref_mut() {
-                        let _ = j.sync();
+                        let _ = j.settle(next);
                     }
                     end!(
                         Outcome::Lost(LinkError::Timeout {

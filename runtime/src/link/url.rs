@@ -49,6 +49,7 @@ impl SimUrlOptions {
                 error_at_line: self.error_at_line.clone(),
                 ..Faults::default()
             },
+            keep: Some(super::sim::KEEP_LIVE),
             ..SimOptions::default()
         }
     }

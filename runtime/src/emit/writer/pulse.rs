@@ -237,14 +237,14 @@ fn write_edge(
     };
     let w = (g.words)(power_w);
     match (lines.len(), lines.is_empty()) {
-        (1, _) => {
-            let head = format::fill(&lines[0], w);
-            let mut text = String::with_capacity(head.len() + 1 + line.len());
-            text.push_str(&head);
-            text.push(' ');
-            text.push_str(&line);
-            out.put(&text, tag)
-        }
+        (1, _) => out.put_with(
+            |text| {
+                format::fill_into(text, &lines[0], w);
+                text.push(' ');
+                text.push_str(&line);
+            },
+            tag,
+        ),
         (_, false) => {
             for t in lines {
                 out.put(&format::fill(t, w), tag)?;

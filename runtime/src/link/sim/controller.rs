@@ -132,6 +132,10 @@ pub struct Controller {
 impl Controller {
     pub fn new(cfg: ControllerConfig) -> Controller {
         let settings = cfg.settings.clone();
+        let rec = match cfg.keep {
+            Some(k) => Recording::bounded(k),
+            None => Recording::default(),
+        };
         let limits = Limits::from_settings(&settings, cfg.firmware.axes(), cfg.planner_blocks);
         // The simulator starts homed at the origin (clamped into the travel).
         let mpos = cfg.home();
@@ -165,7 +169,7 @@ impl Controller {
             overrides: [100, 100, 100],
             seq: 0,
             connection: 0,
-            rec: Recording::default(),
+            rec,
             lines_completed: 0,
             reset_after_reply: false,
         }
@@ -468,7 +472,7 @@ impl Controller {
             self.last_laser = p;
             let pos = self.position();
             let speed_mm_s = self.speed();
-            self.rec.laser.push(LaserEvent {
+            self.rec.push_laser(LaserEvent {
                 t: self.now,
                 power_s: p,
                 pos,
@@ -521,7 +525,7 @@ impl Controller {
     }
 
     fn record(&mut self, seq: u64, text: String, result: LineResult, effect: Option<Effect>) {
-        self.rec.lines.push(LineRecord {
+        self.rec.push_line(LineRecord {
             seq,
             connection: self.line_conn,
             text,

@@ -127,7 +127,14 @@ pub struct SimOptions {
     pub settings: Vec<(u32, f64)>,
     /// Log connections and faults to stderr.
     pub log: bool,
+    /// Record only about the latest this-many lines, blocks and laser edges (`lase run`,
+    /// `lase sim`: jobs of any length in bounded memory); `None` records all, for tests.
+    pub keep: Option<usize>,
 }
+
+/// What `lase run` and `lase sim` keep of the recording: enough to look back over the last
+/// planner's worth of lines many times over, a few MB at most.
+pub const KEEP_LIVE: usize = 4096;
 
 impl Default for SimOptions {
     fn default() -> Self {
@@ -139,6 +146,7 @@ impl Default for SimOptions {
             faults: Faults::default(),
             settings: Vec::new(),
             log: false,
+            keep: None,
         }
     }
 }
@@ -207,6 +215,7 @@ fn controller_for(machine: &Machine, opts: &SimOptions) -> Controller {
     cfg.rx_buffer = opts.rx_buffer.max(16);
     cfg.planner_blocks = opts.planner_blocks.max(1);
     cfg.error_at_line = opts.faults.error_at_line.clone();
+    cfg.keep = opts.keep;
     Controller::new(cfg)
 }
 

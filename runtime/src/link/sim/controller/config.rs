@@ -69,6 +69,9 @@ pub struct ControllerConfig {
     pub settings: BTreeMap<u32, f64>,
     /// Answer `error:CODE` to line `K` (1-based count of lines received) instead of running it.
     pub error_at_line: Vec<(u64, u32)>,
+    /// Record only about the latest this-many lines, blocks and laser edges
+    /// ([`super::Recording::keep`]); `None` records everything.
+    pub keep: Option<usize>,
 }
 
 impl ControllerConfig {
@@ -81,6 +84,7 @@ impl ControllerConfig {
             travel: travel_for(machine),
             settings: settings_for(machine),
             error_at_line: Vec::new(),
+            keep: None,
         }
     }
 

@@ -168,7 +168,7 @@ impl Controller {
             let (seq, rapid, laser_s) = (front.seq, front.b.rapid, front.b.laser_s);
             if self.state != St::Jog {
                 self.rec.executed_s = self.now;
-                self.rec.blocks.push(ExecutedBlock {
+                self.rec.push_block(ExecutedBlock {
                     seq,
                     from,
                     to: stop,
@@ -197,7 +197,7 @@ impl Controller {
             self.gc.pos = self.mpos;
         } else {
             self.rec.executed_s = self.now;
-            self.rec.blocks.push(ExecutedBlock {
+            self.rec.push_block(ExecutedBlock {
                 seq: done.seq,
                 from: done.b.from,
                 to: done.b.to,

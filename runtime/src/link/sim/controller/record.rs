@@ -89,9 +89,23 @@ pub struct LaserEvent {
 }
 
 /// What the simulated controller did.
+///
+/// Tests keep everything (the default). A job of millions of lines through `lase run` keeps
+/// only the last [`Recording::keep`] lines, blocks and laser edges, and counts the rest, so
+/// the simulator's memory does not grow with the job.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Recording {
+    /// Lines received (when [`Recording::keep`] is set, only the most recent ones).
     pub lines: Vec<LineRecord>,
+    /// Every line received, counted, also those no longer in `lines`.
+    pub lines_received: u64,
+    /// Of those, G-code lines (not `$` system commands).
+    pub gcode_lines: u64,
+    /// Every block executed, counted, also those no longer in `blocks`.
+    pub blocks_executed: u64,
+    /// Keep at most about this many of the latest lines, blocks and laser edges (between
+    /// `keep` and `2 keep`, trimmed in batches so a push stays O(1)); `None` keeps all.
+    pub keep: Option<usize>,
     /// When the last block or dwell ended, simulated s: the executed time of a program run
     /// from power-up.
     pub executed_s: f64,
@@ -109,6 +123,44 @@ pub struct Recording {
     pub max_rx_fill: usize,
     pub max_planner_fill: usize,
     pub bytes_received: u64,
+}
+
+impl Recording {
+    /// A recording that keeps only the latest `keep` entries of each list.
+    pub fn bounded(keep: usize) -> Recording {
+        Recording {
+            keep: Some(keep.max(1)),
+            ..Recording::default()
+        }
+    }
+
+    pub(super) fn push_line(&mut self, l: LineRecord) {
+        self.lines_received += 1;
+        if l.result != LineResult::System {
+            self.gcode_lines += 1;
+        }
+        push_bounded(&mut self.lines, l, self.keep);
+    }
+
+    pub(super) fn push_block(&mut self, b: ExecutedBlock) {
+        self.blocks_executed += 1;
+        push_bounded(&mut self.blocks, b, self.keep);
+    }
+
+    pub(super) fn push_laser(&mut self, e: LaserEvent) {
+        push_bounded(&mut self.laser, e, self.keep);
+    }
+}
+
+/// Pushes `item`; with a bound `k`, drops the oldest entries once there are `2k`, leaving `k`
+/// (amortized O(1) per push, at most `2k` entries held).
+fn push_bounded<T>(v: &mut Vec<T>, item: T, keep: Option<usize>) {
+    if let Some(k) = keep
+        && v.len() >= 2 * k
+    {
+        v.drain(..v.len() - k + 1);
+    }
+    v.push(item);
 }
 
 /// The modal changes between two parser states, as an [`Effect`].
