@@ -34,6 +34,10 @@ fn main() {
             long_operator_chains_are_refused_at_the_operator_too_deep,
         ),
         trial(
+            "a_recipe_over_the_size_limit_is_refused_before_parsing",
+            a_recipe_over_the_size_limit_is_refused_before_parsing,
+        ),
+        trial(
             "a_byte_order_mark_is_accepted_in_recipes_imports_and_machine_files",
             a_byte_order_mark_is_accepted_in_recipes_imports_and_machine_files,
         ),
@@ -201,6 +205,40 @@ fn first_location(stderr: &str) -> String {
     let col = parts.next().unwrap();
     let line = parts.next().unwrap();
     format!("{line}:{col}")
+}
+
+/// A million-point polyline written out in a recipe (27 MB) took 50 s and 2.9 GB to parse
+/// before anything could refuse it; a recipe over `MAX_SOURCE_BYTES` (4 MiB) is refused from
+/// its length, pointing at where it passes the limit, and so is an import of one.
+fn a_recipe_over_the_size_limit_is_refused_before_parsing() {
+    let limit = lase_lang::parser::MAX_SOURCE_BYTES;
+    let point = "(12.3456 mm, 65.4321 mm), ";
+    let n = limit / point.len() + 10;
+    let text = format!(
+        "machine xy_table\nlet p = profile polyline [{}(0, 0)]\n",
+        point.repeat(n)
+    );
+    assert!(text.len() > limit);
+    let path = scratch("huge.lase", text.as_bytes());
+    let (code, _, err) = lase(&["check", &path]);
+    assert_eq!(code, 1, "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains("lase::parse::too_large"), "{err}");
+    assert!(err.contains("more than the 4 MiB a recipe may be"), "{err}");
+    // The label sits on the first byte past the limit: line 2 (all on one line), its column.
+    let col = limit - "machine xy_table\n".len() + 1;
+    assert_eq!(first_location(&err), format!("2:{col}"), "{err}");
+    assert!(err.lines().all(|l| l.chars().count() < 200), "{err}");
+    // An import of such a file is refused the same way, at the file's own span.
+    let dir = std::path::Path::new(&path).parent().unwrap();
+    std::fs::write(
+        dir.join("imports_huge.lase"),
+        "machine xy_table\nimport \"huge.lase\"\n",
+    )
+    .unwrap();
+    let (code, _, err) = lase(&["check", &dir.join("imports_huge.lase").to_string_lossy()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("lase::parse::too_large"), "{err}");
 }
 
 /// 30 000 chained `+`, unary `-` or `not` once overflowed the stack (exit 134) while the tree

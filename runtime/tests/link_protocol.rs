@@ -71,7 +71,16 @@ fn answers_error_codes_status_and_parser_state() {
     );
     assert_eq!(link.send("G0 X1 Y-2 (a comment)").unwrap(), Reply::Ok);
     assert_eq!(link.send("").unwrap(), Reply::Ok);
-    let s = link.query_status(Duration::from_secs(2)).unwrap();
+    // The rapid runs for a moment (the firmware says `Run` meanwhile); then the table is at rest.
+    let mut s = link.query_status(Duration::from_secs(2)).unwrap();
+    for _ in 0..200 {
+        if s.state == MachineState::Idle {
+            break;
+        }
+        assert_eq!(s.state, MachineState::Run);
+        std::thread::sleep(Duration::from_millis(10));
+        s = link.query_status(Duration::from_secs(2)).unwrap();
+    }
     assert_eq!(s.state, MachineState::Idle);
     assert_eq!(s.mpos, Some(vec![1.0, -2.0, 0.0]));
     assert!(s.buffer.is_some() && s.feed.is_some());

@@ -376,11 +376,6 @@ impl Controller {
         self.run_until(f64::INFINITY, true);
     }
 
-    /// A `?` is waiting for its answer.
-    pub fn status_asked(&self) -> bool {
-        self.status_request
-    }
-
     /// Nothing received is waiting to be read or executed by the protocol loop.
     pub fn input_drained(&self) -> bool {
         self.rx.is_empty() && self.pending.is_none()

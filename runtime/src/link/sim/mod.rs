@@ -442,10 +442,10 @@ impl Server {
             self.last_tick = now;
             if self.opts.time_scale == TimeScale::Max {
                 // Still modelled: time runs only while the controller waits for its planner,
-                // until the client has been quiet a moment or asks for its status; then
-                // everything left executes.
-                if (now.saturating_duration_since(self.last_line_byte) >= MAX_QUIET
-                    || ctl.status_asked())
+                // until the client has been quiet a moment; then everything left executes. A
+                // status query does not hurry it, so a report asked for while lines are still
+                // coming says `Run`, as the firmware's would, not `Idle` after the fact.
+                if now.saturating_duration_since(self.last_line_byte) >= MAX_QUIET
                     && ctl.input_drained()
                 {
                     ctl.run(f64::INFINITY);
