@@ -96,7 +96,9 @@ fn speed(q: &[Vec<f64>], i: usize, dt: f64) -> f64 {
 }
 
 fn measure(lcnc: &Headless, example: &str) -> Measured {
-    let path = common::root().join("examples").join(format!("{example}.lase"));
+    let path = common::root()
+        .join("examples")
+        .join(format!("{example}.lase"));
     let name = path.display().to_string();
     let (_, job) =
         lase_runtime::compile(&mut FsFiles, &name).unwrap_or_else(|(_, f)| panic!("{name}: {f}"));
@@ -112,7 +114,10 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
     let samples: Vec<Sample> = lcnc.run_program(&format!("{example}.ngc"), &nc);
     // The run: from the first sample that moves to the last one that does.
     let moved = |i: usize| dist(&samples[i].joints, &samples[i - 1].joints) > 1e-9;
-    let first = (1..samples.len()).find(|&i| moved(i)).expect("LinuxCNC moved") - 1;
+    let first = (1..samples.len())
+        .find(|&i| moved(i))
+        .expect("LinuxCNC moved")
+        - 1;
     let last = (1..samples.len()).rev().find(|&i| moved(i)).unwrap();
     let run = &samples[first..=last];
     let dt = 0.001;

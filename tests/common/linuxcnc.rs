@@ -59,7 +59,10 @@ impl Lock {
                         let _ = std::fs::remove_file(&path);
                         continue;
                     }
-                    assert!(Instant::now() < deadline, "the LinuxCNC harness lock stayed taken");
+                    assert!(
+                        Instant::now() < deadline,
+                        "the LinuxCNC harness lock stayed taken"
+                    );
                     std::thread::sleep(Duration::from_millis(200));
                 }
             }
@@ -174,7 +177,10 @@ impl Headless {
         let deadline = Instant::now() + Duration::from_secs(90);
         while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
             if let Ok(Some(status)) = h.linuxcnc.try_wait() {
-                panic!("LinuxCNC ended before linuxcncrsh listened ({status}):\n{}", h.log());
+                panic!(
+                    "LinuxCNC ended before linuxcncrsh listened ({status}):\n{}",
+                    h.log()
+                );
             }
             assert!(
                 Instant::now() < deadline,
@@ -206,7 +212,7 @@ impl Headless {
     }
 
     /// The newest sample number halsampler has written.
-    fn last_sample(&self) -> u64 {
+    pub fn last_sample(&self) -> u64 {
         let text = std::fs::read_to_string(&self.samples_path).unwrap_or_default();
         text.lines()
             .rev()

@@ -142,7 +142,10 @@ impl LinkUrl {
                     }
                 }
                 Ok(LinkUrl::LinuxCnc {
-                    host: host.trim_start_matches('[').trim_end_matches(']').to_string(),
+                    host: host
+                        .trim_start_matches('[')
+                        .trim_end_matches(']')
+                        .to_string(),
                     port,
                     dir,
                     remote_dir,

@@ -159,13 +159,20 @@ mod tests {
     fn the_cam_machine_gets_its_letters_limits_and_units() {
         let m = crate::machine::parse_machine(lase_stdlib::machine("cam_xwb").unwrap(), 0).unwrap();
         let c = generate(&m, &ConfigOptions::default());
-        assert!(c.ini.contains("KINEMATICS = trivkins coordinates=XCB"), "{}", c.ini);
+        assert!(
+            c.ini.contains("KINEMATICS = trivkins coordinates=XCB"),
+            "{}",
+            c.ini
+        );
         assert!(c.ini.contains("COORDINATES = X C B"));
         // X: 50 mm/s, 0.5 m/s²; C: 180 deg/s, 1800 deg/s² (the machine file's units back).
         assert!(c.ini.contains("[AXIS_X]\nMAX_VELOCITY = 50\nMAX_ACCELERATION = 500\nMIN_LIMIT = 0\nMAX_LIMIT = 300\n"), "{}", c.ini);
         assert!(c.ini.contains("[AXIS_C]\nMAX_VELOCITY = 180\nMAX_ACCELERATION = 1800\nMIN_LIMIT = -36000\nMAX_LIMIT = 36000\n"), "{}", c.ini);
         assert!(c.ini.contains("[JOINT_2]\nTYPE = ANGULAR\n"));
         assert!(c.hal.contains("cfg=fffbbfs"));
-        assert!(c.hal.contains("net s3 motion.program-line => sampler.0.pin.6"));
+        assert!(
+            c.hal
+                .contains("net s3 motion.program-line => sampler.0.pin.6")
+        );
     }
 }

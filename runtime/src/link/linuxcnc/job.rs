@@ -50,9 +50,11 @@ impl Placement {
     /// Writes the program (one line per NC line, so LinuxCNC's line N is the job's line
     /// N − 1), readable by the controller's user.
     pub fn write(&self, lines: &[String]) -> Result<(), LinkError> {
-        let fail = |e: std::io::Error| LinkError::NotReady {
+        let fail = |e: std::io::Error| {
+            LinkError::NotReady {
             reason: format!("cannot write the program to {}: {e}", self.local.display()),
             help: "give a folder lase can write and LinuxCNC can read: linuxcnc://HOST:PORT?dir=LOCAL&remote-dir=ON-CONTROLLER".into(),
+        }
         };
         if let Some(d) = self.local.parent() {
             std::fs::create_dir_all(d).map_err(fail)?;
@@ -140,7 +142,11 @@ pub fn header(recipe: &str, link: &str, lines: &[String], start: AxisPos) -> jou
 
 /// Writes the program, puts LinuxCNC in AUTO, opens the file and runs it from its first line
 /// (or from `from_line`, 1-based, when resuming).
-pub fn start(rsh: &mut Rsh, job: &LinuxCncJob<'_>, from_line: Option<u32>) -> Result<(), LinkError> {
+pub fn start(
+    rsh: &mut Rsh,
+    job: &LinuxCncJob<'_>,
+    from_line: Option<u32>,
+) -> Result<(), LinkError> {
     job.placement.write(job.lines)?;
     rsh.start_auto()?;
     // Errors left from before are not this job's.
@@ -219,7 +225,8 @@ pub fn follow(
             done = passed;
         }
         seen_running |= st.program != ProgramStatus::Idle;
-        if st.program == ProgramStatus::Idle && (seen_running || t0.elapsed() > Duration::from_secs(2))
+        if st.program == ProgramStatus::Idle
+            && (seen_running || t0.elapsed() > Duration::from_secs(2))
         {
             // Idle after running: the end, unless E-stop or a machine off stopped it.
             let stopped = matches!(rsh.get("estop").as_deref(), Ok("ON"))
@@ -374,8 +381,8 @@ mod tests {
     use super::*;
 
     fn post() -> DialectPost {
-        let m = crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0)
-            .unwrap();
+        let m =
+            crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
         m.post["linuxcnc"].clone()
     }
 
@@ -404,7 +411,10 @@ mod tests {
         };
         // Line index 6 (`G1 Y10`) starts at X10 Y0 with the beam on at 40 %.
         let ra = reapproach(&job, [0.0; 6], 6);
-        assert_eq!(ra.setup, ["M65 P0", "M65 P1", "M68 E0 Q0", "G21 G90 G94", "G0 X10 Y0"]);
+        assert_eq!(
+            ra.setup,
+            ["M65 P0", "M65 P1", "M68 E0 Q0", "G21 G90 G94", "G0 X10 Y0"]
+        );
         assert_eq!(ra.lead, ["M67 E0 Q40", "M62 P0"]);
         // After the section the gate stays off; the power output keeps the program's level.
         assert_eq!(reapproach(&job, [0.0; 6], 8).lead, ["M67 E0 Q40"]);

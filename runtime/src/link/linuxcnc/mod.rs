@@ -139,7 +139,9 @@ impl Rsh {
         let deadline = Instant::now() + REPLY_TIMEOUT;
         loop {
             if let Some(end) = self.pending.iter().position(|&b| b == b'\r' || b == b'\n') {
-                let text = String::from_utf8_lossy(&self.pending[..end]).trim().to_string();
+                let text = String::from_utf8_lossy(&self.pending[..end])
+                    .trim()
+                    .to_string();
                 let rest = self.pending[end..]
                     .iter()
                     .position(|&b| b != b'\r' && b != b'\n')
@@ -165,7 +167,10 @@ impl Rsh {
                     reason: e.to_string(),
                 })?;
             if self.pending.len() + n > 64 * 1024 {
-                return Err(protocol("…", "a reply longer than 64 KiB without a line end"));
+                return Err(protocol(
+                    "…",
+                    "a reply longer than 64 KiB without a line end",
+                ));
             }
             self.pending.extend_from_slice(&buf[..n]);
         }
@@ -337,7 +342,10 @@ mod tests {
             ("get joint_pos", "JOINT_POS 9.203683 21.900000\r\n"),
             ("get error", "ERROR OK\r\n"),
             ("set run", "SET RUN ACK\r\n"),
-            ("get error", "ERROR Near line 3 of /x.ngc: Unknown g code used\r\n"),
+            (
+                "get error",
+                "ERROR Near line 3 of /x.ngc: Unknown g code used\r\n",
+            ),
             ("get error", "ERROR OK\r\n"),
         ]);
         let mut rsh = scripted(script);
