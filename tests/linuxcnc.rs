@@ -26,7 +26,7 @@ struct Measured {
     edges_executed: usize,
     /// Largest distance between a planned and an executed beam edge, axis space (mm, deg).
     edge_place: f64,
-    /// Largest |executed / planned − 1| of the axis-space speed at an edge.
+    /// Largest difference of the axis-space speed at an edge, mm/s (deg/s).
     edge_speed: f64,
     pulses_planned: u64,
     pulses_executed: u64,
@@ -135,9 +135,7 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
         assert_eq!(pon, ron, "{example}: the edges alternate alike");
         edge_place = edge_place.max(dist(&plan_q[pi], &run_q[ri]));
         let (vp, vr) = (speed(&plan_q, pi, dt), speed(&run_q, ri, dt));
-        if vp > 1e-6 {
-            edge_speed = edge_speed.max((vr / vp - 1.0).abs());
-        }
+        edge_speed = edge_speed.max((vr - vp).abs());
     }
     // Each lit run against its planned lit run (the k-th with the k-th: the edges pair up),
     // walking forward along the planned one.
@@ -168,11 +166,20 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
             }
         }
     }
-    let pulses_executed = run
-        .windows(2)
-        .filter(|w| !w[0].dout[1] && w[1].dout[1])
-        .count() as u64
-        + u64::from(run[0].dout[1]);
+    // Digital output 1 is the pulse trigger where the post fires pulses with it (elsewhere,
+    // e.g. the notcher's swing valve, it is something else).
+    let pulse_output = job.program.machine.post["linuxcnc"]
+        .pulse_on
+        .iter()
+        .any(|l| l.contains("P1"));
+    let pulses_executed = if pulse_output {
+        run.windows(2)
+            .filter(|w| !w[0].dout[1] && w[1].dout[1])
+            .count() as u64
+            + u64::from(run[0].dout[1])
+    } else {
+        0
+    };
     Measured {
         name: example.to_string(),
         planned_s: job.plan.duration(),
@@ -199,13 +206,13 @@ fn report(ms: &[Measured]) {
         "beam",
         "edges",
         "edge Δ",
-        "edge v",
+        "edge Δv",
         "pulses",
         "dev"
     );
     for m in ms {
         eprintln!(
-            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>6.1}% {:>6}/{:<6} {:>8.4}",
+            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
             m.name,
             m.planned_s,
             m.executed_s,
@@ -214,7 +221,7 @@ fn report(ms: &[Measured]) {
             m.edges_executed,
             m.edges_planned,
             m.edge_place,
-            m.edge_speed * 100.0,
+            m.edge_speed,
             m.pulses_executed,
             m.pulses_planned,
             m.deviation
@@ -234,6 +241,21 @@ fn run_all(machine_name: &str, examples: &[&str]) -> Vec<Measured> {
     ms
 }
 
+/// What every run must show: each planned beam edge and pulse executed, the edges within
+/// `place` (mm, deg) of the planned point and `dv` of the planned speed, the lit path within
+/// `place` of the planned one, and LinuxCNC at most 1 % slower than the plan, at least
+/// `fastest` of it (LinuxCNC 2.9 ramps with trapezoids, so it is faster than an S-curve plan
+/// wherever jerk limits the plan: short moves, the texture rows).
+fn assert_close(m: &Measured, place: f64, dv: f64, fastest: f64) {
+    assert_eq!(m.edges_executed, m.edges_planned, "{m:?}");
+    assert_eq!(m.pulses_executed, m.pulses_planned, "{m:?}");
+    assert!(m.edge_place <= place, "{m:?}");
+    assert!(m.edge_speed <= dv, "{m:?}");
+    assert!(m.deviation <= place, "{m:?}");
+    let ratio = m.executed_s / m.planned_s;
+    assert!((fastest..=1.01).contains(&ratio), "{m:?}");
+}
+
 #[test]
 fn flat_bed_examples_on_linuxcnc() {
     if !available() {
@@ -249,8 +271,13 @@ fn flat_bed_examples_on_linuxcnc() {
         ],
     );
     for m in &ms {
-        assert_eq!(m.edges_executed, m.edges_planned, "{m:?}");
-        assert_eq!(m.pulses_executed, m.pulses_planned, "{m:?}");
+        // Measured: LinuxCNC switches a synchronized output up to 3 ms (0.057 mm at
+        // 20 mm/s) before the point where the program places it on frame_marking and the
+        // texture rows, and 0.1 mm before it at every dial_marks tick (~5 ms); dial_marks'
+        // circle goes dark 0.31 mm after its planned end. Why is not found yet (issue 13):
+        // these bounds pin today's behaviour so that a change shows.
+        let place = if m.name == "dial_marks" { 0.35 } else { 0.07 };
+        assert_close(m, place, 0.5, 0.75);
     }
 }
 
@@ -259,9 +286,10 @@ fn notcher_example_on_linuxcnc() {
     if !available() {
         return;
     }
-    let ms = run_all("notcher", &["conrod_notch"]);
-    for m in &ms {
-        assert_eq!(m.edges_executed, m.edges_planned, "{m:?}");
+    // The notcher switches its beam with immediate outputs at rest (M64/M65): edges at the
+    // planned stops.
+    for m in &run_all("notcher", &["conrod_notch"]) {
+        assert_close(m, 0.01, 0.5, 0.85);
     }
 }
 
@@ -270,8 +298,8 @@ fn cam_examples_on_linuxcnc() {
     if !available() {
         return;
     }
-    let ms = run_all("cam_xwb", &["cam_hardening", "rhai_cam"]);
-    for m in &ms {
-        assert_eq!(m.edges_executed, m.edges_planned, "{m:?}");
+    // The beam switches on the fly (M67/M62 synchronized): on at cruise, not at rest.
+    for m in &run_all("cam_xwb", &["cam_hardening", "rhai_cam"]) {
+        assert_close(m, 0.05, 1.0, 0.95);
     }
 }

@@ -217,6 +217,7 @@ fn flat_bed_runs_holds_aborts_and_survives_a_dropped_link() {
         "linuxcnc://flaky".into(),
     )
     .unwrap();
+    flaky.set_reply_timeout(Duration::from_secs(60));
     let before = mark(&lcnc);
     lcjob::start(&mut flaky, &lc, None).unwrap();
     let report = lcjob::follow(&mut flaky, &lc, Some(&mut journal), &mut |_| None);

@@ -68,6 +68,9 @@ pub(super) fn run(
         poll: Duration::from_millis(50),
     };
     let mut rsh = Rsh::connect(host, *port).map_err(fail)?;
+    // LinuxCNC's user interface runs beside motion without real-time priority: a silence of
+    // seconds is load, not a lost link.
+    rsh.set_reply_timeout(Duration::from_secs(30));
     let name = recipe.name();
     let mut journal = match resumed {
         Some((path, state)) => {

@@ -255,8 +255,12 @@ impl Headless {
     }
 
     /// Connects a linuxcncrsh session.
+    /// Its replies may take long: a non-realtime LinuxCNC shares this computer's cores with
+    /// the build and the other tests.
     pub fn rsh(&self) -> Rsh {
-        Rsh::connect("127.0.0.1", self.port).expect("linuxcncrsh answers")
+        let mut rsh = Rsh::connect("127.0.0.1", self.port).expect("linuxcncrsh answers");
+        rsh.set_reply_timeout(Duration::from_secs(60));
+        rsh
     }
 
     /// Runs an NC program in AUTO mode to its end and returns the samples from `set run` to

@@ -114,58 +114,6 @@ pub fn grbl_jog(axis: char, dist: f64, feed_per_min: f64) -> String {
     )
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::emit::modal::Plane;
-
-    #[test]
-    fn an_inverse_time_arc_is_restored_dark_then_armed_in_g1() {
-        let state = ModalState {
-            motion: MotionMode::ArcCw,
-            plane: Plane::Xy,
-            inverse_time: true,
-            spindle: Spindle::Cw,
-            feed: 12.5,
-            s: 400.0,
-            ..ModalState::default()
-        };
-        let r = grbl_reapproach(&state, &['X', 'Y', 'B'], &[10.0, -2.5, 90.1234567]);
-        assert_eq!(
-            r.setup,
-            [
-                "M5",
-                "G21 G90 G94",
-                "G0 X10 Y-2.5 B90.123457",
-                "G21 G90 G93 G17",
-                "M9"
-            ]
-        );
-        assert_eq!(r.lead, ["M3 S400", "G1 F1"]);
-        assert_eq!(
-            with_motion_word(state.motion, "X1 Y2 I1 J0"),
-            "G2 X1 Y2 I1 J0"
-        );
-    }
-
-    #[test]
-    fn a_rapid_state_in_inches_keeps_the_laser_power_and_adds_no_motion_line() {
-        let state = ModalState {
-            inches: true,
-            s: 250.0,
-            flood: true,
-            mist: true,
-            ..ModalState::default()
-        };
-        let r = grbl_reapproach(&state, &['X', 'Q'], &[1.0, 2.0]);
-        assert_eq!(
-            r.setup,
-            ["M5", "G21 G90 G94", "G0 X1", "G20 G90 G94 G17", "M7 M8"]
-        );
-        assert_eq!(r.lead, ["S250"]);
-    }
-}
-
 /// LinuxCNC: the outputs a post switches with motion-synchronized words (`M62`/`M63 Pn`,
 /// `M67 En`) switched at once (`M65 Pn`, `M68 En Q0`): the beam off at rest, after an abort
 /// or before a re-approach, without waiting for a move that will not come.
@@ -221,4 +169,56 @@ pub fn linuxcnc_reapproach(
         setup.push(format!("G0 {}", axes.join(" ")));
     }
     Reapproach { setup, lead }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::emit::modal::Plane;
+
+    #[test]
+    fn an_inverse_time_arc_is_restored_dark_then_armed_in_g1() {
+        let state = ModalState {
+            motion: MotionMode::ArcCw,
+            plane: Plane::Xy,
+            inverse_time: true,
+            spindle: Spindle::Cw,
+            feed: 12.5,
+            s: 400.0,
+            ..ModalState::default()
+        };
+        let r = grbl_reapproach(&state, &['X', 'Y', 'B'], &[10.0, -2.5, 90.1234567]);
+        assert_eq!(
+            r.setup,
+            [
+                "M5",
+                "G21 G90 G94",
+                "G0 X10 Y-2.5 B90.123457",
+                "G21 G90 G93 G17",
+                "M9"
+            ]
+        );
+        assert_eq!(r.lead, ["M3 S400", "G1 F1"]);
+        assert_eq!(
+            with_motion_word(state.motion, "X1 Y2 I1 J0"),
+            "G2 X1 Y2 I1 J0"
+        );
+    }
+
+    #[test]
+    fn a_rapid_state_in_inches_keeps_the_laser_power_and_adds_no_motion_line() {
+        let state = ModalState {
+            inches: true,
+            s: 250.0,
+            flood: true,
+            mist: true,
+            ..ModalState::default()
+        };
+        let r = grbl_reapproach(&state, &['X', 'Q'], &[1.0, 2.0]);
+        assert_eq!(
+            r.setup,
+            ["M5", "G21 G90 G94", "G0 X1", "G20 G90 G94 G17", "M7 M8"]
+        );
+        assert_eq!(r.lead, ["S250"]);
+    }
 }

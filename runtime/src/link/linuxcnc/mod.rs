@@ -30,9 +30,9 @@ use std::time::{Duration, Instant};
 /// The default linuxcncrsh port.
 pub const DEFAULT_PORT: u16 = 5007;
 
-/// How long a reply may take: linuxcncrsh answers from its own loop, and `set` commands wait
-/// for the task to receive them (its default wait mode).
-const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long a reply may take by default: linuxcncrsh answers from its own loop, and `set`
+/// commands wait for the task to receive them (its default wait mode).
+pub const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// What `get program_status` says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -59,6 +59,7 @@ pub struct Rsh {
     transport: Box<dyn Transport>,
     pending: Vec<u8>,
     url: String,
+    reply_timeout: Duration,
 }
 
 impl std::fmt::Debug for Rsh {
@@ -99,6 +100,7 @@ impl Rsh {
             transport,
             pending: Vec::new(),
             url,
+            reply_timeout: REPLY_TIMEOUT,
         };
         rsh.write("hello EMC lase 1.0")?;
         let hello = rsh.line()?;
@@ -124,6 +126,12 @@ impl Rsh {
         self.url.clone()
     }
 
+    /// How long to wait for each reply from now on (a controller on a loaded computer, as
+    /// a non-realtime LinuxCNC sharing two cores with compilers, can stall for seconds).
+    pub fn set_reply_timeout(&mut self, timeout: Duration) {
+        self.reply_timeout = timeout;
+    }
+
     fn write(&mut self, command: &str) -> Result<(), LinkError> {
         let mut bytes = command.as_bytes().to_vec();
         bytes.extend_from_slice(b"\r\n");
@@ -136,7 +144,7 @@ impl Rsh {
 
     /// The next reply line (any run of CR/LF ends one; empty lines are skipped).
     fn line(&mut self) -> Result<String, LinkError> {
-        let deadline = Instant::now() + REPLY_TIMEOUT;
+        let deadline = Instant::now() + self.reply_timeout;
         loop {
             if let Some(end) = self.pending.iter().position(|&b| b == b'\r' || b == b'\n') {
                 let text = String::from_utf8_lossy(&self.pending[..end])
@@ -156,7 +164,7 @@ impl Rsh {
             if left.is_zero() {
                 return Err(LinkError::Timeout {
                     waiting_for: "a linuxcncrsh reply".into(),
-                    seconds: REPLY_TIMEOUT.as_secs_f64(),
+                    seconds: self.reply_timeout.as_secs_f64(),
                 });
             }
             let mut buf = [0u8; 1024];
