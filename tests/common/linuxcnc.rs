@@ -310,10 +310,13 @@ impl Drop for Headless {
             let _ = s.wait();
         }
         // LinuxCNC stops itself on linuxcncrsh's `shutdown`; its start script then cleans up.
+        // That cleanup stops LinuxCNC's programs *by name* (milltask, linuxcncsvr, …), so the
+        // lock is held until the script has ended: a next instance started earlier would lose
+        // its own milltask to it. On a loaded computer the cleanup takes minutes.
         if let Ok(rsh) = Rsh::connect("127.0.0.1", self.port) {
             let _ = rsh.shutdown();
         }
-        let deadline = Instant::now() + Duration::from_secs(60);
+        let deadline = Instant::now() + Duration::from_secs(600);
         while Instant::now() < deadline {
             if let Ok(Some(_)) = self.linuxcnc.try_wait() {
                 return;
@@ -321,7 +324,7 @@ impl Drop for Headless {
             std::thread::sleep(Duration::from_millis(200));
         }
         eprintln!(
-            "LinuxCNC did not stop within 60 s of `shutdown`:\n{}",
+            "LinuxCNC did not stop within 600 s of `shutdown`:\n{}",
             self.log()
         );
     }
