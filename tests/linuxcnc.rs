@@ -4,7 +4,8 @@
 //! (motion.digital-out-01 rising edges) against the plan, and how far the lit path strays from
 //! the planned one. Each test prints its table; skips (saying so) without LinuxCNC.
 //!
-//! Run one machine's examples: `cargo test --test linuxcnc flat_bed -- --nocapture`.
+//! Run one machine's examples: `LASE_LINUXCNC_TESTS=1 cargo test --test linuxcnc flat_bed --
+//! --nocapture`.
 
 mod common;
 

