@@ -20,6 +20,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, channel};
 use std::time::{Duration, Instant};
 
+mod linuxcnc;
+
 type CmdResult = Result<(), (SourceMap, Failure)>;
 
 fn io_fail(message: String) -> (SourceMap, Failure) {
@@ -31,7 +33,9 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
 pub struct RunArgs {
     /// The recipe (optional with --resume: the journal names it).
     pub file: Option<PathBuf>,
-    /// Controller link URL.
+    /// Controller link URL: sim, tcp://HOST:PORT, serial://DEVICE?baud=N, or
+    /// linuxcnc://HOST:PORT[?dir=LOCAL&remote-dir=ON-CONTROLLER] (LinuxCNC over linuxcncrsh:
+    /// the program is written to DIR and opened by the controller as REMOTE-DIR/NAME.ngc).
     #[arg(long)]
     pub link: Option<String>,
     /// NC dialect sent over the link: grbl (GRBL 1.1, X Y Z) or grblhal (up to six axes,
@@ -146,6 +150,9 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .or_else(|| resumed.as_ref().map(|s| s.header.link.clone()))
         .unwrap_or_else(|| "sim".into());
     let mut url = LinkUrl::parse(&url_text).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
+    if linuxcnc::is_linuxcnc(&url) {
+        return linuxcnc::run(&args, &file, &url, resume.zip(resumed));
+    }
     if let Some(ts) = &args.time_scale {
         let LinkUrl::Sim(o) = &mut url else {
             return Err(io_fail(format!(

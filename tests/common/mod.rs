@@ -6,6 +6,7 @@
 mod rs274;
 
 pub mod cases;
+pub mod linuxcnc;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

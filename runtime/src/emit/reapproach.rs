@@ -114,6 +114,63 @@ pub fn grbl_jog(axis: char, dist: f64, feed_per_min: f64) -> String {
     )
 }
 
+/// LinuxCNC: the outputs a post switches with motion-synchronized words (`M62`/`M63 Pn`,
+/// `M67 En`) switched at once (`M65 Pn`, `M68 En Q0`): the beam off at rest, after an abort
+/// or before a re-approach, without waiting for a move that will not come.
+pub fn linuxcnc_outputs_off(post: &crate::machine::DialectPost) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    // The gates first (`laser_off`, `pulse_off`), then the power.
+    let lines = post
+        .laser_off
+        .iter()
+        .chain(&post.pulse_off)
+        .chain(&post.laser_on)
+        .chain(&post.power)
+        .chain(&post.pulse_on);
+    for line in lines {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        for (k, w) in words.iter().enumerate() {
+            let arg = words.get(k + 1).copied().unwrap_or("");
+            let off = match *w {
+                "M62" | "M63" | "M64" | "M65" if arg.starts_with('P') => format!("M65 {arg}"),
+                "M67" | "M68" if arg.starts_with('E') => format!("M68 {arg} Q0"),
+                _ => continue,
+            };
+            if !out.contains(&off) {
+                out.push(off);
+            }
+        }
+    }
+    out
+}
+
+/// The LinuxCNC re-approach to `position` (one value per entry of `letters`; mm, degrees):
+/// outputs off at once, millimetres, absolute, units per minute, and a rapid to the point.
+/// LinuxCNC's run-from-line (`set run N`) then rebuilds the modal state by reading the
+/// program up to line N itself, so no modal lines follow; the beam comes back with the
+/// program's own motion-synchronized lines, which the caller passes as `lead`.
+pub fn linuxcnc_reapproach(
+    post: &crate::machine::DialectPost,
+    letters: &[char],
+    position: &[f64],
+    lead: Vec<String>,
+) -> Reapproach {
+    let mut setup = linuxcnc_outputs_off(post);
+    setup.push("G21 G90 G94".to_string());
+    let axes: Vec<String> = letters
+        .iter()
+        .zip(position)
+        .map(|(l, v)| match l {
+            'A' | 'B' | 'C' => format!("{l}{}", degrees(*v)),
+            _ => format!("{l}{}", number(*v)),
+        })
+        .collect();
+    if !axes.is_empty() {
+        setup.push(format!("G0 {}", axes.join(" ")));
+    }
+    Reapproach { setup, lead }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

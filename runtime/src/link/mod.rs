@@ -29,6 +29,7 @@ pub mod eta;
 pub mod grbl;
 pub mod job;
 pub mod journal;
+pub mod linuxcnc;
 pub mod modal;
 pub(crate) mod requirements;
 pub(crate) mod resume;
@@ -417,7 +418,7 @@ pub enum LinkError {
     #[diagnostic(
         code(lase::link::url),
         help(
-            "links are `sim`, `sim://?time-scale=real`, `tcp://HOST:PORT` or `serial:///dev/ttyUSB0?baud=115200`"
+            "links are `sim`, `sim://?time-scale=real`, `tcp://HOST:PORT`, `serial:///dev/ttyUSB0?baud=115200` or `linuxcnc://HOST:PORT`"
         )
     )]
     BadUrl { url: String, reason: String },
@@ -553,6 +554,17 @@ pub fn connect(
         }
         LinkUrl::Tcp { host, port } => Box::new(transport::TcpTransport::connect(host, *port)?),
         LinkUrl::Serial { path, baud } => Box::new(transport::SerialTransport::open(path, *baud)?),
+        // LinuxCNC runs files, not streamed lines: `lase run` drives it through
+        // `linuxcnc::job`; a line-by-line session (the REPL) would not blend.
+        LinkUrl::LinuxCnc { .. } => {
+            return Err(LinkError::Unsupported {
+                url: url.to_string(),
+                help: Some(
+                    "LinuxCNC runs whole programs: use `lase run RECIPE --link linuxcnc://HOST:PORT` (line-by-line MDI does not blend)"
+                        .into(),
+                ),
+            });
+        }
     };
     let link = grbl::GrblLink::connect(transport, url.to_string(), options)?;
     Ok(Box::new(link))

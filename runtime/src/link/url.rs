@@ -1,4 +1,5 @@
-//! Link URLs: `sim[://?options]`, `tcp://host:port`, `serial:///dev/ttyUSB0?baud=115200`.
+//! Link URLs: `sim[://?options]`, `tcp://host:port`, `serial:///dev/ttyUSB0?baud=115200`,
+//! `linuxcnc://host:port[?dir=LOCAL&remote-dir=ON-CONTROLLER]`.
 
 use super::LinkError;
 use super::sim::{Faults, SimOptions, TimeScale};
@@ -16,6 +17,14 @@ pub enum LinkUrl {
     Serial {
         path: String,
         baud: u32,
+    },
+    /// LinuxCNC over linuxcncrsh: the program is a file the controller opens, written in
+    /// `dir` and opened as `remote_dir` (see `linuxcnc::job::Placement`).
+    LinuxCnc {
+        host: String,
+        port: u16,
+        dir: Option<String>,
+        remote_dir: Option<String>,
     },
 }
 
@@ -107,6 +116,42 @@ impl LinkUrl {
                 }
                 Ok(LinkUrl::Sim(o))
             }
+            "linuxcnc" => {
+                let (host, port) = match body.trim_end_matches('/').rsplit_once(':') {
+                    Some((h, p)) => (
+                        h,
+                        p.parse::<u16>()
+                            .ok()
+                            .filter(|p| *p > 0)
+                            .ok_or_else(|| bad("the port is a number 1-65535"))?,
+                    ),
+                    None => (body.trim_end_matches('/'), super::linuxcnc::DEFAULT_PORT),
+                };
+                if host.is_empty() {
+                    return Err(bad("expected linuxcnc://HOST:PORT"));
+                }
+                let (mut dir, mut remote_dir) = (None, None);
+                for (k, v) in params {
+                    match k {
+                        "dir" if !v.is_empty() => dir = Some(v.to_string()),
+                        "remote-dir" if !v.is_empty() => remote_dir = Some(v.to_string()),
+                        other => {
+                            return Err(bad(&format!(
+                                "unknown linuxcnc option `{other}` (dir=LOCAL, remote-dir=ON-CONTROLLER)"
+                            )));
+                        }
+                    }
+                }
+                Ok(LinkUrl::LinuxCnc {
+                    host: host
+                        .trim_start_matches('[')
+                        .trim_end_matches(']')
+                        .to_string(),
+                    port,
+                    dir,
+                    remote_dir,
+                })
+            }
             "tcp" => {
                 let (host, port) = body
                     .rsplit_once(':')
@@ -149,7 +194,7 @@ impl LinkUrl {
             other => Err(LinkError::Unsupported {
                 url: url.to_string(),
                 help: Some(format!(
-                    "`{other}` is not a link lase knows: use sim, tcp://HOST:PORT or serial://DEVICE?baud=N"
+                    "`{other}` is not a link lase knows: use sim, tcp://HOST:PORT, serial://DEVICE?baud=N or linuxcnc://HOST:PORT"
                 )),
             }),
         }
@@ -178,6 +223,27 @@ impl fmt::Display for LinkUrl {
             LinkUrl::Tcp { host, port } if host.contains(':') => write!(f, "tcp://[{host}]:{port}"),
             LinkUrl::Tcp { host, port } => write!(f, "tcp://{host}:{port}"),
             LinkUrl::Serial { path, baud } => write!(f, "serial://{path}?baud={baud}"),
+            LinkUrl::LinuxCnc {
+                host,
+                port,
+                dir,
+                remote_dir,
+            } => {
+                let host = if host.contains(':') {
+                    format!("[{host}]")
+                } else {
+                    host.clone()
+                };
+                write!(f, "linuxcnc://{host}:{port}")?;
+                let q: Vec<String> = [("dir", dir), ("remote-dir", remote_dir)]
+                    .into_iter()
+                    .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k}={v}")))
+                    .collect();
+                if !q.is_empty() {
+                    write!(f, "?{}", q.join("&"))?;
+                }
+                Ok(())
+            }
         }
     }
 }
@@ -193,6 +259,8 @@ mod tests {
             "tcp://127.0.0.1:5000",
             "serial:///dev/ttyUSB0?baud=115200",
             "sim://?time-scale=real&baud=115200",
+            "linuxcnc://127.0.0.1:5007",
+            "linuxcnc://cnc:5008?dir=/mnt/cnc&remote-dir=/home/cnc/nc",
         ] {
             let parsed = LinkUrl::parse(u).unwrap();
             assert_eq!(LinkUrl::parse(&parsed.to_string()).unwrap(), parsed, "{u}");
@@ -205,6 +273,11 @@ mod tests {
             }
         );
         assert!(LinkUrl::parse("tcp://host").is_err());
+        assert_eq!(
+            LinkUrl::parse("linuxcnc://cnc").unwrap().to_string(),
+            "linuxcnc://cnc:5007"
+        );
+        assert!(LinkUrl::parse("linuxcnc://cnc:5007?upload=1").is_err());
         assert!(LinkUrl::parse("ftp://x").is_err());
         assert!(LinkUrl::parse("sim://?time-scale=fast").is_err());
     }

@@ -1,0 +1,165 @@
+//! `lase run --link linuxcnc://HOST:PORT`: the job as a file LinuxCNC opens and runs in AUTO
+//! mode (`link::linuxcnc::job`), followed with the same progress bar and keys as a streamed
+//! job, journaled so that `lase run --resume` continues it after a dropped link.
+
+use super::{CmdResult, Display, Key, Keys, RunArgs, canonical, io_fail, job_failure};
+use crate::driver::{self, Failure};
+use lase_runtime::emit::Dialect;
+use lase_runtime::link::job::JobLines;
+use lase_runtime::link::journal::{self, Journal};
+use lase_runtime::link::linuxcnc::Rsh;
+use lase_runtime::link::linuxcnc::job::{self as lcjob, LinuxCncJob, Placement, Resumed};
+use lase_runtime::link::stream::{Control, Outcome, Progress};
+use lase_runtime::link::{LinkError, LinkUrl};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// Runs (or, with `resumed`, continues) a job on LinuxCNC.
+pub(super) fn run(
+    args: &RunArgs,
+    file: &Path,
+    url: &LinkUrl,
+    resumed: Option<(PathBuf, journal::State)>,
+) -> CmdResult {
+    let LinkUrl::LinuxCnc {
+        host,
+        port,
+        dir,
+        remote_dir,
+    } = url
+    else {
+        unreachable!("called for linuxcnc links only");
+    };
+    if let Some(d) = args.dialect.as_deref().filter(|d| *d != "linuxcnc") {
+        return Err(io_fail(format!(
+            "the link to {url} runs LinuxCNC programs: the dialect is linuxcnc, not {d}"
+        )));
+    }
+    if args.check || args.send_response || args.rx_buffer.is_some() {
+        return Err(io_fail(
+            "--check, --send-response and --rx-buffer are GRBL options: a LinuxCNC link runs the whole program as a file".into(),
+        ));
+    }
+    let (recipe, job) = driver::compile(file)?;
+    let map = recipe.map.clone();
+    let fail = |e: LinkError| (map.clone(), Failure::one(e));
+    // LinuxCNC runs the program from a file, so the whole text is made here (the GRBL
+    // stream makes its lines as they go).
+    let source_map = &recipe.map;
+    let locate = |s: lase_lang::Span| lase_runtime::compile::locate_in(source_map, s);
+    let lines = JobLines::emitted(&job, Dialect::LinuxCnc, &locate)
+        .map_err(|e| (recipe.map.clone(), Failure::one(e)))?;
+    let text: Vec<String> = (0..lines.len()).map(|i| lines.line(i)).collect();
+    let stem = file
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "job".into());
+    let machine = &job.program.machine;
+    let lc = LinuxCncJob {
+        lines: &text,
+        placement: Placement::new(
+            dir.as_deref().map(Path::new),
+            remote_dir.as_deref(),
+            &format!("{stem}.ngc"),
+        ),
+        letters: lines.letters(),
+        post: machine.post.get("linuxcnc").cloned().ok_or_else(|| {
+            io_fail(format!(
+                "machine `{}` has no [post.linuxcnc]: lase cannot switch its beam on LinuxCNC",
+                machine.name
+            ))
+        })?,
+        poll: Duration::from_millis(50),
+    };
+    let mut rsh = Rsh::connect(host, *port).map_err(fail)?;
+    // LinuxCNC's user interface runs beside motion without real-time priority: a silence of
+    // seconds is load, not a lost link.
+    rsh.set_reply_timeout(Duration::from_secs(30));
+    let name = recipe.name();
+    let mut journal = match resumed {
+        Some((path, state)) => {
+            let (mut j, _) = Journal::append(&path).map_err(fail)?;
+            match lcjob::resume(&mut rsh, &lc, &state, Some(&mut j)).map_err(fail)? {
+                Resumed::Finished => {
+                    println!("{name}: LinuxCNC had finished the program while the link was down");
+                    return Ok(());
+                }
+                Resumed::Reattached { line } => eprintln!(
+                    "{name}: LinuxCNC is still running the program (line {line}): following it again"
+                ),
+                Resumed::Restarted { line, reapproach } => eprintln!(
+                    "{name}: LinuxCNC had stopped; re-approach: {} — running from line {line}",
+                    reapproach.join(" | ")
+                ),
+            }
+            Some(j)
+        }
+        None => {
+            let path = super::journal_path(args, file, url);
+            let j = match &path {
+                Some(p) => {
+                    let start = rsh.status().map_err(fail)?.abs_pos;
+                    let header = lcjob::header(
+                        &canonical(file).display().to_string(),
+                        &url.to_string(),
+                        &text,
+                        start,
+                    );
+                    Some(Journal::create(p, &header).map_err(fail)?)
+                }
+                None => None,
+            };
+            lcjob::start(&mut rsh, &lc, None).map_err(fail)?;
+            j
+        }
+    };
+    let summary = lase_runtime::report::summarize(&job);
+    let journal_name = journal.as_ref().map(|j| j.path().display().to_string());
+    eprintln!(
+        "{name}: {} running {} — planned cycle time {:.3} s{}",
+        rsh.describe(),
+        lc.placement.remote,
+        summary.cycle_time_s,
+        journal_name
+            .as_ref()
+            .map(|p| format!(", journal {p}"))
+            .unwrap_or_default()
+    );
+    let eta = lase_runtime::link::eta::Eta::from_runs(&job, lines.runs(), lines.len());
+    let mut display = Display::new(text.len(), 0, eta);
+    let keys = Keys::for_terminal();
+    let report = lcjob::follow(&mut rsh, &lc, journal.as_mut(), &mut |p: &Progress| {
+        display.update(p, None);
+        keys.as_ref().and_then(Keys::try_key).map(|k| match k {
+            Key::Interrupt | Key::Abort => Control::Abort,
+            Key::Hold => Control::Hold,
+            Key::Resume => Control::Resume,
+        })
+    });
+    drop(keys);
+    display.finish();
+    if report.outcome != Outcome::Done {
+        let resume = match &journal_name {
+            Some(j) => format!(
+                "LinuxCNC goes on with the program by itself; reconnect and follow (or continue) it with `lase run --resume {j}`"
+            ),
+            None => "this run kept no journal and cannot be resumed".into(),
+        };
+        return Err((map.clone(), job_failure(report, &lines, resume)));
+    }
+    println!(
+        "{name}: done — LinuxCNC ran {} lines in {:.3} s",
+        text.len(),
+        report.elapsed.as_secs_f64()
+    );
+    println!(
+        "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
+        summary.cycle_time_s, summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
+    );
+    Ok(())
+}
+
+/// Whether a link runs programs on LinuxCNC.
+pub(super) fn is_linuxcnc(url: &LinkUrl) -> bool {
+    matches!(url, LinkUrl::LinuxCnc { .. })
+}

@@ -1,0 +1,306 @@
+//! Every flat-bed and cam example run on a real, headless LinuxCNC 2.9 (`common::linuxcnc`),
+//! measured from its HAL samples (1 ms): executed cycle time against `lase plan`, the beam's
+//! edges (motion.digital-out-00) at the planned places and speeds, pulse counts
+//! (motion.digital-out-01 rising edges) against the plan, and how far the lit path strays from
+//! the planned one. Each test prints its table; skips (saying so) without LinuxCNC.
+//!
+//! Run one machine's examples: `LASE_LINUXCNC_TESTS=1 cargo test --test linuxcnc flat_bed --
+//! --nocapture`.
+
+mod common;
+
+use common::linuxcnc::{Headless, Sample, available};
+use lase_runtime::FsFiles;
+use lase_runtime::axes::to_external;
+use lase_runtime::emit::{Dialect, EmitOptions};
+use lase_runtime::motion::Job;
+
+/// What one run measured.
+#[derive(Debug)]
+struct Measured {
+    name: String,
+    planned_s: f64,
+    executed_s: f64,
+    beam_on_planned_s: f64,
+    beam_on_executed_s: f64,
+    edges_planned: usize,
+    edges_executed: usize,
+    /// Largest distance between a planned and an executed beam edge, axis space (mm, deg).
+    edge_place: f64,
+    /// Largest difference of the axis-space speed at an edge, mm/s (deg/s).
+    edge_speed: f64,
+    pulses_planned: u64,
+    pulses_executed: u64,
+    /// Largest distance of a lit sample from the planned lit path, axis space (mm, deg).
+    deviation: f64,
+}
+
+/// Axis positions (external units) and beam of the plan every `dt` from the first move.
+fn planned(job: &Job, dt: f64) -> Vec<(Vec<f64>, bool)> {
+    let axes = &job.program.machine.axes;
+    let t0 = job.initial_dwell_s;
+    let n = (job.plan.duration() / dt).ceil() as usize;
+    (0..=n)
+        .map(|k| {
+            let t = t0 + (k as f64 * dt).min(job.plan.duration());
+            let (s, lit, _) = lase_runtime::report::beam_at(job, t);
+            let q = axes
+                .iter()
+                .enumerate()
+                .map(|(i, a)| to_external(a.kind, s.pos[i]))
+                .collect();
+            (q, lit)
+        })
+        .collect()
+}
+
+fn dist(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// Distance from `p` to the segment `a`–`b`.
+fn seg_dist(p: &[f64], a: &[f64], b: &[f64]) -> f64 {
+    let ab: Vec<f64> = a.iter().zip(b).map(|(x, y)| y - x).collect();
+    let ap: Vec<f64> = a.iter().zip(p).map(|(x, y)| y - x).collect();
+    let l2: f64 = ab.iter().map(|v| v * v).sum();
+    let t = if l2 > 0.0 {
+        (ab.iter().zip(&ap).map(|(x, y)| x * y).sum::<f64>() / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let q: Vec<f64> = a.iter().zip(&ab).map(|(x, d)| x + t * d).collect();
+    dist(p, &q)
+}
+
+/// Edges of a beam signal: (index, on) at each change.
+fn edges(beam: impl Iterator<Item = bool>) -> Vec<(usize, bool)> {
+    let mut out = Vec::new();
+    let mut last = false;
+    for (i, b) in beam.enumerate() {
+        if b != last {
+            out.push((i, b));
+            last = b;
+        }
+    }
+    out
+}
+
+/// Axis-space speed at index `i` of a 1 ms position series (central difference).
+fn speed(q: &[Vec<f64>], i: usize, dt: f64) -> f64 {
+    let a = i.saturating_sub(1);
+    let b = (i + 1).min(q.len() - 1);
+    dist(&q[a], &q[b]) / ((b - a).max(1) as f64 * dt)
+}
+
+fn measure(lcnc: &Headless, example: &str) -> Measured {
+    let path = common::root()
+        .join("examples")
+        .join(format!("{example}.lase"));
+    let name = path.display().to_string();
+    let (_, job) =
+        lase_runtime::compile(&mut FsFiles, &name).unwrap_or_else(|(_, f)| panic!("{name}: {f}"));
+    let nc = lase_runtime::emit::emit_to_string_with(
+        &job,
+        Dialect::LinuxCnc,
+        &EmitOptions {
+            locate: None,
+            comments: true,
+        },
+    )
+    .unwrap();
+    let samples: Vec<Sample> = lcnc.run_program(&format!("{example}.ngc"), &nc);
+    // The run: from the first sample that moves to the last one that does.
+    let moved = |i: usize| dist(&samples[i].joints, &samples[i - 1].joints) > 1e-9;
+    let first = (1..samples.len())
+        .find(|&i| moved(i))
+        .expect("LinuxCNC moved")
+        - 1;
+    let last = (1..samples.len()).rev().find(|&i| moved(i)).unwrap();
+    let run = &samples[first..=last];
+    let dt = 0.001;
+    let executed_s = (last - first) as f64 * dt;
+    let summary = lase_runtime::report::summarize(&job);
+
+    let plan = planned(&job, dt);
+    let plan_q: Vec<Vec<f64>> = plan.iter().map(|(q, _)| q.clone()).collect();
+    let run_q: Vec<Vec<f64>> = run.iter().map(|s| s.joints.clone()).collect();
+    let plan_edges = edges(plan.iter().map(|(_, lit)| *lit));
+    let run_edges = edges(run.iter().map(|s| s.dout[0]));
+    let mut edge_place: f64 = 0.0;
+    let mut edge_speed: f64 = 0.0;
+    for (&(pi, pon), &(ri, ron)) in plan_edges.iter().zip(&run_edges) {
+        assert_eq!(pon, ron, "{example}: the edges alternate alike");
+        edge_place = edge_place.max(dist(&plan_q[pi], &run_q[ri]));
+        let (vp, vr) = (speed(&plan_q, pi, dt), speed(&run_q, ri, dt));
+        edge_speed = edge_speed.max((vr - vp).abs());
+    }
+    // Each lit run against its planned lit run (the k-th with the k-th: the edges pair up),
+    // walking forward along the planned one.
+    let runs = |e: &[(usize, bool)], n: usize| -> Vec<(usize, usize)> {
+        e.chunks(2)
+            .map(|c| (c[0].0, c.get(1).map_or(n, |off| off.0)))
+            .collect()
+    };
+    let mut deviation: f64 = 0.0;
+    for (&(pa, pb), &(ra, rb)) in runs(&plan_edges, plan_q.len())
+        .iter()
+        .zip(&runs(&run_edges, run_q.len()))
+    {
+        let lit_plan = &plan_q[pa..pb.max(pa + 2).min(plan_q.len())];
+        let mut j = 0usize;
+        for q in &run_q[ra..rb] {
+            let (mut best, mut at) = (f64::INFINITY, j);
+            for k in j..(j + 400).min(lit_plan.len().saturating_sub(1)) {
+                let d = seg_dist(q, &lit_plan[k], &lit_plan[k + 1]);
+                if d < best {
+                    best = d;
+                    at = k;
+                }
+            }
+            if best.is_finite() {
+                deviation = deviation.max(best);
+                j = at;
+            }
+        }
+    }
+    // Digital output 1 is the pulse trigger where the post fires pulses with it (elsewhere,
+    // e.g. the notcher's swing valve, it is something else).
+    let pulse_output = job.program.machine.post["linuxcnc"]
+        .pulse_on
+        .iter()
+        .any(|l| l.contains("P1"));
+    let pulses_executed = if pulse_output {
+        run.windows(2)
+            .filter(|w| !w[0].dout[1] && w[1].dout[1])
+            .count() as u64
+            + u64::from(run[0].dout[1])
+    } else {
+        0
+    };
+    Measured {
+        name: example.to_string(),
+        planned_s: job.plan.duration(),
+        executed_s,
+        beam_on_planned_s: summary.laser_on_time_s,
+        beam_on_executed_s: run.iter().filter(|s| s.dout[0]).count() as f64 * dt,
+        edges_planned: plan_edges.len(),
+        edges_executed: run_edges.len(),
+        edge_place,
+        edge_speed,
+        pulses_planned: summary.pulses,
+        pulses_executed,
+        deviation,
+    }
+}
+
+fn report(ms: &[Measured]) {
+    eprintln!(
+        "{:<30} {:>9} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8}",
+        "example",
+        "plan s",
+        "LinuxCNC",
+        "ratio",
+        "beam",
+        "edges",
+        "edge Δ",
+        "edge Δv",
+        "pulses",
+        "dev"
+    );
+    for m in ms {
+        eprintln!(
+            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
+            m.name,
+            m.planned_s,
+            m.executed_s,
+            m.executed_s / m.planned_s,
+            m.beam_on_executed_s / m.beam_on_planned_s.max(1e-9),
+            m.edges_executed,
+            m.edges_planned,
+            m.edge_place,
+            m.edge_speed,
+            m.pulses_executed,
+            m.pulses_planned,
+            m.deviation
+        );
+    }
+}
+
+fn machine(name: &str) -> lase_runtime::machine::Machine {
+    lase_runtime::machine::parse_machine(lase_stdlib::machine(name).unwrap(), 0).unwrap()
+}
+
+fn run_all(machine_name: &str, examples: &[&str]) -> Vec<Measured> {
+    let lcnc = Headless::start(&machine(machine_name));
+    let ms: Vec<Measured> = examples.iter().map(|e| measure(&lcnc, e)).collect();
+    drop(lcnc);
+    report(&ms);
+    ms
+}
+
+/// What every run must show: each planned beam edge and pulse executed, the edges within
+/// `place` (mm, deg) of the planned point and `dv` of the planned speed, the lit path within
+/// `place` of the planned one, and LinuxCNC at most 1 % slower than the plan, at least
+/// `fastest` of it (LinuxCNC 2.9 ramps with trapezoids, so it is faster than an S-curve plan
+/// wherever jerk limits the plan: short moves, the texture rows).
+fn assert_close(m: &Measured, place: f64, dv: f64, fastest: f64) {
+    assert_eq!(m.edges_executed, m.edges_planned, "{m:?}");
+    assert_eq!(m.pulses_executed, m.pulses_planned, "{m:?}");
+    assert!(m.edge_place <= place, "{m:?}");
+    assert!(m.edge_speed <= dv, "{m:?}");
+    assert!(m.deviation <= place, "{m:?}");
+    let ratio = m.executed_s / m.planned_s;
+    assert!((fastest..=1.01).contains(&ratio), "{m:?}");
+}
+
+#[test]
+fn flat_bed_examples_on_linuxcnc() {
+    if !available() {
+        return;
+    }
+    let ms = run_all(
+        "xy_table",
+        &[
+            "frame_marking",
+            "dial_marks",
+            "texture_array",
+            "texture_array_unidirectional",
+        ],
+    );
+    for m in &ms {
+        // Measured: LinuxCNC switches a synchronized output up to 3 ms (0.057 mm at
+        // 20 mm/s) before the point where the program places it on frame_marking and the
+        // texture rows, and 0.1 mm before it at every dial_marks tick (~5 ms); dial_marks'
+        // circle goes dark 0.31 mm after its planned end. Why is not found yet (issue 13):
+        // these bounds pin today's behaviour so that a change shows.
+        let place = if m.name == "dial_marks" { 0.35 } else { 0.07 };
+        assert_close(m, place, 0.5, 0.75);
+    }
+}
+
+#[test]
+fn notcher_example_on_linuxcnc() {
+    if !available() {
+        return;
+    }
+    // The notcher switches its beam with immediate outputs at rest (M64/M65): edges at the
+    // planned stops.
+    for m in &run_all("notcher", &["conrod_notch"]) {
+        assert_close(m, 0.01, 0.5, 0.85);
+    }
+}
+
+#[test]
+fn cam_examples_on_linuxcnc() {
+    if !available() {
+        return;
+    }
+    // The beam switches on the fly (M67/M62 synchronized): on at cruise, not at rest.
+    for m in &run_all("cam_xwb", &["cam_hardening", "rhai_cam"]) {
+        assert_close(m, 0.05, 1.0, 0.95);
+    }
+}
