@@ -717,6 +717,6 @@ pub const TYPE_NAMES: &[&str] = &[
 pub const KEYWORDS: &[&str] = &[
     "machine", "limits", "let", "fn", "import", "use", "if", "else", "for", "in", "return",
     "laser", "pulse", "planner", "move", "to", "by", "rapid", "at", "follow", "dwell", "mcode",
-    "event", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw", "ccw", "on",
-    "off", "interval",
+    "event", "output", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw",
+    "ccw", "on", "off", "interval",
 ];

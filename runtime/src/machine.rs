@@ -145,6 +145,34 @@ pub struct EventPost {
     pub doc: String,
 }
 
+/// One dialect's lines for a switched output (`[outputs.NAME] DIALECT = { on, off, stops }`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputLines {
+    pub on: Vec<String>,
+    pub off: Vec<String>,
+    /// Whether the controller stops the table for these lines: GRBL's `M7`/`M8`/`M9` empty
+    /// the planner first (coolant_control.c), LinuxCNC's `M62`/`M63` take effect with the next
+    /// move without stopping. Defaults to `true`, the safe assumption.
+    pub stops: bool,
+}
+
+/// A switched output of the machine (air assist, exhaust, a pointer): `output NAME on|off`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputPost {
+    /// Lines per dialect ("linuxcnc", "grbl", "grblhal", "iso"); a dialect not listed cannot
+    /// switch the output.
+    pub posts: BTreeMap<String, OutputLines>,
+    pub doc: String,
+}
+
+impl OutputPost {
+    /// Whether switching stops the table on any dialect the output has lines for: one plan
+    /// serves every dialect (as for beam switches), so it stops where the strictest one does.
+    pub fn stops(&self) -> bool {
+        self.posts.values().any(|p| p.stops)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Machine {
     pub name: String,
@@ -158,6 +186,8 @@ pub struct Machine {
     pub arc_tolerance_mm: f64,
     pub post: BTreeMap<String, DialectPost>,
     pub events: BTreeMap<String, EventPost>,
+    #[serde(default)]
+    pub outputs: BTreeMap<String, OutputPost>,
 }
 
 impl Machine {
@@ -186,6 +216,8 @@ struct FileMachine {
     post: BTreeMap<String, FilePost>,
     #[serde(default)]
     events: BTreeMap<String, FileEvent>,
+    #[serde(default)]
+    outputs: BTreeMap<String, FileOutput>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -261,6 +293,79 @@ struct FileEvent {
     #[serde(default)]
     dwell: Option<toml::Spanned<String>>,
     codes: BTreeMap<String, Vec<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileOutput {
+    #[serde(default)]
+    doc: String,
+    linuxcnc: Option<FileOutputLines>,
+    grbl: Option<FileOutputLines>,
+    grblhal: Option<FileOutputLines>,
+    iso: Option<FileOutputLines>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileOutputLines {
+    on: Vec<String>,
+    off: Vec<String>,
+    stops: Option<toml::Spanned<bool>>,
+}
+
+/// Whether `line` has the M-word `code` (`M8`, `m08`).
+fn has_m(line: &str, code: u32) -> bool {
+    line.split_whitespace().any(|w| {
+        (w.starts_with('M') || w.starts_with('m')) && w[1..].parse::<u32>().ok() == Some(code)
+    })
+}
+
+/// An output's lines for one dialect, refusing `stops = false` where lase knows the controller
+/// stops (or switches at the wrong time): a plan that flew through such a switch would not be
+/// the motion the machine makes.
+fn output_lines(
+    name: &str,
+    dialect: &str,
+    l: FileOutputLines,
+    at: &dyn Fn(Range<usize>) -> Span,
+) -> Result<OutputLines, MachineError> {
+    let stops = l.stops.as_ref().is_none_or(|s| *s.get_ref());
+    if let (false, Some(s)) = (stops, &l.stops) {
+        let lines = || l.on.iter().chain(&l.off);
+        let why = if matches!(dialect, "grbl" | "grblhal") {
+            Some(
+                "GRBL empties its planner before every M-code it runs (coolant_control.c \
+                 `coolant_sync` calls `protocol_buffer_synchronize`), so the table stops"
+                    .to_string(),
+            )
+        } else if lines().any(|x| (7..=9).any(|c| has_m(x, c))) {
+            Some("`M7`/`M8`/`M9` stop the table before they switch".to_string())
+        } else if dialect == "linuxcnc"
+            && lines().any(|x| [64, 65, 68].iter().any(|&c| has_m(x, c)))
+        {
+            Some(
+                "`M64`/`M65`/`M68` switch at once, before the moves queued ahead of them; \
+                 use the motion-synchronized `M62`/`M63`/`M67`"
+                    .to_string(),
+            )
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(MachineError::Invalid {
+                message: format!("output `{name}` cannot fly on {dialect}"),
+                span: at(s.span()),
+                label: "`stops = false` here".into(),
+                help: Some(format!("{why}; write `stops = true` (or leave it out)")),
+            });
+        }
+    }
+    Ok(OutputLines {
+        on: l.on,
+        off: l.off,
+        stops,
+    })
 }
 
 /// Parses a machine file whose text starts at global offset `base`.
@@ -594,6 +699,21 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             },
         );
     }
+    let mut outputs = BTreeMap::new();
+    for (k, o) in file.outputs {
+        let mut posts = BTreeMap::new();
+        for (dialect, lines) in [
+            ("linuxcnc", o.linuxcnc),
+            ("grbl", o.grbl),
+            ("grblhal", o.grblhal),
+            ("iso", o.iso),
+        ] {
+            if let Some(l) = lines {
+                posts.insert(dialect.to_string(), output_lines(&k, dialect, l, &at)?);
+            }
+        }
+        outputs.insert(k, OutputPost { posts, doc: o.doc });
+    }
     Ok(Machine {
         name: file.name,
         description: file.description,
@@ -606,5 +726,6 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         arc_tolerance_mm,
         post,
         events,
+        outputs,
     })
 }

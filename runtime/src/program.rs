@@ -135,6 +135,9 @@ pub enum OpKind {
     MCode { code: u32, comment: Option<String> },
     /// A named machine event (head swing, shutter ...), translated by the machine's post.
     Event { name: String },
+    /// A machine output (`[outputs.NAME]`) switched on or off; `stops`: the table stops for
+    /// it (on the strictest of the output's dialects, `OutputPost::stops`).
+    Output { name: String, on: bool, stops: bool },
     /// Dot mode: the spot at rest where it stands, the beam fires `count` pulses `period_s`
     /// apart (the first at the start) in a gate window of `window_s` (`count · period_s`
     /// rounded up to the NC programs' 0.1 ms); the machine stands still for the window.

@@ -26,7 +26,7 @@
 //! - `empty`: a scan with nothing to scan.
 //!
 //! The rest name the machine and the process sheet: `no_machine`, `unknown_machine`,
-//! `machine_file`, `machine_changed`, `unknown_axis`, `unknown_event`, `above_machine` (a
+//! `machine_file`, `machine_changed`, `unknown_axis`, `unknown_event`, `unknown_output`, `above_machine` (a
 //! setting above the machine's capability), `pulse_rate`, `no_power`; and `type_mismatch`,
 //! `geometry` (a profile that cannot be built, offset or followed, a closed profile that crosses
 //! itself), `limit` (the step budget, the op count and the call depth). Machine files, extensions and presets keep their own
@@ -337,6 +337,17 @@ pub enum EvalError {
         help: Option<String>,
     },
 
+    #[error("machine `{machine}` has no output `{name}`")]
+    #[diagnostic(code(lase::eval::unknown_output))]
+    UnknownOutput {
+        machine: String,
+        name: String,
+        #[label("unknown output")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
     #[error("the laser has no power set")]
     #[diagnostic(
         code(lase::eval::no_power),
@@ -385,6 +396,7 @@ impl EvalError {
             | EvalError::Type { span, .. }
             | EvalError::Geometry { span, .. }
             | EvalError::UnknownEvent { span, .. }
+            | EvalError::UnknownOutput { span, .. }
             | EvalError::NoPower { span }
             | EvalError::Budget { span, .. } => *span,
             EvalError::Machine(m) => m.span(),
