@@ -335,8 +335,9 @@ fn output_lines(
         let lines = || l.on.iter().chain(&l.off);
         let why = if matches!(dialect, "grbl" | "grblhal") {
             Some(
-                "GRBL empties its planner before every M-code it runs (coolant_control.c \
-                 `coolant_sync` calls `protocol_buffer_synchronize`), so the table stops"
+                "GRBL empties its planner before a spindle or coolant change (coolant_control.c \
+                 `coolant_sync` calls `protocol_buffer_synchronize`) and runs no other \
+                 output, so the table stops"
                     .to_string(),
             )
         } else if lines().any(|x| (7..=9).any(|c| has_m(x, c))) {
