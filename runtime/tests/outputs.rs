@@ -55,9 +55,13 @@ laser off
 "#;
 
 fn job(outputs: &str) -> Job {
+    job_of(outputs, RECIPE)
+}
+
+fn job_of(outputs: &str, recipe: &str) -> Job {
     let mut files = MemFiles::new([
         ("m.toml", format!("{AXES}{outputs}")),
-        ("r.lase", RECIPE.to_string()),
+        ("r.lase", recipe.to_string()),
     ]);
     match compile::compile(&mut files, "r.lase") {
         Ok((_, job)) => job,
@@ -154,6 +158,34 @@ grbl = { on = ["M8"], off = ["M9"] }
             "{d}: {off} after the cut: {nc:#?}"
         );
     }
+}
+
+/// The GRBL 1.1 planner model that streams the program (`lase plan`'s controller time) runs
+/// the emitted lines: it empties its buffer at the `M8` between the cuts, one stop more than the
+/// same cut without air (the `M9` stops where the `M5` after the cut stopped already: a sync
+/// counts only with motion pending), as the ideal plan stops at the `M8`.
+#[test]
+fn grbl_planner_model_syncs_at_the_air_switches() {
+    let air = r#"
+[outputs.air]
+grbl = { on = ["M8"], off = ["M9"] }
+"#;
+    let syncs = |j: &Job| {
+        lase_runtime::link::sim::motion::controller_time(j)
+            .expect("a GRBL machine")
+            .expect("the model runs")
+            .timeline
+            .syncs
+    };
+    let with = job(air);
+    let without = job_of(
+        air,
+        &RECIPE
+            .replace("output air on", "")
+            .replace("output air off", ""),
+    );
+    assert_eq!(syncs(&with), syncs(&without) + 1);
+    assert_eq!(junction_speed(&with), 0.0);
 }
 
 #[test]
