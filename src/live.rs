@@ -4,6 +4,7 @@
 //! terminal) and the mapping of a controller's answer back to the recipe line.
 
 use crate::driver::{self, Failure, IoError};
+use crate::origin::{self, JobOrigin, OriginError};
 use crate::output;
 use lase_lang::{SourceMap, Span};
 use lase_runtime::emit::{Dialect, NcLine};
@@ -52,6 +53,11 @@ pub struct RunArgs {
     /// GRBL check mode (`$C`): the controller parses every line, nothing moves.
     #[arg(long)]
     pub check: bool,
+    /// Where the recipe's zero is: absolute (the controller's coordinates) or current (the
+    /// spot's position when the job starts, read from the controller's status; the job is
+    /// refused if it would leave the travel from there).
+    #[arg(long, value_enum, default_value_t = JobOrigin::Absolute)]
+    pub origin: JobOrigin,
     /// Send-response flow control (one line in flight) instead of character counting.
     #[arg(long)]
     pub send_response: bool,
@@ -140,7 +146,25 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .or_else(|| resumed.as_ref().map(|s| s.header.link.clone()))
         .unwrap_or_else(|| "sim".into());
     let url = LinkUrl::parse(&url_text).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
-    let (recipe, job) = driver::compile(&file)?;
+    let options = ConnectOptions {
+        rx_buffer: args.rx_buffer,
+        send_response: args.send_response,
+        ..ConnectOptions::default()
+    };
+    let (recipe, job, placed_link) = match args.origin {
+        JobOrigin::Absolute => {
+            let (recipe, job) = driver::compile(&file)?;
+            (recipe, job, None)
+        }
+        JobOrigin::Current if resumed.is_some() => {
+            return Err(io_fail(
+                "--origin current places a fresh job at the controller's position; a resumed \
+                 job continues in the place its journal recorded: leave --origin out"
+                    .into(),
+            ));
+        }
+        JobOrigin::Current => placed_at_current(&file, &url, &options)?,
+    };
     let dialect = run_dialect(&args, resumed.as_ref(), &job, &url)?;
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
@@ -157,16 +181,14 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .map_err(fail)?,
         _ => Origin::Fresh(new_journal(&args, &file, &url)),
     };
-    let options = ConnectOptions {
-        rx_buffer: args.rx_buffer,
-        send_response: args.send_response,
-        ..ConnectOptions::default()
-    };
     // Until the journal exists nothing of the job has been sent: a lost link is a job that
     // never started, not one to resume.
     let fresh = matches!(origin, Origin::Fresh(_));
-    let mut link = link::connect(&url, &job.program.machine, &options)
-        .map_err(|e| fail(if fresh { job::not_started(e) } else { e }))?;
+    let mut link = match placed_link {
+        Some(link) => link,
+        None => link::connect(&url, &job.program.machine, &options)
+            .map_err(|e| fail(if fresh { job::not_started(e) } else { e }))?,
+    };
     let ready = job::preflight(&mut *link, &lines, origin).map_err(|r| refused(r, &lines, &map))?;
     if args.check {
         return run_check(&recipe.name(), &mut *link, &lines, &map);
@@ -188,6 +210,47 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     let mut started = ready.start(&mut *link, &lines).map_err(fail)?;
     stream_run(&recipe.name(), &mut *link, &lines, &mut started)
         .map_err(|failure| (map.clone(), failure))
+}
+
+/// `lase run --origin current`: the recipe evaluated, the link opened and its position read
+/// (nothing sent but the status request), the program moved there and planned against the
+/// travel. A job that would leave the travel from here is refused with the travel diagnostic
+/// at the move and a second one naming the position it was placed at.
+fn placed_at_current(
+    file: &Path,
+    url: &LinkUrl,
+    options: &ConnectOptions,
+) -> Result<
+    (
+        driver::Recipe,
+        lase_runtime::motion::Job,
+        Option<Box<dyn Link>>,
+    ),
+    (SourceMap, Failure),
+> {
+    let (recipe, program) = driver::program(file)?;
+    let map = recipe.map.clone();
+    let fail = |e: LinkError| (map.clone(), Failure::one(job::not_started(e)));
+    let oriented = lase_runtime::kinematics::for_machine(&program.machine).oriented();
+    let mut link = link::connect(url, &program.machine, options).map_err(fail)?;
+    let status = link.query_status(Duration::from_secs(2)).map_err(fail)?;
+    let (program, at) = origin::at_current(program, &status, oriented)
+        .map_err(|e| (map.clone(), Failure::one(e)))?;
+    let first = program.ops.first().map(|o| o.span).unwrap_or_default();
+    match lase_runtime::compile::plan(program) {
+        Ok(job) => {
+            eprintln!(
+                "{}: the job's zero is the controller's position {at}",
+                recipe.name()
+            );
+            Ok((recipe, job, Some(link)))
+        }
+        Err(mut f) => {
+            f.diagnostics
+                .push(Box::new(OriginError::Placed { at, span: first }));
+            Err((map, f))
+        }
+    }
 }
 
 /// `lase frame`: what a job's frame needs to know.

@@ -6,6 +6,7 @@
 mod doc;
 mod driver;
 mod live;
+mod origin;
 mod output;
 mod repl;
 

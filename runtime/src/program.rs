@@ -382,6 +382,31 @@ pub struct OrderReport {
 }
 
 impl ProcessProgram {
+    /// The program with its part coordinates moved by `by` (issue 20's job origin at the
+    /// controller's current position: the recipe's zero is where the spot stands when the
+    /// job starts). Every position moves, arc centres and the start included; nothing else
+    /// changes, so the plan and the NC are the same job in another place.
+    pub fn translated(mut self, by: P3) -> ProcessProgram {
+        let add = |p: &mut P3| {
+            for (c, d) in p.iter_mut().zip(by) {
+                *c += d;
+            }
+        };
+        add(&mut self.start);
+        for op in &mut self.ops {
+            match &mut op.kind {
+                OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => add(to),
+                OpKind::Arc { to, center, .. } => {
+                    add(to);
+                    center[0] += by[0];
+                    center[1] += by[1];
+                }
+                _ => {}
+            }
+        }
+        self
+    }
+
     /// The frame of the lit work (`lase frame`, issue 20): the bounding box of every lit move
     /// (arcs by their extreme points, not their ends only), traced once with the beam off at
     /// `feed_mm_s` from the corner nearest the start, then a rapid back to the start, so the
