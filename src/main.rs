@@ -42,6 +42,11 @@ enum Command {
         /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso.
         #[arg(long, default_value = "linuxcnc")]
         dialect: String,
+        /// Where the recipe's zero is: absolute (machine coordinates) or current (the
+        /// program is written in a work frame the operator sets by jogging to the job's zero:
+        /// its header sets G54 there with G10 L20 P1).
+        #[arg(long, value_enum, default_value_t = origin::JobOrigin::Absolute)]
+        origin: origin::JobOrigin,
     },
     /// Plan the motion: cycle time and peaks; optionally a JSON summary and a CSV trace.
     Plan {
@@ -110,7 +115,8 @@ fn main() -> ExitCode {
             file,
             output,
             dialect,
-        } => cmd_emit(&file, output.as_deref(), &dialect),
+            origin,
+        } => cmd_emit(&file, output.as_deref(), &dialect, origin),
         Command::Plan {
             file,
             summary,
@@ -160,15 +166,40 @@ fn parse_dialect(d: &str) -> Result<Dialect, (SourceMap, Failure)> {
     })
 }
 
-fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
+fn cmd_emit(
+    file: &Path,
+    output: Option<&Path>,
+    dialect: &str,
+    origin: origin::JobOrigin,
+) -> CmdResult {
     let dialect = parse_dialect(dialect)?;
-    let (recipe, job) = driver::compile(file)?;
+    let (recipe, job, setup) = match origin {
+        origin::JobOrigin::Absolute => {
+            let (recipe, job) = driver::compile(file)?;
+            (recipe, job, Vec::new())
+        }
+        origin::JobOrigin::Current => {
+            let (recipe, program) = driver::program(file)?;
+            match origin::work_frame(program, dialect) {
+                Ok((job, setup)) => (recipe, job, setup),
+                Err(f) => return Err((recipe.map, f)),
+            }
+        }
+    };
     let locate = |s: lase_lang::Span| recipe.locate(s);
     let options = emit_options(&locate);
     let write = |w: &mut dyn Write| -> Result<(), (SourceMap, Failure)> {
         let mut io_err = None;
+        let mut setup = setup.iter();
         let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
-            writeln!(w, "{}", l.text).inspect_err(|e| io_err = Some(e.to_string()))
+            writeln!(w, "{}", l.text).inspect_err(|e| io_err = Some(e.to_string()))?;
+            // The work frame is set right after the header's units and distance mode.
+            if l.text.starts_with("G21 G90") {
+                for line in setup.by_ref() {
+                    writeln!(w, "{line}").inspect_err(|e| io_err = Some(e.to_string()))?;
+                }
+            }
+            Ok(())
         });
         match r {
             Ok(stats) => {

@@ -125,3 +125,65 @@ fn current_origin_refuses_a_job_that_would_leave_the_travel_before_sending() {
     let rec = sim.stop();
     assert!(gcode_lines(&rec).is_empty(), "nothing of the job was sent");
 }
+
+#[path = "common/rs274.rs"]
+mod rs274;
+
+/// `lase emit --origin current`: the recipe's own coordinates in a work frame the header sets
+/// where the operator has jogged (`G10 L20 P1 X0 Y0`, `G54`, right after the units and
+/// distance mode), accepted by LinuxCNC's interpreter; absolute, the same job leaves the bed.
+#[test]
+fn emit_current_writes_the_work_frame_and_its_setup() {
+    let dir = setup("emit");
+    let square = dir.join("square.lase");
+    let square = square.to_str().unwrap();
+    let (code, _, err) = lase(&["emit", square]);
+    assert_eq!(code, 1, "absolute, (5, 5) lies outside X [20, 320]: {err}");
+    for dialect in ["linuxcnc", "grbl", "grblhal"] {
+        let (code, nc, err) = lase(&["emit", square, "--origin", "current", "--dialect", dialect]);
+        assert_eq!(code, 0, "{dialect}: {err}");
+        let lines: Vec<&str> = nc.lines().collect();
+        let at = lines.iter().position(|l| l.starts_with("G21 G90")).unwrap();
+        assert!(
+            lines[at + 1].starts_with("(origin: current position"),
+            "{nc}"
+        );
+        assert_eq!(lines[at + 2], "G10 L20 P1 X0 Y0", "{dialect}");
+        assert_eq!(lines[at + 3], "G54", "{dialect}");
+        // The rectangle's corners as the recipe wrote them: X5..35, Y5..25.
+        let xs: Vec<f64> = lines
+            .iter()
+            .flat_map(|l| l.split_whitespace())
+            .filter_map(|w| w.strip_prefix('X').and_then(|v| v.parse().ok()))
+            .collect();
+        for want in [5.0, 35.0] {
+            assert!(
+                xs.iter().any(|x| (x - want).abs() < 1e-9),
+                "{dialect}: X{want}: {nc}"
+            );
+        }
+        assert!(
+            xs.iter().all(|x| (-1.0..=36.0).contains(x)),
+            "{dialect}: {xs:?}"
+        );
+        if dialect == "linuxcnc" {
+            let ngc = dir.join("square.ngc");
+            std::fs::write(&ngc, &nc).unwrap();
+            let out = rs274::rs274_g(&ngc).unwrap();
+            let text = String::from_utf8_lossy(&out.stdout);
+            assert!(out.status.success(), "rs274: {text}");
+            // It ran past the setup: the comment, G10's offset and the cut after it.
+            let setup = text.find("COMMENT(\"origin: current position").expect("setup");
+            assert!(text[setup..].contains("SET_G5X_OFFSET(1,"), "{text}");
+            assert!(text[setup..].contains("STRAIGHT_FEED(35.0000, 5.0000"), "{text}");
+        }
+    }
+    // Larger than the travel: no start fits it.
+    let wide = dir.join("wide.lase");
+    let (code, _, err) = lase(&["emit", wide.to_str().unwrap(), "--origin", "current"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("lase::origin::too_large"), "{err}");
+    let (code, _, err) = lase(&["emit", square, "--origin", "current", "--dialect", "iso"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("lase::origin::dialect"), "{err}");
+}
