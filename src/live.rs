@@ -212,6 +212,14 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .map_err(|failure| (map.clone(), failure))
 }
 
+/// A recipe, its job and, when `--origin current` read the controller's position, the link
+/// it read it over (the job goes out on the same connection).
+type Placed = (
+    driver::Recipe,
+    lase_runtime::motion::Job,
+    Option<Box<dyn Link>>,
+);
+
 /// `lase run --origin current`: the recipe evaluated, the link opened and its position read
 /// (nothing sent but the status request), the program moved there and planned against the
 /// travel. A job that would leave the travel from here is refused with the travel diagnostic
@@ -220,14 +228,7 @@ fn placed_at_current(
     file: &Path,
     url: &LinkUrl,
     options: &ConnectOptions,
-) -> Result<
-    (
-        driver::Recipe,
-        lase_runtime::motion::Job,
-        Option<Box<dyn Link>>,
-    ),
-    (SourceMap, Failure),
-> {
+) -> Result<Placed, (SourceMap, Failure)> {
     let (recipe, program) = driver::program(file)?;
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(job::not_started(e)));

@@ -173,9 +173,14 @@ fn emit_current_writes_the_work_frame_and_its_setup() {
             let text = String::from_utf8_lossy(&out.stdout);
             assert!(out.status.success(), "rs274: {text}");
             // It ran past the setup: the comment, G10's offset and the cut after it.
-            let setup = text.find("COMMENT(\"origin: current position").expect("setup");
+            let setup = text
+                .find("COMMENT(\"origin: current position")
+                .expect("setup");
             assert!(text[setup..].contains("SET_G5X_OFFSET(1,"), "{text}");
-            assert!(text[setup..].contains("STRAIGHT_FEED(35.0000, 5.0000"), "{text}");
+            assert!(
+                text[setup..].contains("STRAIGHT_FEED(35.0000, 5.0000"),
+                "{text}"
+            );
         }
     }
     // Larger than the travel: no start fits it.
