@@ -55,9 +55,10 @@ pub struct RunArgs {
     pub check: bool,
     /// Where the recipe's zero is: absolute (the controller's coordinates) or current (the
     /// spot's position when the job starts, read from the controller's status; the job is
-    /// refused if it would leave the travel from there).
-    #[arg(long, value_enum, default_value_t = JobOrigin::Absolute)]
-    pub origin: JobOrigin,
+    /// refused if it would leave the travel from there); default: the recipe's
+    /// `planner { origin ... }`, else absolute.
+    #[arg(long, value_enum)]
+    pub origin: Option<JobOrigin>,
     /// Send-response flow control (one line in flight) instead of character counting.
     #[arg(long)]
     pub send_response: bool,
@@ -151,11 +152,12 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         send_response: args.send_response,
         ..ConnectOptions::default()
     };
-    let (recipe, job, placed_link) = match args.origin {
-        JobOrigin::Absolute => {
-            let (recipe, job) = driver::compile(&file)?;
-            (recipe, job, None)
-        }
+    let (recipe, program) = driver::program(&file)?;
+    let (recipe, job, placed_link) = match origin::chosen(args.origin, &program) {
+        JobOrigin::Absolute => match lase_runtime::compile::plan(program) {
+            Ok(job) => (recipe, job, None),
+            Err(f) => return Err((recipe.map, f)),
+        },
         JobOrigin::Current if resumed.is_some() => {
             return Err(io_fail(
                 "--origin current places a fresh job at the controller's position; a resumed \
@@ -163,7 +165,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
                     .into(),
             ));
         }
-        JobOrigin::Current => placed_at_current(&file, &url, &options)?,
+        JobOrigin::Current => placed_at_current(recipe, program, &url, &options)?,
     };
     let dialect = run_dialect(&args, resumed.as_ref(), &job, &url)?;
     let map = recipe.map.clone();
@@ -220,16 +222,16 @@ type Placed = (
     Option<Box<dyn Link>>,
 );
 
-/// `lase run --origin current`: the recipe evaluated, the link opened and its position read
+/// `lase run` with the origin `current`: the recipe evaluated, the link opened and its position read
 /// (nothing sent but the status request), the program moved there and planned against the
 /// travel. A job that would leave the travel from here is refused with the travel diagnostic
 /// at the move and a second one naming the position it was placed at.
 fn placed_at_current(
-    file: &Path,
+    recipe: driver::Recipe,
+    program: lase_runtime::program::ProcessProgram,
     url: &LinkUrl,
     options: &ConnectOptions,
 ) -> Result<Placed, (SourceMap, Failure)> {
-    let (recipe, program) = driver::program(file)?;
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(job::not_started(e)));
     let oriented = lase_runtime::kinematics::for_machine(&program.machine).oriented();

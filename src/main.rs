@@ -44,9 +44,10 @@ enum Command {
         dialect: String,
         /// Where the recipe's zero is: absolute (machine coordinates) or current (the
         /// program is written in a work frame the operator sets by jogging to the job's zero:
-        /// its header sets G54 there with G10 L20 P1).
-        #[arg(long, value_enum, default_value_t = origin::JobOrigin::Absolute)]
-        origin: origin::JobOrigin,
+        /// its header sets G54 there with G10 L20 P1); default: the recipe's
+        /// `planner { origin ... }`, else absolute.
+        #[arg(long, value_enum)]
+        origin: Option<origin::JobOrigin>,
     },
     /// Plan the motion: cycle time and peaks; optionally a JSON summary and a CSV trace.
     Plan {
@@ -170,21 +171,19 @@ fn cmd_emit(
     file: &Path,
     output: Option<&Path>,
     dialect: &str,
-    origin: origin::JobOrigin,
+    origin: Option<origin::JobOrigin>,
 ) -> CmdResult {
     let dialect = parse_dialect(dialect)?;
-    let (recipe, job, setup) = match origin {
+    let (recipe, program) = driver::program(file)?;
+    let planned = match origin::chosen(origin, &program) {
         origin::JobOrigin::Absolute => {
-            let (recipe, job) = driver::compile(file)?;
-            (recipe, job, Vec::new())
+            lase_runtime::compile::plan(program).map(|job| (job, Vec::new()))
         }
-        origin::JobOrigin::Current => {
-            let (recipe, program) = driver::program(file)?;
-            match origin::work_frame(program, dialect) {
-                Ok((job, setup)) => (recipe, job, setup),
-                Err(f) => return Err((recipe.map, f)),
-            }
-        }
+        origin::JobOrigin::Current => origin::work_frame(program, dialect),
+    };
+    let (job, setup) = match planned {
+        Ok(p) => p,
+        Err(f) => return Err((recipe.map, f)),
     };
     let locate = |s: lase_lang::Span| recipe.locate(s);
     let options = emit_options(&locate);

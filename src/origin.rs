@@ -26,6 +26,20 @@ pub enum JobOrigin {
     Current,
 }
 
+impl From<lase_runtime::program::JobOrigin> for JobOrigin {
+    fn from(o: lase_runtime::program::JobOrigin) -> Self {
+        match o {
+            lase_runtime::program::JobOrigin::Absolute => JobOrigin::Absolute,
+            lase_runtime::program::JobOrigin::Current => JobOrigin::Current,
+        }
+    }
+}
+
+/// `--origin` if given, else the recipe's `planner { origin ... }`.
+pub fn chosen(cli: Option<JobOrigin>, program: &ProcessProgram) -> JobOrigin {
+    cli.unwrap_or_else(|| program.planner.origin.into())
+}
+
 /// Why a job cannot be placed at the controller's position.
 #[derive(Debug, thiserror::Error, miette::Diagnostic)]
 pub enum OriginError {

@@ -28,6 +28,12 @@ fn setup(tag: &str) -> PathBuf {
     };
     std::fs::write(dir.join("square.lase"), recipe("30 mm", "(5 mm, 5 mm)")).unwrap();
     std::fs::write(dir.join("wide.lase"), recipe("310 mm", "(5 mm, 5 mm)")).unwrap();
+    // The origin chosen in the recipe.
+    std::fs::write(
+        dir.join("placed.lase"),
+        recipe("30 mm", "(5 mm, 5 mm)").replacen("\n", "\nplanner { origin current }\n", 1),
+    )
+    .unwrap();
     dir
 }
 
@@ -191,4 +197,30 @@ fn emit_current_writes_the_work_frame_and_its_setup() {
     let (code, _, err) = lase(&["emit", square, "--origin", "current", "--dialect", "iso"]);
     assert_eq!(code, 1);
     assert!(err.contains("lase::origin::dialect"), "{err}");
+}
+
+/// `planner { origin current }` in the recipe chooses the same as `--origin current`, and
+/// `--origin absolute` on the command line overrides it.
+#[test]
+fn the_recipe_chooses_the_origin_and_the_command_line_overrides_it() {
+    let dir = setup("recipe");
+    let placed = dir.join("placed.lase");
+    let placed = placed.to_str().unwrap();
+    let (code, nc, err) = lase(&["emit", placed]);
+    assert_eq!(code, 0, "{err}");
+    assert!(nc.lines().any(|l| l == "G10 L20 P1 X0 Y0"), "{nc}");
+    let (code, _, err) = lase(&["emit", placed, "--origin", "absolute"]);
+    assert_eq!(code, 1, "absolute, (5, 5) lies outside X [20, 320]: {err}");
+    assert!(err.contains("lase::plan::travel"), "{err}");
+    let sim = bed_sim(&dir);
+    let (code, _, err) = lase(&["run", placed, "--link", &url(&sim)]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("position X20 Y10"), "{err}");
+    assert!(sim.wait_quiet(Duration::from_secs(5)));
+    let rec = sim.stop();
+    let end = rec.blocks.last().unwrap().to;
+    assert!(
+        (end[0] - 25.0).abs() < 1e-3 && (end[1] - 15.0).abs() < 1e-3,
+        "{end:?}"
+    );
 }

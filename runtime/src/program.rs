@@ -278,6 +278,26 @@ pub struct PlannerSettings {
     /// The order the job's paths are cut in (`planner { order ... }`).
     #[serde(default, skip_serializing_if = "CutOrder::is_source")]
     pub order: CutOrder,
+    /// Where the recipe's zero is on the machine (`planner { origin ... }`; the binary's
+    /// `--origin` overrides it).
+    #[serde(default, skip_serializing_if = "JobOrigin::is_absolute")]
+    pub origin: JobOrigin,
+}
+
+/// Where a job's zero is (issue 20): the controller's coordinates, or the spot's position when
+/// the job starts.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JobOrigin {
+    #[default]
+    Absolute,
+    Current,
+}
+
+impl JobOrigin {
+    fn is_absolute(&self) -> bool {
+        *self == JobOrigin::Absolute
+    }
 }
 
 /// The order a job's paths are cut in (`planner { order source|nearest|inner_first }`; see
@@ -725,6 +745,7 @@ mod tests {
                 lookahead: None,
                 leadin: LeadIn::Auto,
                 order: CutOrder::Source,
+                origin: JobOrigin::Absolute,
             },
             start: [0.0; 3],
             ordering: None,
@@ -885,6 +906,7 @@ mod frame_tests {
                 lookahead: None,
                 leadin: LeadIn::Auto,
                 order: CutOrder::Source,
+                origin: JobOrigin::Absolute,
             },
             start: [0.0; 3],
             ops: vec![rapid, arc([5.0, 0.0, 0.0]), arc([15.0, 0.0, 0.0])],
