@@ -267,6 +267,9 @@ pub struct FrameArgs {
     /// Speed of the trace, with a unit.
     #[arg(long, default_value = "50 mm/s")]
     pub speed: String,
+    /// Trace at the pointer power the machine file allows (`[laser] pointer`), not dark.
+    #[arg(long)]
+    pub pointer: bool,
 }
 
 /// Traces the bounding box of a recipe's lit work with the beam off over the live link and
@@ -293,7 +296,19 @@ pub fn cmd_frame(args: FrameArgs) -> CmdResult {
             job.program.machine.name
         )));
     }
-    let Some(frame) = job.program.frame(speed.value) else {
+    let pointer = match (args.pointer, job.program.machine.laser.pointer_w) {
+        (false, _) => None,
+        (true, Some(w)) => Some(w),
+        (true, None) => {
+            return Err(io_fail(format!(
+                "{}: machine `{}` allows no pointer power; add `pointer = \"0.5 W\"` to its \
+                 [laser], or frame dark without --pointer",
+                recipe.name(),
+                job.program.machine.name
+            )));
+        }
+    };
+    let Some(frame) = job.program.frame(speed.value, pointer) else {
         return Err(io_fail(format!(
             "{}: nothing is lit, so there is no work to frame",
             recipe.name()

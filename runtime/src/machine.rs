@@ -92,6 +92,10 @@ pub struct Axis {
 pub struct LaserSpec {
     pub max_power_w: f64,
     pub max_pulse_rate_hz: f64,
+    /// The power the machine allows for pointing (a visible spot that marks nothing):
+    /// `lase frame --pointer` traces the frame at it. `None`: framing is dark only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pointer_w: Option<f64>,
 }
 
 /// How one dialect switches the laser and frames the program. Templates may use `{power}`
@@ -248,6 +252,7 @@ struct FileGeometry {
 struct FileLaser {
     max_power: toml::Spanned<String>,
     max_pulse_rate: toml::Spanned<String>,
+    pointer: Option<toml::Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -631,7 +636,7 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             }
         }
     }
-    let laser = LaserSpec {
+    let mut laser = LaserSpec {
         max_power_w: positive(
             qty(&file.laser.max_power, &[Dim::POWER], "max_power")?,
             &file.laser.max_power,
@@ -646,7 +651,20 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             &file.laser.max_pulse_rate,
             "max_pulse_rate",
         )?,
+        pointer_w: None,
     };
+    if let Some(p) = &file.laser.pointer {
+        let w = positive(qty(p, &[Dim::POWER], "pointer")?, p, "pointer")?;
+        if w > laser.max_power_w {
+            return Err(MachineError::Invalid {
+                message: format!("the pointer power `{}` is above max_power", p.get_ref()),
+                span: at(p.span()),
+                label: "above the laser's full power".into(),
+                help: Some("the pointer marks where the job will be at a power that marks nothing; give a power at most max_power".into()),
+            });
+        }
+        laser.pointer_w = Some(w);
+    }
     let junction_deviation_mm = match &file.planner.junction_deviation {
         Some(s) => positive(
             qty(s, &[Dim::LENGTH], "junction_deviation")?,

@@ -431,7 +431,9 @@ impl ProcessProgram {
     /// (arcs by their extreme points, not their ends only), traced once with the beam off at
     /// `feed_mm_s` from the corner nearest the start, then a rapid back to the start, so the
     /// operator sees where the job will burn before it does. `None` when nothing is lit.
-    pub fn frame(&self, feed_mm_s: f64) -> Option<ProcessProgram> {
+    /// `pointer_w`: the trace lit at the machine's pointer power (`[laser] pointer`), so the
+    /// operator sees the spot go round, instead of dark.
+    pub fn frame(&self, feed_mm_s: f64, pointer_w: Option<f64>) -> Option<ProcessProgram> {
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
         let mut grow = |p: [f64; 2]| {
@@ -488,7 +490,13 @@ impl ProcessProgram {
                 kind: OpKind::Line {
                     to: corners[(k0 + k) % 4],
                     feed_mm_s,
-                    laser: None,
+                    laser: pointer_w.map(|w| Laser {
+                        power_w: w,
+                        spot_mm: 0.0,
+                        pulse: None,
+                        couple: Coupling::None,
+                        kerf_mm: 0.0,
+                    }),
                     orient: None,
                 },
                 span,
@@ -913,7 +921,7 @@ mod frame_tests {
             ordering: None,
             machine: m,
         };
-        let f = p.frame(20.0).unwrap();
+        let f = p.frame(20.0, None).unwrap();
         // The box, without the rapid back to the start.
         let pts: Vec<P3> = f.ops[..f.ops.len() - 1]
             .iter()
