@@ -81,6 +81,10 @@ const STATEMENTS: &[(&str, &str)] = &[
         "`event swing_right`: a named machine event, translated by the machine file.",
     ),
     (
+        "output",
+        "`output air on` / `output air off`: a machine file's `[outputs.air]` (air assist, exhaust), written per dialect; the table stops for it only where that controller stops.",
+    ),
+    (
         "profile",
         "`profile KIND ...`: a profile value; `:help profiles` lists the kinds.",
     ),

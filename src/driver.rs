@@ -14,6 +14,22 @@ pub fn compile(path: &Path) -> Result<(Recipe, Job), (SourceMap, Failure)> {
     lase_runtime::compile(&mut lase_runtime::FsFiles, &path.to_string_lossy())
 }
 
+/// A recipe file on disk evaluated into its process program, not yet planned (`lase run
+/// --origin current` places it at the controller's position first).
+pub fn program(
+    path: &Path,
+) -> Result<(Recipe, lase_runtime::program::ProcessProgram), (SourceMap, Failure)> {
+    let files = &mut lase_runtime::FsFiles;
+    let mut recipe = lase_runtime::compile::load(files, &path.to_string_lossy())?;
+    if let Err(f) = lase_runtime::compile::check(&recipe) {
+        return Err((recipe.map, f));
+    }
+    match lase_runtime::compile::evaluate(&mut recipe, files) {
+        Ok(p) => Ok((recipe, p)),
+        Err(f) => Err((recipe.map, f)),
+    }
+}
+
 /// What `lase check` (and the REPL's `:check FILE`) says of a recipe that compiled.
 pub fn ok_line(recipe: &Recipe, job: &Job) -> String {
     format!(

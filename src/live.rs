@@ -4,6 +4,7 @@
 //! terminal) and the mapping of a controller's answer back to the recipe line.
 
 use crate::driver::{self, Failure, IoError};
+use crate::origin::{self, JobOrigin, OriginError};
 use crate::output::{self, outln};
 use lase_lang::{SourceMap, Span};
 use lase_runtime::emit::Dialect;
@@ -56,6 +57,12 @@ pub struct RunArgs {
     /// GRBL check mode (`$C`): the controller parses every line, nothing moves.
     #[arg(long)]
     pub check: bool,
+    /// Where the recipe's zero is: absolute (the controller's coordinates) or current (the
+    /// spot's position when the job starts, read from the controller's status; the job is
+    /// refused if it would leave the travel from there); default: the recipe's
+    /// `planner { origin ... }`, else absolute.
+    #[arg(long, value_enum)]
+    pub origin: Option<JobOrigin>,
     /// Send-response flow control (one line in flight) instead of character counting.
     #[arg(long)]
     pub send_response: bool,
@@ -163,10 +170,29 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             .parse()
             .map_err(|e: String| io_fail(format!("--time-scale: {e}")))?;
     }
+    let options = ConnectOptions {
+        rx_buffer: args.rx_buffer,
+        send_response: args.send_response,
+        ..ConnectOptions::default()
+    };
     // A sign of life until the progress bar takes over: a texturing job takes seconds to
     // compile and to write once before it streams.
     let busy = crate::output::Busy::start(&format!("compiling {}", file.display()));
-    let (recipe, job) = driver::compile(&file)?;
+    let (recipe, program) = driver::program(&file)?;
+    let (recipe, job, placed_link) = match origin::chosen(args.origin, &program) {
+        JobOrigin::Absolute => match lase_runtime::compile::plan(program) {
+            Ok(job) => (recipe, job, None),
+            Err(f) => return Err((recipe.map, f)),
+        },
+        JobOrigin::Current if resumed.is_some() => {
+            return Err(io_fail(
+                "--origin current places a fresh job at the controller's position; a resumed \
+                 job continues in the place its journal recorded: leave --origin out"
+                    .into(),
+            ));
+        }
+        JobOrigin::Current => placed_at_current(recipe, program, &url, &options)?,
+    };
     let dialect = run_dialect(&args, resumed.as_ref(), &job, &url)?;
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
@@ -189,16 +215,14 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .map_err(fail)?,
         _ => Origin::Fresh(new_journal(&args, &file, &url)),
     };
-    let options = ConnectOptions {
-        rx_buffer: args.rx_buffer,
-        send_response: args.send_response,
-        ..ConnectOptions::default()
-    };
     // Until the journal exists nothing of the job has been sent: a lost link is a job that
     // never started, not one to resume.
     let fresh = matches!(origin, Origin::Fresh(_));
-    let mut link = link::connect(&url, &job.program.machine, &options)
-        .map_err(|e| fail(if fresh { job::not_started(e) } else { e }))?;
+    let mut link = match placed_link {
+        Some(link) => link,
+        None => link::connect(&url, &job.program.machine, &options)
+            .map_err(|e| fail(if fresh { job::not_started(e) } else { e }))?,
+    };
     let ready = job::preflight(&mut *link, &lines, origin).map_err(|r| refused(r, &lines, &map))?;
     if args.check {
         return run_check(&recipe.name(), &mut *link, &lines, &map);
@@ -223,6 +247,48 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .map_err(|failure| (map.clone(), failure))
 }
 
+/// A recipe, its job and, when `--origin current` read the controller's position, the link
+/// it read it over (the job goes out on the same connection).
+type Placed = (
+    driver::Recipe,
+    lase_runtime::motion::Job,
+    Option<Box<dyn Link>>,
+);
+
+/// `lase run` with the origin `current`: the recipe evaluated, the link opened and its position read
+/// (nothing sent but the status request), the program moved there and planned against the
+/// travel. A job that would leave the travel from here is refused with the travel diagnostic
+/// at the move and a second one naming the position it was placed at.
+fn placed_at_current(
+    recipe: driver::Recipe,
+    program: lase_runtime::program::ProcessProgram,
+    url: &LinkUrl,
+    options: &ConnectOptions,
+) -> Result<Placed, (SourceMap, Failure)> {
+    let map = recipe.map.clone();
+    let fail = |e: LinkError| (map.clone(), Failure::one(job::not_started(e)));
+    let oriented = lase_runtime::kinematics::for_machine(&program.machine).oriented();
+    let mut link = link::connect(url, &program.machine, options).map_err(fail)?;
+    let status = link.query_status(Duration::from_secs(2)).map_err(fail)?;
+    let (program, at) = origin::at_current(program, &status, oriented)
+        .map_err(|e| (map.clone(), Failure::one(e)))?;
+    let first = program.ops.first().map(|o| o.span).unwrap_or_default();
+    match lase_runtime::compile::plan(program) {
+        Ok(job) => {
+            eprintln!(
+                "{}: the job's zero is the controller's position {at}",
+                recipe.name()
+            );
+            Ok((recipe, job, Some(link)))
+        }
+        Err(mut f) => {
+            f.diagnostics
+                .push(Box::new(OriginError::Placed { at, span: first }));
+            Err((map, f))
+        }
+    }
+}
+
 /// `lase frame`: what a job's frame needs to know.
 #[derive(Debug, Clone, clap::Args)]
 pub struct FrameArgs {
@@ -234,6 +300,9 @@ pub struct FrameArgs {
     /// Speed of the trace, with a unit.
     #[arg(long, default_value = "50 mm/s")]
     pub speed: String,
+    /// Trace at the pointer power the machine file allows (`[laser] pointer`), not dark.
+    #[arg(long)]
+    pub pointer: bool,
 }
 
 /// Traces the bounding box of a recipe's lit work with the beam off over the live link and
@@ -260,7 +329,19 @@ pub fn cmd_frame(args: FrameArgs) -> CmdResult {
             job.program.machine.name
         )));
     }
-    let Some(frame) = job.program.frame(speed.value) else {
+    let pointer = match (args.pointer, job.program.machine.laser.pointer_w) {
+        (false, _) => None,
+        (true, Some(w)) => Some(w),
+        (true, None) => {
+            return Err(io_fail(format!(
+                "{}: machine `{}` allows no pointer power; add `pointer = \"0.5 W\"` to its \
+                 [laser], or frame dark without --pointer",
+                recipe.name(),
+                job.program.machine.name
+            )));
+        }
+    };
+    let Some(frame) = job.program.frame(speed.value, pointer) else {
         return Err(io_fail(format!(
             "{}: nothing is lit, so there is no work to frame",
             recipe.name()

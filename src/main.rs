@@ -6,6 +6,7 @@
 mod doc;
 mod driver;
 mod live;
+mod origin;
 mod output;
 mod repl;
 
@@ -42,6 +43,12 @@ enum Command {
         /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso.
         #[arg(long, default_value = "linuxcnc")]
         dialect: String,
+        /// Where the recipe's zero is: absolute (machine coordinates) or current (the
+        /// program is written in a work frame the operator sets by jogging to the job's zero:
+        /// its header sets G54 there with G10 L20 P1); default: the recipe's
+        /// `planner { origin ... }`, else absolute.
+        #[arg(long, value_enum)]
+        origin: Option<origin::JobOrigin>,
     },
     /// Plan the motion: cycle time, peaks and where the time goes; optionally a JSON summary
     /// (`-o`), a CSV trace (`--trace`) and every pulse (`--pulses`).
@@ -124,7 +131,8 @@ fn main() -> ExitCode {
             file,
             output,
             dialect,
-        } => cmd_emit(&file, output.as_deref(), &dialect),
+            origin,
+        } => cmd_emit(&file, output.as_deref(), &dialect, origin),
         Command::Plan {
             file,
             output: summary,
@@ -179,7 +187,12 @@ fn parse_dialect(d: &str) -> Result<Dialect, (SourceMap, Failure)> {
     })
 }
 
-fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
+fn cmd_emit(
+    file: &Path,
+    output: Option<&Path>,
+    dialect: &str,
+    origin: Option<origin::JobOrigin>,
+) -> CmdResult {
     let dialect = parse_dialect(dialect)?;
     // No spinner over NC text printed on the terminal itself.
     let busy = if output.is_none() && std::io::stdout().is_terminal() {
@@ -187,7 +200,17 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
     } else {
         output::Busy::start(&format!("compiling {}", file.display()))
     };
-    let (recipe, job) = driver::compile(file)?;
+    let (recipe, program) = driver::program(file)?;
+    let planned = match origin::chosen(origin, &program) {
+        origin::JobOrigin::Absolute => {
+            lase_runtime::compile::plan(program).map(|job| (job, Vec::new()))
+        }
+        origin::JobOrigin::Current => origin::work_frame(program, dialect),
+    };
+    let (job, setup) = match planned {
+        Ok(p) => p,
+        Err(f) => return Err((recipe.map, f)),
+    };
     let locate = |s: lase_lang::Span| recipe.locate(s);
     let options = emit_options(&locate);
     let mut written = (0u64, 0u64);
@@ -195,6 +218,9 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
         let mut io_err = None;
         busy.say(format!("writing {dialect} NC"));
         let mut lines = 0u64;
+        let mut setup = setup.iter();
+        // The work frame's lines are ours, not the emitter's: counted here for the result line.
+        let mut extra = (0u64, 0u64);
         let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
             lines += 1;
             if lines.is_multiple_of(1 << 16) && busy.shown() {
@@ -202,14 +228,24 @@ fn cmd_emit(file: &Path, output: Option<&Path>, dialect: &str) -> CmdResult {
             }
             w.write_all(l.text.as_bytes())
                 .and_then(|()| w.write_all(b"\n"))
-                .inspect_err(|e| io_err = Some(e.to_string()))
+                .inspect_err(|e| io_err = Some(e.to_string()))?;
+            // The work frame is set right after the header's units and distance mode.
+            if l.text.starts_with("G21 G90") {
+                for line in setup.by_ref() {
+                    w.write_all(line.as_bytes())
+                        .and_then(|()| w.write_all(b"\n"))
+                        .inspect_err(|e| io_err = Some(e.to_string()))?;
+                    extra = (extra.0 + 1, extra.1 + line.len() as u64 + 1);
+                }
+            }
+            Ok(())
         });
         match r {
             Ok(stats) => {
                 for warn in &stats.warnings {
                     eprintln!("warning: {warn}");
                 }
-                written = (stats.lines, stats.bytes);
+                written = (stats.lines + extra.0, stats.bytes + extra.1);
                 Ok(())
             }
             Err(e) => match io_err {

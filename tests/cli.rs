@@ -12,12 +12,18 @@ fn output_flags_are_consistent_and_documented() {
     for cmd in ["emit", "plan", "plot"] {
         let (code, out, err) = lase(&[cmd, "--help"]);
         assert_eq!(code, 0, "{err}");
-        let line = out
-            .lines()
-            .find(|l| l.trim_start().starts_with("-o, --output <OUTPUT>"))
+        let lines: Vec<&str> = out.lines().collect();
+        let at = lines
+            .iter()
+            .position(|l| l.trim_start().starts_with("-o, --output <OUTPUT>"))
             .unwrap_or_else(|| panic!("`lase {cmd} --help` has no -o:\n{out}"));
-        // Help text on the same line, after the flag.
-        let text = line.trim_start()["-o, --output <OUTPUT>".len()..].trim();
+        let line = lines[at];
+        // Help text on the same line after the flag, or on the next when clap lays the options
+        // out with their help below them (as it does once one option's help is long).
+        let mut text = line.trim_start()["-o, --output <OUTPUT>".len()..].trim();
+        if text.is_empty() {
+            text = lines.get(at + 1).map_or("", |l| l.trim());
+        }
         assert!(text.len() > 10, "`lase {cmd} -o` has no help text: {line}");
     }
     let (_, out, _) = lase(&["plan", "--help"]);

@@ -118,7 +118,7 @@ fn fenced_lase_blocks(text: &str) -> Vec<(Option<String>, String)> {
 fn inline_statements(text: &str) -> Vec<String> {
     const STATEMENTS: &[&str] = &[
         "machine", "limits", "planner", "laser", "pulse", "follow", "move", "dwell", "mcode",
-        "event", "use", "scan",
+        "event", "use", "scan", "output",
     ];
     let mut out: Vec<String> = Vec::new();
     for line in text.lines() {

@@ -30,7 +30,9 @@ fn lit_runs(ngc: &str) -> (Vec<Run>, f64) {
     for line in ngc.lines() {
         let w = nc_words(line);
         let get = |c: char| w.iter().find(|(l, _)| *l == c).map(|(_, v)| *v);
-        if w.iter().any(|&(c, v)| c == 'M' && v == 62.0) {
+        // The beam's gate is digital output 0; other outputs (air on `M62 P2`) are not cuts.
+        let gate = w.iter().any(|&(c, v)| c == 'P' && v == 0.0);
+        if gate && w.iter().any(|&(c, v)| c == 'M' && v == 62.0) {
             lit = true;
             out.push(Run {
                 start: pos,
@@ -39,7 +41,7 @@ fn lit_runs(ngc: &str) -> (Vec<Run>, f64) {
                 ..Run::default()
             });
         }
-        if w.iter().any(|&(c, v)| c == 'M' && v == 63.0) {
+        if gate && w.iter().any(|&(c, v)| c == 'M' && v == 63.0) {
             lit = false;
         }
         if let Some(g) = w
@@ -241,4 +243,37 @@ fn plan_reports_the_travel_saved() {
         .expect("a cut order line");
     assert!(line.contains("12 paths"), "{line}");
     assert!(line.contains("saved"), "{line}");
+}
+
+/// The air-assist example's first path starts where the machine stands (no rapid before it):
+/// it is ordered and given its kerf like any other, so the hole (radius 3 mm, kerf 0.15 mm)
+/// comes first at 2.925 mm and the 30 x 20 mm outline follows 0.075 mm outside; the air's
+/// `M62 P2` comes before the first cut and its `M63 P2` after the last.
+#[test]
+fn air_assist_example_orders_its_first_path_and_switches_the_air_around_the_cuts() {
+    let ngc = emit("examples/air_assist.lase");
+    let (runs, _) = lit_runs(&ngc);
+    assert_eq!(runs.len(), 2, "{ngc}");
+    assert!(
+        runs[0].lines == 0 && !runs[0].radii.is_empty(),
+        "the hole first: {ngc}"
+    );
+    for r in &runs[0].radii {
+        assert!(
+            (r - 2.925).abs() < 1e-3,
+            "hole radius {r}, want 3 - 0.075 mm"
+        );
+    }
+    let b = bbox(&runs[1].points);
+    for (got, want) in b.iter().zip([-0.075, -0.075, 30.075, 20.075]) {
+        assert!(
+            (got - want).abs() < 1e-3,
+            "outline box {b:?}, want 0.075 mm outside"
+        );
+    }
+    let lines: Vec<&str> = ngc.lines().collect();
+    let at = |l: &str| lines.iter().position(|x| *x == l).expect(l);
+    let first_cut = at("M62 P0");
+    let last_cut = lines.iter().rposition(|x| *x == "M63 P0").unwrap();
+    assert!(at("M62 P2") < first_cut && at("M63 P2") > last_cut, "{ngc}");
 }

@@ -79,6 +79,7 @@ fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
             OpKind::Dwell { seconds } => format!("dwell {}", n(*seconds)),
             OpKind::MCode { code, comment } => format!("mcode {code} {comment:?}"),
             OpKind::Event { name } => format!("event {name}"),
+            OpKind::Output { name, on, stops } => format!("output {name} {on} stops {stops}"),
             OpKind::Fire {
                 count,
                 period_s,

@@ -137,6 +137,11 @@ pub enum StmtKind {
         comment: Option<StrLit>,
     },
     Event(Ident),
+    /// `output NAME on|off`: a machine file's `[outputs.NAME]`.
+    Output {
+        name: Ident,
+        on: bool,
+    },
     Scan {
         kind: Ident,
         region: Expr,

@@ -398,6 +398,11 @@ impl Builder {
                 StmtKind::MCode { code, comment }
             }
             Rule::event_stmt => StmtKind::Event(self.ident(next())),
+            Rule::output_stmt => {
+                let name = self.ident(next());
+                let on = next().as_str() == "on";
+                StmtKind::Output { name, on }
+            }
             Rule::scan_stmt => {
                 let kind = self.ident(next());
                 let region = self.expr(next());
@@ -771,6 +776,7 @@ fn is_keyword(r: Rule) -> bool {
             | Rule::kw_dwell
             | Rule::kw_mcode
             | Rule::kw_event
+            | Rule::kw_output
             | Rule::kw_scan
             | Rule::kw_interval
     )
@@ -830,6 +836,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         | Rule::kw_dwell
         | Rule::kw_mcode
         | Rule::kw_event
+        | Rule::kw_output
         | Rule::kw_scan
         | Rule::call_stmt
         | Rule::machine_stmt
@@ -849,6 +856,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         | Rule::dwell_stmt
         | Rule::mcode_stmt
         | Rule::event_stmt
+        | Rule::output_stmt
         | Rule::scan_stmt => "a statement",
         Rule::kw_else => "`else`",
         Rule::kw_in => "`in`",

@@ -643,12 +643,23 @@ pub const PLANNER_SETTINGS: &[SettingSpec] = &[
          `nearest` but a path inside a closed path is cut before it (holes before the \
          outline, so the part does not drop first). `lase plan` reports the travel saved.",
     ),
+    set(
+        "origin",
+        PTy::Word(JOB_ORIGINS),
+        "Where the recipe's zero is on the machine: `absolute` (default), the controller's \
+         coordinates; `current`, the spot's position when the job starts (`lase run` reads it \
+         from the controller and refuses a job that would leave the travel from there; `lase \
+         emit` writes a work frame its header sets with `G10 L20 P1`). `--origin` overrides it.",
+    ),
 ];
 
 pub const LEADINS: &[&str] = &["auto", "none"];
 
 /// Cut orders of `planner { order ... }` (issue 20).
 pub const CUT_ORDERS: &[&str] = &["source", "nearest", "inner_first"];
+
+/// Job origins of `planner { origin ... }` (issue 20).
+pub const JOB_ORIGINS: &[&str] = &["absolute", "current"];
 
 pub const LIMIT_SETTINGS: &[SettingSpec] = &[
     set(
@@ -924,6 +935,6 @@ pub const TYPE_NAMES: &[&str] = &[
 pub const KEYWORDS: &[&str] = &[
     "machine", "limits", "let", "fn", "import", "use", "if", "else", "for", "in", "return",
     "laser", "pulse", "planner", "move", "to", "by", "rapid", "at", "follow", "dwell", "mcode",
-    "event", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw", "ccw", "on",
-    "off", "interval",
+    "event", "output", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw",
+    "ccw", "on", "off", "interval",
 ];

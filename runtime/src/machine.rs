@@ -92,6 +92,10 @@ pub struct Axis {
 pub struct LaserSpec {
     pub max_power_w: f64,
     pub max_pulse_rate_hz: f64,
+    /// The power the machine allows for pointing (a visible spot that marks nothing):
+    /// `lase frame --pointer` traces the frame at it. `None`: framing is dark only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pointer_w: Option<f64>,
 }
 
 /// How one dialect switches the laser and frames the program. Templates may use `{power}`
@@ -145,6 +149,34 @@ pub struct EventPost {
     pub doc: String,
 }
 
+/// One dialect's lines for a switched output (`[outputs.NAME] DIALECT = { on, off, stops }`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputLines {
+    pub on: Vec<String>,
+    pub off: Vec<String>,
+    /// Whether the controller stops the table for these lines: GRBL's `M7`/`M8`/`M9` empty
+    /// the planner first (coolant_control.c), LinuxCNC's `M62`/`M63` take effect with the next
+    /// move without stopping. Defaults to `true`, the safe assumption.
+    pub stops: bool,
+}
+
+/// A switched output of the machine (air assist, exhaust, a pointer): `output NAME on|off`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct OutputPost {
+    /// Lines per dialect ("linuxcnc", "grbl", "grblhal", "iso"); a dialect not listed cannot
+    /// switch the output.
+    pub posts: BTreeMap<String, OutputLines>,
+    pub doc: String,
+}
+
+impl OutputPost {
+    /// Whether switching stops the table on any dialect the output has lines for: one plan
+    /// serves every dialect (as for beam switches), so it stops where the strictest one does.
+    pub fn stops(&self) -> bool {
+        self.posts.values().any(|p| p.stops)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Machine {
     pub name: String,
@@ -158,6 +190,8 @@ pub struct Machine {
     pub arc_tolerance_mm: f64,
     pub post: BTreeMap<String, DialectPost>,
     pub events: BTreeMap<String, EventPost>,
+    #[serde(default)]
+    pub outputs: BTreeMap<String, OutputPost>,
 }
 
 impl Machine {
@@ -186,6 +220,8 @@ struct FileMachine {
     post: BTreeMap<String, FilePost>,
     #[serde(default)]
     events: BTreeMap<String, FileEvent>,
+    #[serde(default)]
+    outputs: BTreeMap<String, FileOutput>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -216,6 +252,7 @@ struct FileGeometry {
 struct FileLaser {
     max_power: toml::Spanned<String>,
     max_pulse_rate: toml::Spanned<String>,
+    pointer: Option<toml::Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -261,6 +298,80 @@ struct FileEvent {
     #[serde(default)]
     dwell: Option<toml::Spanned<String>>,
     codes: BTreeMap<String, Vec<String>>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileOutput {
+    #[serde(default)]
+    doc: String,
+    linuxcnc: Option<FileOutputLines>,
+    grbl: Option<FileOutputLines>,
+    grblhal: Option<FileOutputLines>,
+    iso: Option<FileOutputLines>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileOutputLines {
+    on: Vec<String>,
+    off: Vec<String>,
+    stops: Option<toml::Spanned<bool>>,
+}
+
+/// Whether `line` has the M-word `code` (`M8`, `m08`).
+fn has_m(line: &str, code: u32) -> bool {
+    line.split_whitespace().any(|w| {
+        (w.starts_with('M') || w.starts_with('m')) && w[1..].parse::<u32>().ok() == Some(code)
+    })
+}
+
+/// An output's lines for one dialect, refusing `stops = false` where lase knows the controller
+/// stops (or switches at the wrong time): a plan that flew through such a switch would not be
+/// the motion the machine makes.
+fn output_lines(
+    name: &str,
+    dialect: &str,
+    l: FileOutputLines,
+    at: &dyn Fn(Range<usize>) -> Span,
+) -> Result<OutputLines, MachineError> {
+    let stops = l.stops.as_ref().is_none_or(|s| *s.get_ref());
+    if let (false, Some(s)) = (stops, &l.stops) {
+        let lines = || l.on.iter().chain(&l.off);
+        let why = if matches!(dialect, "grbl" | "grblhal") {
+            Some(
+                "GRBL empties its planner before a spindle or coolant change (coolant_control.c \
+                 `coolant_sync` calls `protocol_buffer_synchronize`) and runs no other \
+                 output, so the table stops"
+                    .to_string(),
+            )
+        } else if lines().any(|x| (7..=9).any(|c| has_m(x, c))) {
+            Some("`M7`/`M8`/`M9` stop the table before they switch".to_string())
+        } else if dialect == "linuxcnc"
+            && lines().any(|x| [64, 65, 68].iter().any(|&c| has_m(x, c)))
+        {
+            Some(
+                "`M64`/`M65`/`M68` switch at once, before the moves queued ahead of them; \
+                 use the motion-synchronized `M62`/`M63`/`M67`"
+                    .to_string(),
+            )
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(MachineError::Invalid {
+                message: format!("output `{name}` cannot fly on {dialect}"),
+                span: at(s.span()),
+                label: "`stops = false` here".into(),
+                help: Some(format!("{why}; write `stops = true` (or leave it out)")),
+            });
+        }
+    }
+    Ok(OutputLines {
+        on: l.on,
+        off: l.off,
+        stops,
+    })
 }
 
 /// Parses a machine file whose text starts at global offset `base`.
@@ -525,7 +636,7 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             }
         }
     }
-    let laser = LaserSpec {
+    let mut laser = LaserSpec {
         max_power_w: positive(
             qty(&file.laser.max_power, &[Dim::POWER], "max_power")?,
             &file.laser.max_power,
@@ -540,7 +651,20 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             &file.laser.max_pulse_rate,
             "max_pulse_rate",
         )?,
+        pointer_w: None,
     };
+    if let Some(p) = &file.laser.pointer {
+        let w = positive(qty(p, &[Dim::POWER], "pointer")?, p, "pointer")?;
+        if w > laser.max_power_w {
+            return Err(MachineError::Invalid {
+                message: format!("the pointer power `{}` is above max_power", p.get_ref()),
+                span: at(p.span()),
+                label: "above the laser's full power".into(),
+                help: Some("the pointer marks where the job will be at a power that marks nothing; give a power at most max_power".into()),
+            });
+        }
+        laser.pointer_w = Some(w);
+    }
     let junction_deviation_mm = match &file.planner.junction_deviation {
         Some(s) => positive(
             qty(s, &[Dim::LENGTH], "junction_deviation")?,
@@ -594,6 +718,21 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             },
         );
     }
+    let mut outputs = BTreeMap::new();
+    for (k, o) in file.outputs {
+        let mut posts = BTreeMap::new();
+        for (dialect, lines) in [
+            ("linuxcnc", o.linuxcnc),
+            ("grbl", o.grbl),
+            ("grblhal", o.grblhal),
+            ("iso", o.iso),
+        ] {
+            if let Some(l) = lines {
+                posts.insert(dialect.to_string(), output_lines(&k, dialect, l, &at)?);
+            }
+        }
+        outputs.insert(k, OutputPost { posts, doc: o.doc });
+    }
     Ok(Machine {
         name: file.name,
         description: file.description,
@@ -606,5 +745,6 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         arc_tolerance_mm,
         post,
         events,
+        outputs,
     })
 }

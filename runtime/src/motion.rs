@@ -309,6 +309,13 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
             OpKind::Dwell { seconds } => stop_here(&mut moves, &mut initial_dwell_s, *seconds),
             OpKind::Fire { window_s, .. } => stop_here(&mut moves, &mut initial_dwell_s, *window_s),
             OpKind::MCode { .. } => stop_here(&mut moves, &mut initial_dwell_s, 0.0),
+            // An output the controller switches with the next move (LinuxCNC `M62`/`M63`)
+            // leaves the plan blending through; one that syncs (GRBL `M8`) stops it.
+            OpKind::Output { stops, .. } => {
+                if *stops {
+                    stop_here(&mut moves, &mut initial_dwell_s, 0.0)
+                }
+            }
             OpKind::Event { name } => {
                 let dwell = program
                     .machine

@@ -135,6 +135,9 @@ pub enum OpKind {
     MCode { code: u32, comment: Option<String> },
     /// A named machine event (head swing, shutter ...), translated by the machine's post.
     Event { name: String },
+    /// A machine output (`[outputs.NAME]`) switched on or off; `stops`: the table stops for
+    /// it (on the strictest of the output's dialects, `OutputPost::stops`).
+    Output { name: String, on: bool, stops: bool },
     /// Dot mode: the spot at rest where it stands, the beam fires `count` pulses `period_s`
     /// apart (the first at the start) in a gate window of `window_s` (`count · period_s`
     /// rounded up to the NC programs' 0.1 ms); the machine stands still for the window.
@@ -275,6 +278,26 @@ pub struct PlannerSettings {
     /// The order the job's paths are cut in (`planner { order ... }`).
     #[serde(default, skip_serializing_if = "CutOrder::is_source")]
     pub order: CutOrder,
+    /// Where the recipe's zero is on the machine (`planner { origin ... }`; the binary's
+    /// `--origin` overrides it).
+    #[serde(default, skip_serializing_if = "JobOrigin::is_absolute")]
+    pub origin: JobOrigin,
+}
+
+/// Where a job's zero is (issue 20): the controller's coordinates, or the spot's position when
+/// the job starts.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JobOrigin {
+    #[default]
+    Absolute,
+    Current,
+}
+
+impl JobOrigin {
+    fn is_absolute(&self) -> bool {
+        *self == JobOrigin::Absolute
+    }
 }
 
 /// The order a job's paths are cut in (`planner { order source|nearest|inner_first }`; see
@@ -379,11 +402,38 @@ pub struct OrderReport {
 }
 
 impl ProcessProgram {
+    /// The program with its part coordinates moved by `by` (issue 20's job origin at the
+    /// controller's current position: the recipe's zero is where the spot stands when the
+    /// job starts). Every position moves, arc centres and the start included; nothing else
+    /// changes, so the plan and the NC are the same job in another place.
+    pub fn translated(mut self, by: P3) -> ProcessProgram {
+        let add = |p: &mut P3| {
+            for (c, d) in p.iter_mut().zip(by) {
+                *c += d;
+            }
+        };
+        add(&mut self.start);
+        for op in &mut self.ops {
+            match &mut op.kind {
+                OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => add(to),
+                OpKind::Arc { to, center, .. } => {
+                    add(to);
+                    center[0] += by[0];
+                    center[1] += by[1];
+                }
+                _ => {}
+            }
+        }
+        self
+    }
+
     /// The frame of the lit work (`lase frame`, issue 20): the bounding box of every lit move
     /// (arcs by their extreme points, not their ends only), traced once with the beam off at
     /// `feed_mm_s` from the corner nearest the start, then a rapid back to the start, so the
     /// operator sees where the job will burn before it does. `None` when nothing is lit.
-    pub fn frame(&self, feed_mm_s: f64) -> Option<ProcessProgram> {
+    /// `pointer_w`: the trace lit at the machine's pointer power (`[laser] pointer`), so the
+    /// operator sees the spot go round, instead of dark.
+    pub fn frame(&self, feed_mm_s: f64, pointer_w: Option<f64>) -> Option<ProcessProgram> {
         let mut lo = [f64::INFINITY; 2];
         let mut hi = [f64::NEG_INFINITY; 2];
         let mut grow = |p: [f64; 2]| {
@@ -440,7 +490,13 @@ impl ProcessProgram {
                 kind: OpKind::Line {
                     to: corners[(k0 + k) % 4],
                     feed_mm_s,
-                    laser: None,
+                    laser: pointer_w.map(|w| Laser {
+                        power_w: w,
+                        spot_mm: 0.0,
+                        pulse: None,
+                        couple: Coupling::None,
+                        kerf_mm: 0.0,
+                    }),
                     orient: None,
                 },
                 span,
@@ -697,6 +753,7 @@ mod tests {
                 lookahead: None,
                 leadin: LeadIn::Auto,
                 order: CutOrder::Source,
+                origin: JobOrigin::Absolute,
             },
             start: [0.0; 3],
             ordering: None,
@@ -857,13 +914,14 @@ mod frame_tests {
                 lookahead: None,
                 leadin: LeadIn::Auto,
                 order: CutOrder::Source,
+                origin: JobOrigin::Absolute,
             },
             start: [0.0; 3],
             ops: vec![rapid, arc([5.0, 0.0, 0.0]), arc([15.0, 0.0, 0.0])],
             ordering: None,
             machine: m,
         };
-        let f = p.frame(20.0).unwrap();
+        let f = p.frame(20.0, None).unwrap();
         // The box, without the rapid back to the start.
         let pts: Vec<P3> = f.ops[..f.ops.len() - 1]
             .iter()

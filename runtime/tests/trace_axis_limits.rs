@@ -19,6 +19,8 @@ use std::path::Path;
 /// plans; every example plans S-curves), rounded up in the fourth digit. Measured with
 /// `cargo test -p lase-runtime --test trace_axis_limits -- --nocapture`.
 const WORST: &[(&str, &str, f64, f64, f64)] = &[
+    ("air_assist", "X", 0.6035, 2.158, 85.08),
+    ("air_assist", "Y", 0.5029, 2.117, 84.67),
     ("cam_hardening", "X", 1.0, 26.94, 1347.0),
     ("cam_hardening", "C", 0.08489, 2.727, 135.3),
     ("cam_hardening", "B", 0.02614, 0.08898, 4.449),

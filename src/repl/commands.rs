@@ -821,7 +821,7 @@ impl Session {
         if lase_runtime::kinematics::for_machine(&program.machine).oriented() {
             return self.say_error("this machine orients the beam: a frame traces a flat bed");
         }
-        let Some(frame) = program.frame(50.0) else {
+        let Some(frame) = program.frame(50.0, None) else {
             return self.say_error("nothing lit to frame: `follow` a path first, or `:frame FILE`");
         };
         let job = match compile::plan(frame) {

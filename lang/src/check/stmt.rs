@@ -218,7 +218,7 @@ impl Checker {
                 let t = self.expr(code);
                 self.expect_count(&t, code, "an M-code number");
             }
-            StmtKind::Event(_) => {}
+            StmtKind::Event(_) | StmtKind::Output { .. } => {}
             StmtKind::Scan {
                 kind,
                 region,

@@ -221,6 +221,18 @@ pub enum EmitError {
         help: String,
     },
 
+    #[error("output `{name}` has no {dialect} lines in machine `{machine}`")]
+    #[diagnostic(code(lase::emit::unsupported_output))]
+    UnsupportedOutput {
+        name: String,
+        dialect: Dialect,
+        machine: String,
+        #[label("not available in {dialect}")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
     #[error("event `{name}` has no {dialect} code in machine `{machine}`")]
     #[diagnostic(code(lase::emit::unsupported_event))]
     UnsupportedEvent {

@@ -70,6 +70,7 @@ enum Origin<'a> {
     Op,
     Post { key: &'a str, what: &'a str },
     Event { name: &'a str, key: &'a str },
+    Output { name: &'a str, key: &'a str },
 }
 
 fn check_mcode(
@@ -103,6 +104,13 @@ fn check_mcode(
             format!("event `{name}` of machine `{machine}` uses M{code}"),
             format!(
                 "{dialect} accepts {}; fix `[events.{name}] codes.{key}` in the machine file",
+                mcode_list(dialect)
+            ),
+        ),
+        Origin::Output { name, key } => (
+            format!("output `{name}` of machine `{machine}` uses M{code}"),
+            format!(
+                "{dialect} accepts {}; fix `[outputs.{name}] {key}` in the machine file",
                 mcode_list(dialect)
             ),
         ),
@@ -197,6 +205,7 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
                 }
             }
             OpKind::Event { name } => check_event(op, name, machine, dialect)?,
+            OpKind::Output { name, .. } => check_output(op, name, machine, dialect)?,
             OpKind::Arc { .. } => check_arc_plane(machine, dialect, op.span)?,
             _ => {}
         }
@@ -430,6 +439,35 @@ fn check_event(op: &Op, name: &str, machine: &Machine, dialect: Dialect) -> Resu
             check_mcode(dialect, code, op.span, origin, &machine.name)?;
         }
         too_long(dialect, line, op.span, &format!("event `{name}` line"))?;
+    }
+    Ok(())
+}
+
+/// An output has lines for the dialect, and every M-word in them is one the controller runs.
+fn check_output(op: &Op, name: &str, machine: &Machine, dialect: Dialect) -> Result<(), EmitError> {
+    let out = machine.outputs.get(name);
+    let Some((key, lines)) = out.and_then(|o| dialect.lookup(&o.posts)) else {
+        return Err(EmitError::UnsupportedOutput {
+            name: name.to_string(),
+            dialect,
+            machine: machine.name.clone(),
+            span: op.span,
+            help: format!(
+                "output `{name}` has lines for: {}; emit for one of those, or add {} to \
+                 `[outputs.{name}]` in the machine file",
+                names(out.into_iter().flat_map(|o| o.posts.keys())),
+                alternatives(dialect, |k| format!(
+                    "`{k} = {{ on = [...], off = [...] }}`"
+                ))
+            ),
+        });
+    };
+    for line in lines.on.iter().chain(&lines.off) {
+        for code in format::m_words(line) {
+            let origin = Origin::Output { name, key };
+            check_mcode(dialect, code, op.span, origin, &machine.name)?;
+        }
+        too_long(dialect, line, op.span, &format!("output `{name}` line"))?;
     }
     Ok(())
 }

@@ -279,6 +279,19 @@ pub(super) fn write(
                     }
                 }
             }
+            OpKind::Output { name, on, .. } => {
+                // Validated: the output has lines for this dialect. A non-stopping one
+                // (LinuxCNC `M62`/`M63`) takes effect as the next move starts.
+                let lines = machine
+                    .outputs
+                    .get(name)
+                    .and_then(|o| dialect.lookup(&o.posts));
+                if let Some((_, l)) = lines {
+                    for line in if *on { &l.on } else { &l.off } {
+                        out.put(line, tag)?;
+                    }
+                }
+            }
             OpKind::Fire { .. } => {
                 pulse::write_fire(op, &mut out, &gate, tag)?;
                 // Its laser lines leave the S word where its last pulse put it.

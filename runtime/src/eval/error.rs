@@ -30,7 +30,7 @@
 //!   file that cannot be read, more text than the largest symbol holds).
 //!
 //! The rest name the machine and the process sheet: `no_machine`, `unknown_machine`,
-//! `machine_file`, `machine_changed`, `unknown_axis`, `unknown_event`, `above_machine` (a
+//! `machine_file`, `machine_changed`, `unknown_axis`, `unknown_event`, `unknown_output`, `above_machine` (a
 //! setting above the machine's capability), `pulse_rate`, `no_power`; and `type_mismatch`,
 //! `geometry` (a profile that cannot be built, offset or followed, a closed profile that crosses
 //! itself), `image` (an image file that cannot be read or decoded, or has too many pixels),
@@ -377,6 +377,17 @@ pub enum EvalError {
         help: Option<String>,
     },
 
+    #[error("machine `{machine}` has no output `{name}`")]
+    #[diagnostic(code(lase::eval::unknown_output))]
+    UnknownOutput {
+        machine: String,
+        name: String,
+        #[label("unknown output")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
     #[error("the laser has no power set")]
     #[diagnostic(
         code(lase::eval::no_power),
@@ -428,6 +439,7 @@ impl EvalError {
             | EvalError::Geometry { span, .. }
             | EvalError::Image { span, .. }
             | EvalError::UnknownEvent { span, .. }
+            | EvalError::UnknownOutput { span, .. }
             | EvalError::NoPower { span }
             | EvalError::Budget { span, .. } => *span,
             EvalError::Machine(m) => m.span(),

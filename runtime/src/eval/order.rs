@@ -101,7 +101,7 @@ pub(super) fn order_ops(
     if (how == CutOrder::Source && !kerfed) || ops.iter().any(|o| o.orient().is_some()) {
         return Ok((ops.to_vec(), None));
     }
-    let items = split(ops);
+    let items = split(ops, start);
     let mut out = Vec::with_capacity(ops.len());
     let mut run: Vec<Path> = Vec::new();
     let mut paths = 0;
@@ -144,11 +144,33 @@ fn is_feed(op: &Op) -> bool {
     matches!(op.kind, OpKind::Line { .. } | OpKind::Arc { .. })
 }
 
-fn split(ops: &[Op]) -> Vec<Item> {
+fn split(ops: &[Op], start: P3) -> Vec<Item> {
     let mut items = Vec::new();
     let mut i = 0;
+    let mut moved = false;
     while i < ops.len() {
         let op = &ops[i];
+        if !moved && is_feed(op) && op.laser().is_some() {
+            // The job's first path starts where the machine stands, so `follow` wrote no rapid
+            // to it; it is a path all the same (ordered, and given its kerf by containment),
+            // reached by a rapid from the start that is empty unless it is reordered.
+            let n = ops[i..].iter().take_while(|o| is_feed(o)).count();
+            items.push(Item::Path(Path {
+                span: op.span,
+                from_rapid: Op {
+                    kind: OpKind::Rapid {
+                        to: start,
+                        orient: None,
+                    },
+                    span: op.span,
+                },
+                feeds: ops[i..i + n].to_vec(),
+            }));
+            moved = true;
+            i += n;
+            continue;
+        }
+        moved |= op.target().is_some();
         if matches!(op.kind, OpKind::Rapid { .. }) && ops.get(i + 1).is_some_and(is_feed) {
             let n = ops[i + 1..].iter().take_while(|o| is_feed(o)).count();
             items.push(Item::Path(Path {

@@ -407,6 +407,12 @@ impl Evaluator {
                         _ => CutOrder::Source,
                     }
                 }
+                "origin" => {
+                    p.origin = match &e.kind {
+                        ExprKind::Var(w) if w == "current" => JobOrigin::Current,
+                        _ => JobOrigin::Absolute,
+                    }
+                }
                 "leadin" => {
                     p.leadin = match &e.kind {
                         ExprKind::Var(w) if w == "none" => LeadIn::Off,
@@ -491,6 +497,7 @@ impl Evaluator {
                 lookahead: None,
                 leadin: LeadIn::Auto,
                 order: CutOrder::Source,
+                origin: JobOrigin::Absolute,
             }
         })
     }

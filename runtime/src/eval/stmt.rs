@@ -261,6 +261,42 @@ impl Evaluator {
                     s.span,
                 );
             }
+            StmtKind::Output { name, on } => {
+                let m = self.need_machine(s.span)?;
+                let Some(out) = m.outputs.get(&name.name) else {
+                    let machine = m.name.clone();
+                    let help = did_you_mean(&name.name, m.outputs.keys().map(String::as_str))
+                        .unwrap_or_else(|| {
+                            if m.outputs.is_empty() {
+                                format!(
+                                    "machine `{machine}` declares no outputs; add \
+                                     `[outputs.{}]` to its file",
+                                    name.name
+                                )
+                            } else {
+                                format!(
+                                    "`{machine}` has: {}",
+                                    m.outputs.keys().cloned().collect::<Vec<_>>().join(", ")
+                                )
+                            }
+                        });
+                    return Err(EvalError::UnknownOutput {
+                        machine,
+                        name: name.name.clone(),
+                        span: name.span,
+                        help,
+                    });
+                };
+                let stops = out.stops();
+                self.push(
+                    OpKind::Output {
+                        name: name.name.clone(),
+                        on: *on,
+                        stops,
+                    },
+                    s.span,
+                );
+            }
             StmtKind::Expr(e) => {
                 self.expr(e, cx)?;
             }

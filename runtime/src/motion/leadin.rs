@@ -400,7 +400,10 @@ fn lit_runs(ops: &[Op], moving: &[bool]) -> Vec<(usize, usize)> {
 fn is_stop(op: &Op) -> bool {
     matches!(
         op.kind,
-        OpKind::Dwell { .. } | OpKind::MCode { .. } | OpKind::Event { .. }
+        OpKind::Dwell { .. }
+            | OpKind::MCode { .. }
+            | OpKind::Event { .. }
+            | OpKind::Output { stops: true, .. }
     )
 }
 

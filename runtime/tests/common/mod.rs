@@ -41,6 +41,7 @@ pub fn program(
             lookahead: None,
             leadin: LeadIn::Off,
             order: Default::default(),
+            origin: Default::default(),
         },
         start: [0.0; 3],
         ordering: None,
