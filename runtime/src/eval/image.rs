@@ -209,11 +209,21 @@ impl Evaluator {
                 }),
             ));
         }
+        // A row is one op (up to four with its travel and overscan) whatever its runs; the
+        // runs, 8 B each, count against their own budget.
         let runs: usize = rows.iter().map(|(_, r)| r.len()).sum();
+        let help =
+            "use larger pixels (a smaller image), `mode dither` with fewer runs, or fewer passes";
         self.room_for_ops(
-            (runs + 4 * rows.len()) as f64 * f64::from(set.passes),
+            (4 * rows.len()) as f64 * f64::from(set.passes),
             "this image scan",
-            "use larger pixels (a smaller image), `mode dither` with fewer runs, or fewer passes",
+            help,
+            span,
+        )?;
+        self.room_for_runs(
+            runs as f64 * f64::from(set.passes),
+            "this image scan",
+            help,
             span,
         )?;
 
@@ -281,20 +291,8 @@ impl Evaluator {
             },
         );
 
-        // One laser per shade in use, built once.
-        let power_of = |shade: u8| match shade {
-            0 => 0.0,
-            s => min_w + (max_w - min_w) * f64::from(s) / 255.0,
-        };
-        let lasers: Vec<Laser> = (0..=255u8)
-            .map(|s| Laser {
-                power_w: power_of(s),
-                spot_mm: laser.spot_mm,
-                pulse: None,
-                couple: Coupling::Speed,
-            })
-            .collect();
         let z = self.pos[2];
+        let origin = [set.origin.x, set.origin.y];
         for st in steps {
             let at = |p: V2| [p.x, p.y, z];
             match st {
@@ -311,18 +309,42 @@ impl Evaluator {
                         feed_mm_s: speed,
                         laser: None,
                         orient: None,
+                        row: None,
                     },
                     span,
                 ),
-                ImageStep::Burn { to, shade } => self.push_motion(
-                    OpKind::Line {
-                        to: at(to),
-                        feed_mm_s: speed,
-                        laser: Some(lasers[shade as usize].clone()),
-                        orient: None,
-                    },
-                    span,
-                ),
+                ImageStep::Row { to, v, shift, runs } => {
+                    let row = PixelRow {
+                        origin,
+                        angle: set.angle,
+                        v,
+                        shift,
+                        px,
+                        min_w,
+                        max_w,
+                        runs,
+                    };
+                    // The row's own power is its brightest run's: what checks and reports
+                    // that see the row as one lit move take it for.
+                    self.runs += row.runs.len();
+                    let top = row.runs.iter().map(|r| r.1).max().unwrap_or(0);
+                    let laser = Laser {
+                        power_w: row.power_w(top),
+                        spot_mm: laser.spot_mm,
+                        pulse: None,
+                        couple: Coupling::Speed,
+                    };
+                    self.push_motion(
+                        OpKind::Line {
+                            to: at(to),
+                            feed_mm_s: speed,
+                            laser: Some(laser),
+                            orient: None,
+                            row: Some(Box::new(row)),
+                        },
+                        span,
+                    )
+                }
             }
         }
         Ok(())

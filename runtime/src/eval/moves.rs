@@ -48,6 +48,7 @@ impl Evaluator {
                         feed_mm_s: feed,
                         laser,
                         orient,
+                        row: None,
                     },
                     span,
                 );
@@ -152,6 +153,7 @@ impl Evaluator {
                         feed_mm_s: feed,
                         laser: Some(laser.clone()),
                         orient: None,
+                        row: None,
                     },
                     span,
                 ),
@@ -308,6 +310,7 @@ impl Evaluator {
                     feed_mm_s: feed,
                     laser: Some(laser.clone()),
                     orient: Some(o),
+                    row: None,
                 },
                 span,
             );

@@ -174,6 +174,7 @@ mod tests {
                     pulse: None,
                     couple,
                 }),
+                row: None,
             },
             span: Span::default(),
         }
