@@ -40,7 +40,7 @@ const SETTING_GROUPS: &[(&str, &[SettingSpec], &str)] = &[
 const STATEMENTS: &[(&str, &str)] = &[
     (
         "machine",
-        "`machine xy_table` (stock: xy_table, xyz, notcher) or `machine \"my.toml\"`: the machine the recipe runs on.",
+        "`machine xy_table` or `machine \"my.toml\"`: the machine the recipe runs on. Stock machines: STOCK_MACHINES (`lase doc machines`).",
     ),
     (
         "let",
@@ -58,8 +58,15 @@ const STATEMENTS: &[(&str, &str)] = &[
         "use",
         "`use \"file.rhai\"`, `use stdlib::cams`, `use stdlib::presets::cam_hardening`: Rhai extension functions or preset values; `lase doc extensions`.",
     ),
+    (
+        "return",
+        "`return expr` ends a `fn` with its value; a `fn` without one returns nothing.",
+    ),
     ("if", "`if cond { } else if cond { } else { }`."),
-    ("for", "`for i in 0..n { }`, `0..=n`, `for p in list { }`."),
+    (
+        "for",
+        "`for i in 0..n { }`, `0..=n`, `for p in list { }`. The same clause builds a list: `[x * 2 for x in xs if x > 0 mm]` (map and filter in one form; at most 1 000 000 items).",
+    ),
     (
         "move",
         "`move to P rapid`, `move to P at 5 mm/s`, `move by V ...`: positioning.",
@@ -96,6 +103,7 @@ pub fn topics() -> Vec<&'static str> {
     t.extend(STATEMENTS.iter().map(|s| s.0));
     t.extend(schema::CONSTANTS.iter().map(|c| c.0));
     t.push("scan");
+    t.push("machines");
     t.extend(schema::SCAN_KINDS.iter().map(|k| k.name));
     t.sort_unstable();
     t.dedup();
@@ -125,16 +133,31 @@ pub fn render(topic: Option<&str>) -> Option<String> {
             for (name, specs, doc) in SETTING_GROUPS {
                 settings(&mut out, name, specs, doc);
             }
+            scan_kinds(&mut out);
+        }
+        "scan" | "scan dots" | "scan raster" | "dots" | "raster" => {
+            let kind = topic.trim_start_matches("scan").trim();
+            if kind.is_empty() {
+                wrap(&mut out, SCAN_INTRO, 0);
+            }
+            for k in schema::SCAN_KINDS
+                .iter()
+                .filter(|k| kind.is_empty() || k.name == kind)
+            {
+                scan_kind(&mut out, k);
+            }
         }
         "statements" | "keywords" => {
             for (name, doc) in STATEMENTS {
                 let _ = writeln!(out, "{name}");
-                wrap(&mut out, doc, 2);
+                wrap(&mut out, &statement_doc(doc), 2);
             }
             for (name, _, doc) in SETTING_GROUPS {
                 let _ = writeln!(out, "{name}");
                 wrap(&mut out, doc, 2);
             }
+            let _ = writeln!(out, "scan");
+            wrap(&mut out, SCAN_INTRO, 2);
         }
         "units" => units_table(&mut out),
         "types" => {
@@ -149,8 +172,8 @@ pub fn render(topic: Option<&str>) -> Option<String> {
                 let _ = writeln!(out, "{name} = {}  {doc}", units::format_number(*v));
             }
         }
-        // `scan` and one kind of it (`scan image`, or `image` alone).
-        "scan" | "scans" => {
+        // Every kind of `scan`, or one of them (`scan image`, or `image` alone).
+        "scans" => {
             for k in schema::SCAN_KINDS {
                 scan_kind(&mut out, k);
             }
@@ -179,7 +202,7 @@ pub fn render(topic: Option<&str>) -> Option<String> {
                 && !found
             {
                 let _ = writeln!(out, "{name}");
-                wrap(&mut out, doc, 2);
+                wrap(&mut out, &statement_doc(doc), 2);
                 found = true;
             }
             if let Some((name, v, doc)) = schema::CONSTANTS.iter().find(|c| c.0 == other) {
@@ -225,10 +248,41 @@ fn index(out: &mut String) {
             &mut STATEMENTS
                 .iter()
                 .map(|s| s.0)
-                .chain(SETTING_GROUPS.iter().map(|g| g.0)),
+                .chain(SETTING_GROUPS.iter().map(|g| g.0))
+                .chain(["scan"]),
         ),
         2,
     );
+}
+
+/// `scan`'s one-paragraph summary; each kind's region and settings come from the schema.
+const SCAN_INTRO: &str = "Two kinds: `scan dots REGION {...}` fires a dot array (texturing, PROCESS.md §3), `scan raster REGION {...}` fills the region with hatch lines. Rows run along `angle`, each extended by `overscan` so it is passed at `speed`; the pulse settings in force fire the spots. Each kind's own topic lists its settings with their units and defaults.";
+
+/// A statement's line with the stock machine names filled in from the standard library, so
+/// the list cannot fall behind `stdlib/machines`.
+fn statement_doc(doc: &str) -> String {
+    doc.replace(
+        "STOCK_MACHINES",
+        &lase_stdlib::machine_names().collect::<Vec<_>>().join(", "),
+    )
+}
+
+/// `scan KIND`: what the region may be, the kind's doc and every setting with its type.
+fn scan_kind(out: &mut String, k: &schema::ScanKind) {
+    let _ = writeln!(out, "scan {} REGION {{ settings }}", k.name);
+    wrap(out, k.doc, 2);
+    wrap(out, &format!("REGION: {}.", k.region), 2);
+    let w = k.settings.iter().map(|s| s.key.len()).max().unwrap_or(0);
+    for s in k.settings {
+        let _ = writeln!(out, "  {:<w$}  {}", s.key, ty(s.ty));
+        wrap(out, s.doc, w + 6);
+    }
+}
+
+fn scan_kinds(out: &mut String) {
+    for k in schema::SCAN_KINDS {
+        scan_kind(out, k);
+    }
 }
 
 fn ty(t: PTy) -> String {
@@ -241,6 +295,8 @@ fn ret(r: Ret) -> String {
         Ret::Point => "a point".into(),
         Ret::Profile => "a profile".into(),
         Ret::Points => "a list of points".into(),
+        Ret::Str => "a string".into(),
+        Ret::Profiles => "a list of profiles".into(),
         Ret::SameAsFirst => "the first argument's kind".into(),
         Ret::SqrtOfFirst => "the square root of the first argument's dimension".into(),
     }
@@ -289,16 +345,6 @@ fn profile_kind(out: &mut String, k: &ProfileKind) {
     let _ = writeln!(out, "profile {}{flags}", signature(k.name, k.params));
     params(out, k.params);
     wrap(out, k.doc, 2);
-}
-
-fn scan_kind(out: &mut String, k: &schema::ScanKind) {
-    let doc = format!("{} Its region: {}.", k.doc, k.region);
-    settings(
-        out,
-        &format!("scan {} REGION {{ ... }}", k.name),
-        k.settings,
-        &doc,
-    );
 }
 
 fn settings(out: &mut String, name: &str, specs: &[SettingSpec], doc: &str) {
@@ -462,6 +508,8 @@ pub fn lookup(topic: Option<&str>) -> Option<String> {
             );
             Some(s)
         }
+        // The statement and the stock machines it can name, with their descriptions.
+        Some("machine") => Some(render(Some("machine"))? + stdlib_topic("machines")?.as_str()),
         Some(t) => render(Some(t))
             .or_else(|| stdlib_topic(t))
             .or_else(|| setting_topic(t)),
@@ -507,16 +555,21 @@ pub fn reference_markdown() -> String {
         ("Statement settings", "settings"),
         ("Functions", "functions"),
         ("Profiles", "profiles"),
-        ("Image engraving", "scan image"),
         ("Units", "units"),
         ("Types", "types"),
         ("Constants", "constants"),
         ("Extensions (Rhai)", "extensions"),
-        ("stdlib::cams", "stdlib::cams"),
-        ("stdlib::patterns", "stdlib::patterns"),
-        ("Process presets", "presets"),
-        ("Machines", "machines"),
     ];
+    // Every stdlib module gets its section, so a new one cannot be left out.
+    let modules: Vec<String> = lase_stdlib::module_names()
+        .map(|m| format!("stdlib::{m}"))
+        .collect();
+    let tail: &[(&str, &str)] = &[("Process presets", "presets"), ("Machines", "machines")];
+    let sections = sections
+        .iter()
+        .map(|&(t, k)| (t, k))
+        .chain(modules.iter().map(|m| (m.as_str(), m.as_str())))
+        .chain(tail.iter().copied());
     for (title, topic) in sections {
         let body = lookup(Some(topic)).unwrap_or_default();
         let _ = write!(out, "\n## {title}\n\n```text\n{body}```\n");

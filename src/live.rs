@@ -4,7 +4,7 @@
 //! terminal) and the mapping of a controller's answer back to the recipe line.
 
 use crate::driver::{self, Failure, IoError};
-use crate::output;
+use crate::output::{self, outln};
 use lase_lang::{SourceMap, Span};
 use lase_runtime::emit::{Dialect, NcLine};
 use lase_runtime::link::job::{self, JobLines, NewJournal, Origin, Refused, Started};
@@ -59,6 +59,12 @@ pub struct RunArgs {
     /// `$I`, else 128).
     #[arg(long)]
     pub rx_buffer: Option<usize>,
+    /// The built-in simulator's clock: `max` (the default: moves take no time, a job ends as
+    /// fast as lase can stream it), `real` (moves take their planned time: status `Run`, the
+    /// progress bar and the hold keys as at a machine), or a speed-up factor such as `10`.
+    /// Same as `--link 'sim://?time-scale=real'`.
+    #[arg(long, value_name = "real|max|FACTOR")]
+    pub time_scale: Option<String>,
 }
 
 /// The journal of a new job: `--journal`, else the recipe's own in the user's state
@@ -139,7 +145,17 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
         .clone()
         .or_else(|| resumed.as_ref().map(|s| s.header.link.clone()))
         .unwrap_or_else(|| "sim".into());
-    let url = LinkUrl::parse(&url_text).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
+    let mut url = LinkUrl::parse(&url_text).map_err(|e| (SourceMap::new(), Failure::one(e)))?;
+    if let Some(ts) = &args.time_scale {
+        let LinkUrl::Sim(o) = &mut url else {
+            return Err(io_fail(format!(
+                "--time-scale sets the built-in simulator's clock; the link {url} is a real controller's"
+            )));
+        };
+        o.time_scale = ts
+            .parse()
+            .map_err(|e: String| io_fail(format!("--time-scale: {e}")))?;
+    }
     let (recipe, job) = driver::compile(&file)?;
     let dialect = run_dialect(&args, resumed.as_ref(), &job, &url)?;
     let map = recipe.map.clone();
@@ -276,19 +292,45 @@ fn stream_run(
             .unwrap_or_default()
     );
     let eta = lase_runtime::link::eta::Eta::new(lines.job(), lines.nc());
-    let mut display = Display::new(total, started.from(), eta);
+    // Ctrl-C is a feed hold from here until the job has ended, as in the REPL: the machine
+    // stops on the path with the laser off, and a second Ctrl-C (or `a`) aborts.
+    let sig = SigGuard::new();
     let keys = Keys::for_terminal();
+    let mut display = Display::new(total, started.from(), eta);
+    let mut asked = false;
     let report = started.stream(link, lines, &mut |p: &Progress, e: Option<&Event>| {
         display.update(p, e);
-        // `lase run` has no prompt to go back to: Ctrl-C in raw mode aborts.
-        keys.as_ref().and_then(Keys::try_key).map(|k| match k {
-            Key::Interrupt | Key::Abort => Control::Abort,
-            Key::Hold => Control::Hold,
-            Key::Resume => Control::Resume,
-        })
+        let mut key = keys.as_ref().and_then(Keys::try_key);
+        if sig.take() {
+            key = Some(Key::Interrupt);
+        }
+        if asked
+            && let Some(s) = p.status.as_ref()
+            && s.state == (link::MachineState::Hold { complete: true })
+            && keys.is_none()
+        {
+            // Nobody at a terminal to resume: a job held by a signal is stopped safely.
+            return Some(Control::Abort);
+        }
+        match key? {
+            Key::Interrupt if !p.held => {
+                asked = true;
+                display.println(
+                    "^C feed hold: stopping on the path, laser off — r or Enter = resume, a or Ctrl-C = abort",
+                );
+                Some(Control::Hold)
+            }
+            Key::Interrupt | Key::Abort => Some(Control::Abort),
+            Key::Hold => Some(Control::Hold),
+            Key::Resume => {
+                asked = false;
+                Some(Control::Resume)
+            }
+        }
     });
     drop(keys);
     display.finish();
+    drop(sig);
     if report.outcome != Outcome::Done {
         if let Outcome::Failed(_) = &report.outcome
             && let Some(note) = report.stop_note.as_deref().filter(|n| !n.is_empty())
@@ -303,15 +345,18 @@ fn stream_run(
     }
     let elapsed = report.elapsed.as_secs_f64();
     let rate = report.program_bytes as f64 / elapsed.max(1e-9);
-    println!(
+    outln!(
         "{name}: done — {} lines acknowledged in {elapsed:.3} s ({:.0} bytes/s), controller {}",
         report.acked,
         rate,
         link.status(&lines.letters())
     );
-    println!(
+    outln!(
         "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
-        summary.cycle_time_s, summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
+        summary.cycle_time_s,
+        summary.laser_on_length_mm,
+        summary.laser_on_time_s,
+        summary.pulses
     );
     Ok(())
 }
@@ -328,7 +373,12 @@ pub(crate) fn job_failure(report: Report, lines: &JobLines<'_>, resume: String) 
             stop,
         }),
         Outcome::Lost(e) => Failure::one(output::LinkLost {
-            reason: e.to_string(),
+            // The reason alone: `LinkError::Lost`'s own text starts with "the link to the
+            // controller was lost", which `LinkLost` already says.
+            reason: match e {
+                lase_runtime::link::LinkError::Lost { reason } => reason,
+                other => other.to_string(),
+            },
             acked: report.acked,
             total,
             resume,
@@ -380,7 +430,7 @@ fn run_check(name: &str, link: &mut dyn Link, lines: &JobLines<'_>, map: &Source
     let report = job::check_mode(link, lines).map_err(fail)?;
     match report.outcome {
         Outcome::Done => {
-            println!(
+            outln!(
                 "{name}: check mode — the controller accepted all {} lines",
                 lines.lines().len()
             );
@@ -395,33 +445,43 @@ fn run_check(name: &str, link: &mut dyn Link, lines: &JobLines<'_>, map: &Source
     }
 }
 
-/// The progress bar: lines acknowledged, percent, elapsed and the ETA from the plan. The REPL's
+/// The progress bar, by planned time: the share of the plan's cycle time done (from the
+/// acknowledged lines and the controller's position, `Eta::done`), the ETA from the plan, and
+/// the lines acknowledged. Lines would mislead: a 50 mm move is one line of many. The REPL's
 /// `:run` shows the same one.
 pub(crate) struct Display {
     bar: Option<indicatif::ProgressBar>,
     eta: lase_runtime::link::eta::Eta,
+    total_lines: usize,
     last_msg: Instant,
 }
+
+/// Steps of the bar: tenths of a percent of the planned time.
+const BAR_STEPS: u64 = 1000;
+
+/// The keys the bar's hint names; `lase run` and the REPL's `:run` read them alike.
+pub(crate) const KEY_HINT: &str = "keys: Ctrl-C, h or space = feed hold (laser off); r or Enter = resume; a, q or a second Ctrl-C = abort";
 
 impl Display {
     pub(crate) fn new(total: usize, from: usize, eta: lase_runtime::link::eta::Eta) -> Display {
         let bar = std::io::stderr().is_terminal().then(|| {
-            let b = indicatif::ProgressBar::new(total as u64);
+            let b = indicatif::ProgressBar::new(BAR_STEPS);
             let style = indicatif::ProgressStyle::with_template(
-                "{spinner} {elapsed_precise} [{wide_bar}] {pos}/{len} lines {percent}% {msg}",
+                "{spinner} {elapsed_precise} [{wide_bar}] {percent}% {msg}",
             )
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
             .progress_chars("=> ");
             b.set_style(style);
-            b.set_position(from as u64);
+            b.set_position(time_steps(eta.done(from, None), eta.total()));
             if std::io::stdin().is_terminal() {
-                b.println("keys: h or space = hold, r or enter = resume, a or q = abort");
+                b.println(KEY_HINT);
             }
             b
         });
         Display {
             bar,
             eta,
+            total_lines: total,
             last_msg: Instant::now() - Duration::from_secs(1),
         }
     }
@@ -438,7 +498,6 @@ impl Display {
         let Some(bar) = &self.bar else {
             return;
         };
-        bar.set_position(p.acked as u64);
         if let Some(Event::Message(m)) = e {
             bar.println(format!("controller: {m}"));
         }
@@ -451,6 +510,7 @@ impl Display {
             .as_ref()
             .and_then(|s| s.work_position(s.wco.as_deref()));
         let done = self.eta.done(p.acked, pos.as_deref());
+        bar.set_position(time_steps(done, self.eta.total()));
         let left = (self.eta.total() - done).max(0.0);
         let state = p
             .status
@@ -462,9 +522,11 @@ impl Display {
             n => format!(" | ≈{} of {n} pulses", self.eta.pulses_done(done)),
         };
         bar.set_message(format!(
-            "ETA {left:.1} s of {:.1} s{}{pulses} | {state}",
+            "ETA {left:.1} s of {:.1} s planned{}{pulses} | {}/{} lines | {state}",
             self.eta.total(),
-            if p.held { " (held)" } else { "" }
+            if p.held { " (held)" } else { "" },
+            p.acked,
+            self.total_lines,
         ));
     }
 
@@ -472,6 +534,63 @@ impl Display {
         if let Some(b) = &self.bar {
             b.finish_and_clear();
         }
+    }
+}
+
+/// Ctrl-C, caught as a signal while the controller moves (in `lase run` and the REPL's jobs) (and the terminal is not in raw
+/// mode); outside that window SIGINT keeps its default action. The handlers are installed once
+/// per process: removing a signal action would leave SIGINT ignored, not restored.
+pub(crate) struct SigGuard {
+    caught: Arc<AtomicBool>,
+    idle: Arc<AtomicBool>,
+}
+
+fn sigint_flags() -> &'static (Arc<AtomicBool>, Arc<AtomicBool>) {
+    static FLAGS: std::sync::OnceLock<(Arc<AtomicBool>, Arc<AtomicBool>)> =
+        std::sync::OnceLock::new();
+    FLAGS.get_or_init(|| {
+        let caught = Arc::new(AtomicBool::new(false));
+        let idle = Arc::new(AtomicBool::new(true));
+        let sig = signal_hook::consts::SIGINT;
+        // Without the handlers Ctrl-C would still stop the process: nothing to do about a
+        // failure here but run without them.
+        // 130: how a shell reports a process ended by SIGINT.
+        let _ = signal_hook::flag::register_conditional_shutdown(sig, 130, idle.clone());
+        let _ = signal_hook::flag::register(sig, caught.clone());
+        (caught, idle)
+    })
+}
+
+impl SigGuard {
+    pub(crate) fn new() -> SigGuard {
+        let (caught, idle) = sigint_flags();
+        caught.store(false, Ordering::SeqCst);
+        idle.store(false, Ordering::SeqCst);
+        SigGuard {
+            caught: caught.clone(),
+            idle: idle.clone(),
+        }
+    }
+
+    /// Whether Ctrl-C came since the last call.
+    pub(crate) fn take(&self) -> bool {
+        self.caught.swap(false, Ordering::SeqCst)
+    }
+}
+
+impl Drop for SigGuard {
+    fn drop(&mut self) {
+        self.idle.store(true, Ordering::SeqCst);
+        self.caught.store(false, Ordering::SeqCst);
+    }
+}
+
+/// The bar's position for `done` of `total` planned seconds.
+fn time_steps(done: f64, total: f64) -> u64 {
+    if total > 0.0 {
+        ((done / total).clamp(0.0, 1.0) * BAR_STEPS as f64).round() as u64
+    } else {
+        0
     }
 }
 
@@ -671,14 +790,14 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
         sim::Firmware::Grbl => "GRBL 1.1".to_string(),
         sim::Firmware::GrblHal { axes } => format!("grblHAL ({axes} axes)"),
     };
-    println!(
+    outln!(
         "lase sim: {firmware} simulator for `{}` listening on {bound} (time scale {time_scale}{}, RX buffer {} bytes, {} planner blocks)",
         machine.name,
         args.baud.map(|b| format!(", {b} baud")).unwrap_or_default(),
         args.rx_buffer,
         args.planner_blocks
     );
-    println!("lase sim: stream to it with `lase run FILE --link tcp://{bound}`");
+    outln!("lase sim: stream to it with `lase run FILE --link tcp://{bound}`");
     use std::io::Write;
     let _ = std::io::stdout().flush();
     handle.join();

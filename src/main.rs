@@ -36,18 +36,22 @@ enum Command {
     /// Write the NC program of a recipe (stdout unless -o).
     Emit {
         file: PathBuf,
+        /// Write the NC program to this file (atomically) instead of stdout.
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso.
         #[arg(long, default_value = "linuxcnc")]
         dialect: String,
     },
-    /// Plan the motion: cycle time and peaks; optionally a JSON summary and a CSV trace.
+    /// Plan the motion: cycle time, peaks and where the time goes; optionally a JSON summary
+    /// (`-o`), a CSV trace (`--trace`) and every pulse (`--pulses`).
     Plan {
         file: PathBuf,
-        /// Write the job summary as JSON.
-        #[arg(long)]
-        summary: Option<PathBuf>,
+        /// Write the job summary as JSON to this file (`--summary` is an old spelling).
+        // `-o` is every command's output file, as in `emit` and `plot`; `--summary` stays as a
+        // hidden alias so existing scripts keep working.
+        #[arg(short, long, alias = "summary")]
+        output: Option<PathBuf>,
         /// Write a sampled trace as CSV.
         #[arg(long)]
         trace: Option<PathBuf>,
@@ -58,11 +62,20 @@ enum Command {
         #[arg(long, default_value = "1ms")]
         period: String,
     },
-    /// Draw the toolpath (coloured by laser state and speed) and the speed over time as SVG.
+    /// Draw the toolpath (laser state, speed, every pulse) and the speed, limits, power and
+    /// events over time, as SVG or PNG.
     Plot {
         file: PathBuf,
+        /// Output file: `.png` writes a PNG (2 px per SVG unit), anything else SVG (default:
+        /// the recipe's name with `.svg`).
         #[arg(short, long)]
         output: Option<PathBuf>,
+        /// Fit the toolpath view to all motion (approach, travel, overscan), not the lit work.
+        #[arg(long)]
+        full: bool,
+        /// Speed unit of the plot: mm/s or mm/min (default: the one the recipe's feeds use).
+        #[arg(long)]
+        speed_unit: Option<String>,
     },
     /// Check, plan and stream the job to a controller (the built-in simulator by default).
     ///
@@ -109,7 +122,7 @@ fn main() -> ExitCode {
         } => cmd_emit(&file, output.as_deref(), &dialect),
         Command::Plan {
             file,
-            summary,
+            output: summary,
             trace,
             pulses,
             period,
@@ -120,7 +133,12 @@ fn main() -> ExitCode {
             pulses.as_deref(),
             &period,
         ),
-        Command::Plot { file, output } => cmd_plot(&file, output.as_deref()),
+        Command::Plot {
+            file,
+            output,
+            full,
+            speed_unit,
+        } => cmd_plot(&file, output.as_deref(), full, speed_unit.as_deref()),
         Command::Run(args) => live::cmd_run(args),
         Command::Sim(args) => live::cmd_sim(args),
         Command::Repl { file, link } => return repl::run(file.as_deref(), link.as_deref(), color),
@@ -260,15 +278,31 @@ fn cmd_plan(
         s.rapid_length_mm
     );
     outln!(
-        "  laser on        {:.4} mm, {:.4} s",
+        "  laser on        {:.4} mm, {:.4} s while moving",
         s.laser_on_length_mm,
         s.laser_on_time_s
     );
-    outln!("  pulses          {}", s.pulses);
+    // Dot mode fires with the spot at rest: say so, or "laser on 0 mm" next to a pulse count
+    // reads as a contradiction.
+    if s.pulses_standstill > 0 {
+        outln!(
+            "  laser at rest   {:.4} s in dot-mode windows",
+            s.standstill_fire_time_s
+        );
+        outln!(
+            "  pulses          {} ({} at rest, {} along lit moves)",
+            s.pulses,
+            s.pulses_standstill,
+            s.pulses_moving
+        );
+    } else {
+        outln!("  pulses          {}", s.pulses);
+    }
+    time_split_lines(&job, s.cycle_time_s);
     outln!(
-        "  blocks          {} planned moves from {} ops",
+        "  blocks          {} planned moves from {}",
         s.blocks,
-        s.ops
+        output::ops_count(&job)
     );
     for (axis, p) in &s.axes {
         // Peaks in the axis's own unit, as the machine file and the controller speak it.
@@ -293,14 +327,79 @@ fn cmd_plan(
     Ok(())
 }
 
-fn cmd_plot(file: &Path, output: Option<&Path>) -> CmdResult {
+/// Where the cycle goes: lit, unlit at a feed (overscan, lead-ins), rapid, standing still; and
+/// a hint when unlit motion takes longer than the lit work, which is where a recipe can win
+/// most (a hatch fill whose rows are mostly overscan).
+fn time_split_lines(job: &lase_runtime::motion::Job, cycle_s: f64) {
+    let t = lase_runtime::report::time_split(job);
+    let pct = |x: f64| {
+        if cycle_s > 0.0 {
+            100.0 * x / cycle_s
+        } else {
+            0.0
+        }
+    };
+    outln!(
+        "  time split      lit {:.4} s ({:.0} %), unlit feed {:.4} s ({:.0} %), rapid {:.4} s ({:.0} %), still {:.4} s",
+        t.lit_s,
+        pct(t.lit_s),
+        t.unlit_feed_s,
+        pct(t.unlit_feed_s),
+        t.rapid_s,
+        pct(t.rapid_s),
+        t.still_s
+    );
+    if t.unlit_motion_s() > t.lit_s && t.unlit_motion_s() > 0.1 * cycle_s {
+        let (what, fix) = if t.unlit_feed_s >= t.rapid_s {
+            (
+                "unlit moves at a feed (scan overscan, lead-ins and -outs, unlit `move ... at`)",
+                "for a scan, a shorter `overscan`, rows along the region's long side (`angle`) or a lower `speed` (shorter ramps) cut it",
+            )
+        } else {
+            (
+                "rapid travel (approaches, a unidirectional scan's return strokes)",
+                "`order serpentine` for a scan, or start each path near where the last one ends",
+            )
+        };
+        outln!(
+            "  hint: {:.0} % of the cycle is unlit motion, mostly {what}; {fix}",
+            pct(t.unlit_motion_s())
+        );
+    }
+}
+
+fn cmd_plot(file: &Path, output: Option<&Path>, full: bool, unit: Option<&str>) -> CmdResult {
+    use lase_runtime::report::{PlotOptions, SpeedUnit};
+    let speed_unit = match unit {
+        None => None,
+        Some("mm/s") => Some(SpeedUnit::MmPerS),
+        Some("mm/min") => Some(SpeedUnit::MmPerMin),
+        Some(other) => {
+            return Err(io_fail(format!(
+                "bad --speed-unit `{other}`: give mm/s or mm/min"
+            )));
+        }
+    };
     let (recipe, job) = driver::compile(file)?;
-    let svg = lase_runtime::report::plot_svg(&job).map_err(|e| io_fail(e.to_string()))?;
+    let opts = PlotOptions {
+        full_extent: full,
+        speed_unit: speed_unit
+            .unwrap_or_else(|| SpeedUnit::of_source(recipe.map.text(recipe.main))),
+    };
     let default = file.with_extension("svg");
     let path = output.unwrap_or(&default);
+    let png = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let bytes = if png {
+        lase_runtime::report::plot_png(&job, &opts).map_err(io_fail)?
+    } else {
+        lase_runtime::report::plot_svg(&job, &opts)
+            .map_err(|e| io_fail(e.to_string()))?
+            .into_bytes()
+    };
     output::write_atomic(path, |w| {
-        w.write_all(svg.as_bytes())
-            .map_err(|e| io_fail(e.to_string()))
+        w.write_all(&bytes).map_err(|e| io_fail(e.to_string()))
     })?;
     outln!("{}: wrote {}", recipe.name(), path.display());
     Ok(())

@@ -316,3 +316,15 @@ pub struct JobAborted {
     pub total: usize,
     pub stop: String,
 }
+
+/// `28 ops`, or `28 ops + 6 lead-ins/outs`: the ops the recipe wrote (what `:load` reports),
+/// then those the planner added so every lit section starts and ends at speed.
+pub(crate) fn ops_count(job: &lase_runtime::motion::Job) -> String {
+    let leads = job.leads.len();
+    let written = job.program.ops.len().saturating_sub(leads);
+    if leads == 0 {
+        format!("{written} ops")
+    } else {
+        format!("{written} ops + {leads} lead-ins/outs")
+    }
+}

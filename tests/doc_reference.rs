@@ -71,13 +71,19 @@ fn every_lase_snippet_in_the_docs_checks_clean() {
             checked += 1;
         }
         for (i, snippet) in inline_statements(&text).into_iter().enumerate() {
-            // `swing_right` is an event of the notcher's machine file.
+            // `swing_right` is an event of the notcher's machine file; the scan rows name a
+            // region `pad` and fire with the pulse settings in force.
             let machine = if snippet.starts_with("event ") {
                 "notcher"
             } else {
                 "xy_table"
             };
-            let recipe = format!("machine {machine}\n{snippet}\n");
+            let scan_setup = if snippet.starts_with("scan ") {
+                "let pad = profile rect((0, 0), 2 mm, 1 mm)\nlaser { power 1 W }\npulse { rate 20 kHz, width 100 ns }\n"
+            } else {
+                ""
+            };
+            let recipe = format!("machine {machine}\n{scan_setup}{snippet}\n");
             let (code, _, err) = check_snippet(&format!("{doc}-inline{i}"), &recipe);
             assert_eq!(code, 0, "{doc}: `{snippet}`\n{err}");
             checked += 1;
@@ -132,7 +138,14 @@ fn inline_statements(text: &str) -> Vec<String> {
                         && w != "J"
                 });
             let readers_file = [".toml\"", ".rhai\""].iter().any(|e| span.contains(e));
-            if STATEMENTS.contains(&first) && !placeholder && !readers_file {
+            // `scan dots`, `pulse interval` name a form of a statement, without its operand.
+            let words: Vec<&str> = span.split_whitespace().collect();
+            let name_only = words.len() == 2
+                && (words[1] == "interval"
+                    || lase_lang::schema::SCAN_KINDS
+                        .iter()
+                        .any(|k| k.name == words[1]));
+            if STATEMENTS.contains(&first) && !placeholder && !readers_file && !name_only {
                 out.push(span.to_string());
             }
         }
@@ -152,4 +165,301 @@ fn check_snippet(name: &str, recipe: &str) -> (i32, String, String) {
     let path = dir.join(format!("{}.lase", name.replace(['/', '.'], "_")));
     std::fs::write(&path, recipe).unwrap();
     lase(&["check", &path.to_string_lossy()])
+}
+
+/// The reference page, split into its `## ` sections: title → the text inside its fence.
+fn reference_sections() -> Vec<(String, String)> {
+    let text = std::fs::read_to_string(root().join("docs/reference.md")).unwrap();
+    text.split("\n## ")
+        .skip(1)
+        .map(|sec| {
+            let (title, body) = sec.split_once('\n').unwrap();
+            (title.trim().to_string(), body.to_string())
+        })
+        .collect()
+}
+
+fn section<'a>(secs: &'a [(String, String)], title: &str) -> &'a str {
+    secs.iter()
+        .find(|(t, _)| t == title)
+        .map(|(_, b)| b.as_str())
+        .unwrap_or_else(|| panic!("docs/reference.md has no section `## {title}`"))
+}
+
+/// Every statement of the grammar, every setting, builtin function, profile kind, unit, type,
+/// constant, stdlib function, preset and stock machine has its entry in the generated reference,
+/// in its section: the reference is generated from these tables, and this test fails when a new
+/// entry in one of them is not rendered (or the page is stale).
+#[test]
+fn the_reference_documents_every_name_in_the_language() {
+    use lase_lang::schema;
+    let secs = reference_sections();
+    let mut missing = Vec::new();
+    let need = |missing: &mut Vec<String>, sec: &str, line: String| {
+        if !section(&secs, sec).lines().any(|l| l.trim_end() == line) {
+            missing.push(format!("{sec}: `{line}`"));
+        }
+    };
+    // Statements: each `X_stmt` alternative of the grammar's `stmt` rule (a call is an
+    // expression, documented under Functions).
+    let grammar = std::fs::read_to_string(root().join("lang/src/grammar.pest")).unwrap();
+    let stmt_rule = grammar.split("stmt = _{").nth(1).unwrap();
+    let stmt_rule = &stmt_rule[..stmt_rule.find('}').unwrap()];
+    let statements: Vec<&str> = stmt_rule
+        .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+        .filter_map(|w| w.strip_suffix("_stmt"))
+        .filter(|w| *w != "call")
+        .collect();
+    assert!(statements.len() >= 17, "{statements:?}");
+    for st in &statements {
+        need(&mut missing, "Statements", st.to_string());
+    }
+    let groups: [(&str, &[schema::SettingSpec]); 5] = [
+        ("laser", schema::LASER_SETTINGS),
+        ("follow", schema::FOLLOW_SETTINGS),
+        ("pulse", schema::PULSE_SETTINGS),
+        ("planner", schema::PLANNER_SETTINGS),
+        ("limits", schema::LIMIT_SETTINGS),
+    ];
+    let settings = section(&secs, "Statement settings");
+    let scans: Vec<(String, &[schema::SettingSpec])> = schema::SCAN_KINDS
+        .iter()
+        .map(|k| (format!("scan {} REGION {{ settings }}", k.name), k.settings))
+        .collect();
+    let groups = groups.iter().map(|(s, t)| (s.to_string(), *t)).chain(scans);
+    for (head, table) in groups {
+        // The group's lines: from its unindented head line to the next unindented line.
+        let body: Vec<&str> = settings
+            .lines()
+            .skip_while(|l| *l != head)
+            .skip(1)
+            .take_while(|l| l.starts_with(' '))
+            .collect();
+        if body.is_empty() {
+            missing.push(format!("Statement settings: `{head}`"));
+        }
+        for spec in table {
+            let want = format!("  {} ", spec.key);
+            if !body.iter().any(|l| l.starts_with(&want)) {
+                missing.push(format!("Statement settings: {head}: `{}`", spec.key));
+            }
+        }
+    }
+    let functions = section(&secs, "Functions");
+    for b in schema::BUILTINS {
+        if !functions
+            .lines()
+            .any(|l| l.starts_with(&format!("{}(", b.name)))
+        {
+            missing.push(format!("Functions: `{}`", b.name));
+        }
+    }
+    let profiles = section(&secs, "Profiles");
+    for k in schema::PROFILE_KINDS.iter().filter(|k| !k.unsupported) {
+        if !profiles
+            .lines()
+            .any(|l| l.starts_with(&format!("profile {}(", k.name)))
+        {
+            missing.push(format!("Profiles: `{}`", k.name));
+        }
+    }
+    let units = section(&secs, "Units");
+    for u in lase_lang::units::unit_names() {
+        if !units.lines().any(|l| l.split_whitespace().any(|w| w == u)) {
+            missing.push(format!("Units: `{u}`"));
+        }
+    }
+    let types = section(&secs, "Types");
+    for t in schema::TYPE_NAMES {
+        if !types
+            .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .any(|w| w == *t)
+        {
+            missing.push(format!("Types: `{t}`"));
+        }
+    }
+    let constants = section(&secs, "Constants");
+    for (c, _, _) in schema::CONSTANTS {
+        if !constants.lines().any(|l| l.starts_with(&format!("{c} = "))) {
+            missing.push(format!("Constants: `{c}`"));
+        }
+    }
+    for m in lase_stdlib::module_names() {
+        let title = format!("stdlib::{m}");
+        let body = section(&secs, &title);
+        let source = lase_stdlib::module(m).unwrap();
+        // Every function the module declares to recipes (`/// lase:` signature) is listed.
+        for (i, l) in source.lines().enumerate() {
+            if l.trim_start().starts_with("/// lase:") {
+                let f = source
+                    .lines()
+                    .skip(i)
+                    .find_map(|l| l.trim_start().strip_prefix("fn "))
+                    .unwrap();
+                let name = &f[..f.find('(').unwrap()];
+                if !body.contains(&format!("  {name}(")) {
+                    missing.push(format!("{title}: `{name}`"));
+                }
+            }
+        }
+    }
+    for p in lase_stdlib::preset_names() {
+        need(
+            &mut missing,
+            "Process presets",
+            format!("use stdlib::presets::{p}"),
+        );
+    }
+    let machines = section(&secs, "Machines");
+    for m in lase_stdlib::machine_names() {
+        if !machines
+            .lines()
+            .any(|l| l.split_whitespace().next() == Some(m))
+        {
+            missing.push(format!("Machines: `{m}`"));
+        }
+    }
+    assert!(
+        missing.is_empty(),
+        "docs/reference.md lacks (regenerate it with UPDATE_GOLDEN=1 cargo test --test \
+         doc_reference, and give new schema entries their docs):\n{}",
+        missing.join("\n")
+    );
+}
+
+#[test]
+fn doc_scan_and_machine_list_every_setting_and_stock_machine() {
+    let (code, out, err) = lase(&["doc", "scan"]);
+    assert_eq!(code, 0, "{err}");
+    for key in [
+        "pitch",
+        "row_pitch",
+        "rows",
+        "cols",
+        "cross",
+        "angle",
+        "inset",
+        "mode",
+        "pulses",
+        "overscan",
+        "order",
+        "layout",
+        "passes",
+        "speed",
+        "origin",
+    ] {
+        assert!(
+            out.lines().any(|l| l.starts_with(&format!("  {key} "))),
+            "`lase doc scan` lacks {key}:\n{out}"
+        );
+    }
+    // Units and defaults are spelt out.
+    for needle in [
+        "default 0 deg",
+        "default 1",
+        "(default)",
+        "a length",
+        "a speed",
+    ] {
+        assert!(
+            out.contains(needle),
+            "`lase doc scan` lacks {needle}:\n{out}"
+        );
+    }
+    let (code, out, _) = lase(&["doc", "scan raster"]);
+    assert_eq!(code, 0);
+    assert!(
+        out.contains("  cross ") && !out.contains("scan dots REGION"),
+        "{out}"
+    );
+    let (code, out, err) = lase(&["doc", "machine"]);
+    assert_eq!(code, 0, "{err}");
+    for m in lase_stdlib::machine_names() {
+        assert!(
+            out.lines().any(|l| l.trim_start().starts_with(m)),
+            "`lase doc machine` lacks {m}:\n{out}"
+        );
+    }
+}
+
+/// The outputs the README shows are the outputs lase prints. A ```console block after
+/// `<!-- lase: output -->` holds `$ lase ARGS [| head]` commands, each followed by its output;
+/// `...` elides lines (what comes before it must be the output's first lines, what comes after
+/// the last `...` its last ones). `UPDATE_GOLDEN=1` rewrites the lines before the first `...`.
+#[test]
+fn the_outputs_the_readme_shows_are_what_lase_prints() {
+    let path = root().join("README.md");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let update = std::env::var_os("UPDATE_GOLDEN").is_some_and(|v| v == "1");
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut checked = 0;
+    let mut i = 0;
+    while i < lines.len() {
+        if !(lines[i].trim() == "<!-- lase: output -->" && lines[i + 1].trim() == "```console") {
+            i += 1;
+            continue;
+        }
+        i += 2;
+        while lines[i].trim() != "```" {
+            let cmd = lines[i]
+                .strip_prefix("$ ")
+                .expect("a `$ lase` line")
+                .to_string();
+            let (cmd, head) = match cmd.split_once(" | head") {
+                Some((c, n)) => (c.to_string(), Some(n.trim().parse().unwrap_or(10))),
+                None => (cmd, None),
+            };
+            let args: Vec<&str> = cmd.split_whitespace().skip(1).collect();
+            let (_, out, err) = lase(&args);
+            let mut actual: Vec<&str> = out.lines().chain(err.lines()).collect();
+            if let Some(n) = head {
+                actual.truncate(n);
+            }
+            let start = i + 1;
+            let mut end = start;
+            while end < lines.len() && !lines[end].starts_with("$ ") && lines[end].trim() != "```" {
+                end += 1;
+            }
+            let expected: Vec<String> = lines[start..end].to_vec();
+            let segments: Vec<&[String]> = expected.split(|l| l.trim() == "...").collect();
+            let first = segments[0];
+            let prefix_ok = first.len() <= actual.len()
+                && first
+                    .iter()
+                    .zip(&actual)
+                    .all(|(e, a)| e.trim_end() == a.trim_end());
+            if !prefix_ok && update {
+                let n = first.len().min(actual.len());
+                for (k, a) in actual[..n].iter().enumerate() {
+                    lines[start + k] = a.trim_end().to_string();
+                }
+            } else {
+                assert!(
+                    prefix_ok,
+                    "README: `{cmd}` prints otherwise (UPDATE_GOLDEN=1 rewrites the \
+                     README):\n--- README ---\n{}\n--- lase ---\n{}",
+                    first.join("\n"),
+                    actual.join("\n")
+                );
+            }
+            if segments.len() > 1 {
+                let last = segments[segments.len() - 1];
+                let tail = &actual[actual.len().saturating_sub(last.len())..];
+                assert!(
+                    last.iter()
+                        .zip(tail)
+                        .all(|(e, a)| e.trim_end() == a.trim_end()),
+                    "README: `{cmd}` ends otherwise:\n{}\n--- lase ---\n{}",
+                    last.join("\n"),
+                    actual.join("\n")
+                );
+            }
+            checked += 1;
+            i = end;
+        }
+    }
+    if update {
+        std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    }
+    assert!(checked >= 3, "only {checked} README outputs checked");
 }

@@ -89,6 +89,12 @@ fn twenty_random_disconnects_each_resume_to_the_full_job_exactly_once() {
             "trial {trial} (drops {drops:?}): the link drops: {err}{_out}"
         );
         assert!(err.contains("lase::link::lost"), "trial {trial}: {err}");
+        // Said once, not "lost after …: the link to the controller was lost: …".
+        assert_eq!(
+            err.matches("link to the controller was lost").count(),
+            1,
+            "trial {trial}: {err}"
+        );
         assert!(err.contains("--resume"), "trial {trial}: {err}");
         let mut resumes_run = 0;
         loop {

@@ -443,3 +443,48 @@ fn lase_sim_serves_over_tcp() {
     assert_eq!(code, 1);
     assert!(err.contains("--allow-remote"), "{err}");
 }
+
+/// An abort on the notcher (axes X and Z) reports where the machine stopped on its own axes:
+/// `controller now Idle | X… Z…`, never the `Y0` of an axis it does not have.
+#[test]
+fn an_abort_reports_the_machines_own_axes() {
+    let c = compile(&root().join("examples/conrod_notch.lase"));
+    let sim = sim_for(
+        &c.job,
+        SimOptions {
+            time_scale: TimeScale::Factor(20.0),
+            ..SimOptions::default()
+        },
+    );
+    let mut link = connect(&sim);
+    let lines: Vec<String> = c.lines.iter().map(|l| l.text.clone()).collect();
+    let letters = lase_runtime::link::ControllerAxes::of(&c.job.program.machine)
+        .letters()
+        .to_vec();
+    assert_eq!(letters, ['X', 'Z']);
+    let report = stream::stream(
+        &mut link,
+        &stream::StreamJob {
+            letters: &letters,
+            ..stream::StreamJob::new(&lines)
+        },
+        None,
+        &StreamOptions::default(),
+        &mut |p: &Progress, _| (p.acked >= lines.len() / 3).then_some(Control::Abort),
+    );
+    assert_eq!(report.outcome, Outcome::Aborted);
+    let note = report.stop_note.unwrap();
+    let now = note
+        .split("controller now ")
+        .nth(1)
+        .unwrap_or_else(|| panic!("{note}"));
+    let words: Vec<char> = now
+        .split(" | ")
+        .nth(1)
+        .unwrap()
+        .split_whitespace()
+        .map(|w| w.chars().next().unwrap())
+        .collect();
+    assert_eq!(words, ['X', 'Z'], "{note}");
+    sim.stop();
+}

@@ -137,7 +137,8 @@ fn open_braces_continue_the_input_on_the_next_line() {
     enter(&mut p, "ring(5 mm)");
     prompt(&mut p);
     enter(&mut p, ":plan");
-    p.exp_regex(r"\d+ ops, cycle time [0-9.]+ s").unwrap();
+    p.exp_regex(r"\d+ ops( \+ \d+ lead-ins/outs)?, cycle time [0-9.]+ s")
+        .unwrap();
     prompt(&mut p);
     quit(p);
 }
@@ -286,4 +287,77 @@ fn a_terminal_gets_colours() {
     enter(&mut p, "x + 1 mm");
     p.exp_string("3 mm").unwrap();
     quit(p);
+}
+
+/// `lase run` on a terminal: the key hint names Ctrl-C; Ctrl-C holds the job with the laser
+/// off (the simulator records one feed hold and no reset), `r` resumes, and a second Ctrl-C
+/// while held aborts it at rest with a soft reset, as in the REPL.
+#[test]
+fn ctrl_c_in_lase_run_holds_and_a_second_one_aborts() {
+    let machine = {
+        let text = lase_stdlib::machine("xy_table").unwrap();
+        lase_runtime::machine::parse_machine(text, 0).unwrap()
+    };
+    let sim = sim::serve(
+        &machine,
+        "127.0.0.1:0".parse().unwrap(),
+        SimOptions {
+            time_scale: TimeScale::Real,
+            ..SimOptions::default()
+        },
+    )
+    .unwrap();
+    let home = tempfile::tempdir().unwrap();
+    let url = format!("tcp://{}", sim.addr().unwrap());
+    let journal = home.path().join("run.journal");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_lase"));
+    cmd.args(["run", "examples/frame_marking.lase", "--link", &url])
+        .arg("--journal")
+        .arg(&journal)
+        .current_dir(root())
+        .env("TERM", "xterm")
+        .env("HOME", home.path())
+        .env("NO_COLOR", "1");
+    let mut p = spawn_with_options(
+        cmd,
+        Options::new()
+            .timeout_ms(Some(TIMEOUT_MS))
+            .strip_ansi_escape_codes(true),
+    )
+    .unwrap();
+    p.exp_string("a second Ctrl-C = abort").unwrap();
+    // The bar runs on planned time: its ETA counts down from the plan's cycle time.
+    p.exp_regex(r"% ETA [0-9.]+ s of 20\.0 s planned").unwrap();
+    // The controller says `Run` while the job moves, on the machine's own axes.
+    p.exp_regex(r"lines \| Run \| X-?[0-9.]+ Y-?[0-9.]+")
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !sim.recording().laser.iter().any(|e| e.power_s > 0.0) {
+        assert!(Instant::now() < deadline, "the laser never came on");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    p.send_control('c').unwrap();
+    p.exp_string("^C feed hold").unwrap();
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while sim.recording().holds < 1 {
+        assert!(
+            Instant::now() < deadline,
+            "no feed hold reached the controller"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let rec = sim.recording();
+    assert!(
+        rec.resets == 0 && rec.alarms.is_empty(),
+        "held, not stopped: {rec:?}"
+    );
+    assert_eq!(rec.laser.last().map(|e| e.power_s), Some(0.0), "{rec:?}");
+    // The second Ctrl-C aborts: feed hold (already), soft reset, the job over.
+    std::thread::sleep(Duration::from_millis(300));
+    p.send_control('c').unwrap();
+    p.exp_string("aborted after").unwrap();
+    p.exp_eof().unwrap();
+    let rec = sim.recording();
+    assert_eq!(rec.resets, 1, "stopped with a soft reset: {rec:?}");
+    assert!(rec.alarms.is_empty(), "stopped at rest: {:?}", rec.alarms);
 }

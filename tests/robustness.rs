@@ -16,6 +16,7 @@ fn files() -> MemFiles {
             let read = |p: &str| std::fs::read_to_string(common::root().join(p)).unwrap();
             let mut files = MemFiles::new([
                 ("lib/shapes.lase", read("tests/ok/lib/shapes.lase")),
+                ("lib/plate.svg", read("tests/ok/lib/plate.svg")),
                 ("rhai_cam_law.rhai", read("examples/rhai_cam_law.rhai")),
             ]);
             files.insert_bytes(

@@ -258,6 +258,14 @@ pub enum ExprKind {
         expr: Box<Expr>,
         index: Box<Expr>,
     },
+    /// `[item for var in iter if cond]`: a list built from a list or a range, filtered by an
+    /// optional condition (map and filter in one form).
+    Comprehension {
+        item: Box<Expr>,
+        var: Ident,
+        iter: Box<ForIter>,
+        cond: Option<Box<Expr>>,
+    },
     /// `profile polyline [...] closed`: a profile constructor, its arguments and flags.
     Profile {
         kind: Ident,

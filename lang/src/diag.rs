@@ -169,6 +169,20 @@ pub enum CheckError {
         help: Option<String>,
     },
 
+    #[error("`{first}` and `{second}` contradict each other")]
+    #[diagnostic(
+        code(lase::check::conflicting_flags),
+        help("a profile runs one way: give `cw` or `ccw`, not both")
+    )]
+    ConflictingFlags {
+        first: String,
+        second: String,
+        #[label("`{first}` given here")]
+        first_span: Span,
+        #[label("and `{second}` here")]
+        second_span: Span,
+    },
+
     #[error("`{key}` needs a value")]
     #[diagnostic(code(lase::check::missing_value))]
     MissingValue {
@@ -242,6 +256,7 @@ impl CheckError {
             | CheckError::UnknownType { span, .. }
             | CheckError::Duplicate { span, .. } => *span,
             CheckError::UnitMismatch { lhs, rhs, .. } => lhs.to(*rhs),
+            CheckError::ConflictingFlags { second_span, .. } => *second_span,
         }
     }
 }

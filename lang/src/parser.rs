@@ -557,7 +557,49 @@ impl Builder {
                 }
             }
             Rule::list => {
-                let (items, h) = self.exprs_h(p.into_inner());
+                let inner: Vec<P> = p.into_inner().collect();
+                if let [first, tail] = &inner[..]
+                    && tail.as_rule() == Rule::comp_tail
+                {
+                    let (item, mut h) = self.expr_h(first.clone());
+                    let mut it = tail.clone().into_inner().filter(|c| {
+                        !matches!(c.as_rule(), Rule::kw_for | Rule::kw_in | Rule::kw_if)
+                    });
+                    let var = self.ident(it.next().expect("comprehension variable"));
+                    let iter_p = it.next().expect("comprehension source");
+                    let iter = if iter_p.as_rule() == Rule::range {
+                        let mut ri = iter_p.into_inner();
+                        let (start, sh) = self.expr_h(ri.next().expect("range start"));
+                        let op = ri.next().expect("range op");
+                        let (end, eh) = self.expr_h(ri.next().expect("range end"));
+                        h = h.max(sh).max(eh);
+                        ForIter::Range {
+                            start,
+                            end,
+                            inclusive: op.as_str() == "..=",
+                        }
+                    } else {
+                        let (e, eh) = self.expr_h(iter_p);
+                        h = h.max(eh);
+                        ForIter::Expr(e)
+                    };
+                    let cond = it.next().map(|c| {
+                        let (e, ch) = self.expr_h(c);
+                        h = h.max(ch);
+                        Box::new(e)
+                    });
+                    return self.node(
+                        ExprKind::Comprehension {
+                            item: Box::new(item),
+                            var,
+                            iter: Box::new(iter),
+                            cond,
+                        },
+                        span,
+                        h + 1,
+                    );
+                }
+                let (items, h) = self.exprs_h(inner.into_iter());
                 self.node(ExprKind::List(items), span, h + 1)
             }
             Rule::call => {
@@ -721,7 +763,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         | Rule::product
         | Rule::unary
         | Rule::postfix => "an expression",
-        Rule::ident | Rule::callee => "a name",
+        Rule::ident | Rule::callee | Rule::arg_name => "a name",
         Rule::number | Rule::quantity => "a number",
         Rule::unit | Rule::unit_atom => "a unit",
         Rule::string => "a string",
@@ -732,6 +774,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         Rule::call_args => "arguments `( ... )`",
         Rule::arg => "an argument",
         Rule::list => "a list `[ ... ]`",
+        Rule::comp_tail => "`for` (a list comprehension)",
         Rule::paren => "`(`",
         Rule::cmp_op => "a comparison",
         Rule::add_op | Rule::mul_op => "an operator",
@@ -838,7 +881,37 @@ fn syntax_error(e: pest::error::Error<Rule>, text: &str, base: usize) -> ParseEr
         1 => expected[0].to_string(),
         n => format!("{} or {}", expected[..n - 1].join(", "), expected[n - 1]),
     };
-    let help = if found == "`=`" && expected.contains(&"a comparison") {
+    let word = text[start..tok_end].trim();
+    let is_word = !word.is_empty()
+        && word.chars().all(|c| c.is_alphanumeric() || c == '_')
+        && !word.starts_with(|c: char| c.is_ascii_digit());
+    let keyword = is_word && crate::schema::KEYWORDS.contains(&word);
+    // A keyword where a name is due (`let at = ...`) is a name the language keeps.
+    let found = if keyword && expected.contains(&"a name") {
+        format!("the keyword {found}")
+    } else {
+        found
+    };
+    let help = if keyword && expected.contains(&"a name") {
+        Some(format!(
+            "`{word}` is a keyword of the language and cannot name a value; choose another \
+             name, e.g. `{word}_1`"
+        ))
+    } else if let Some(kw) = is_word
+        .then(|| misspelt_statement(word, &expected))
+        .flatten()
+    {
+        // The long list of what could follow an expression statement hides the real slip.
+        return ParseError::Syntax {
+            message: format!("`{word}` starts no statement; did you mean `{kw}`?"),
+            span: Span::new(base + start, base + tok_end),
+            label: format!("did you mean `{kw}`?"),
+            help: Some(format!(
+                "`{kw}` is the statement keyword closest to `{word}`; `lase doc statements` \
+                 lists them all"
+            )),
+        };
+    } else if found == "`=`" && expected.contains(&"a comparison") {
         Some("`=` only binds names in `let`; compare with `==`".to_string())
     } else if expected.contains(&"a unit") || found.starts_with("`mm") {
         Some("a unit follows its number on the same line: `20 mm/s`".to_string())
@@ -851,6 +924,19 @@ fn syntax_error(e: pest::error::Error<Rule>, text: &str, base: usize) -> ParseEr
         label: format!("expected {list}"),
         help,
     }
+}
+
+/// The statement keyword a word where a statement may start is a misspelling of
+/// (`folow` → `follow`), by the same similarity as names' suggestions.
+fn misspelt_statement(word: &str, expected: &[&str]) -> Option<&'static str> {
+    if !expected.contains(&"a statement") || crate::schema::KEYWORDS.contains(&word) {
+        return None;
+    }
+    const STATEMENT_KEYWORDS: &[&str] = &[
+        "machine", "limits", "let", "fn", "import", "use", "if", "for", "return", "laser", "pulse",
+        "planner", "move", "follow", "dwell", "mcode", "event", "scan",
+    ];
+    crate::units::suggest(word, STATEMENT_KEYWORDS.iter().copied())
 }
 
 #[cfg(test)]

@@ -21,6 +21,10 @@ pub enum PTy {
     /// A list of points.
     Points,
     List,
+    /// A list or a string (`len`).
+    ListOrStr,
+    /// Any value (the values `format` fills in).
+    Any,
     Bool,
     Str,
     /// One word of a fixed set, written as a bare name (`ramp scurve`).
@@ -39,6 +43,8 @@ impl PTy {
             PTy::Profile => "a profile".into(),
             PTy::Points => "a list of points".into(),
             PTy::List => "a list".into(),
+            PTy::ListOrStr => "a list or a string".into(),
+            PTy::Any => "any value".into(),
             PTy::Bool => "a bool".into(),
             PTy::Str => "a string".into(),
             PTy::Word(w) => format!("one of {}", w.join(", ")),
@@ -77,6 +83,9 @@ pub enum Ret {
     Point,
     Profile,
     Points,
+    Str,
+    /// A list of profiles (2D codes' modules).
+    Profiles,
     /// The dimension of the first argument (abs, min, max).
     SameAsFirst,
     /// The square root of the first argument's dimension.
@@ -236,11 +245,79 @@ pub const BUILTINS: &[Builtin] = &[
     },
     Builtin {
         name: "len",
-        params: &[req("list", PTy::List)],
+        params: &[req("list", PTy::ListOrStr)],
         ret: Ret::Dim(Dim::NONE),
-        doc: "Number of items in a list.",
+        doc: "Number of items in a list, or of characters in a string.",
+    },
+    // Marking (issue 19): string formatting and 2D codes.
+    Builtin {
+        name: "format",
+        params: &[req("template", PTy::Str), opt("values", PTy::Any)],
+        ret: Ret::Str,
+        doc: "A string from a template and any number of values: `format(\"SN {:04}\", n)`. \
+              Each `{}` takes the next value; `{{` and `}}` are literal braces. A spec after a \
+              colon: an alignment `<` `^` `>` (default: right for numbers, left for the rest), \
+              a `0` to pad numbers with zeros after their sign, a width, and `.N` digits after \
+              the point. A plain number without `.N` prints as a whole number when it is one; \
+              a quantity with a unit prints with its unit (`12.5 mm`) and takes no `0` or `.N` \
+              (divide by a unit first: `format(\"{:.2}\", d / 1 mm)`).",
+    },
+    Builtin {
+        name: "qr",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Profiles,
+        doc: "A QR code of the text (byte mode, error correction M, the smallest version that \
+              holds it) as closed profiles to fill with a `raster` scan: one rectangle per run of \
+              dark modules in a row, `module` wide per module. `origin` is the lower-left corner of \
+              the symbol's quiet zone (default the origin); `quiet` is the quiet zone in modules \
+              (default 4, the standard's), which the size counts but no profile fills.",
+    },
+    Builtin {
+        name: "qr_dots",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Points,
+        doc: "The QR code of `qr` as the centres of its dark modules, for a `dots` scan (one \
+              pulse per module).",
+    },
+    Builtin {
+        name: "datamatrix",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Profiles,
+        doc: "A Data Matrix (ECC 200, the smallest square symbol that holds the text) as closed \
+              profiles to fill with a `raster` scan, as `qr` does; the quiet zone defaults to 1 \
+              module, the standard's minimum.",
+    },
+    Builtin {
+        name: "datamatrix_dots",
+        params: &[
+            req("text", PTy::Str),
+            req("module", L),
+            opt("origin", PTy::Point),
+            opt("quiet", NUM),
+        ],
+        ret: Ret::Points,
+        doc: "The Data Matrix of `datamatrix` as the centres of its dark modules, for \
+              a `dots` scan.",
     },
 ];
+
+/// Builtins whose last parameter takes any number of positional arguments.
+pub const VARIADIC: &[&str] = &["format"];
 
 /// Names bound in every recipe.
 pub const CONSTANTS: &[(&str, f64, &str)] = &[
@@ -347,10 +424,45 @@ pub const PROFILE_KINDS: &[ProfileKind] = &[
     },
     ProfileKind {
         name: "svg",
-        params: &[req("path", PTy::Str), opt("index", NUM)],
+        params: &[
+            req("path", PTy::Str),
+            opt("index", NUM),
+            opt("id", PTy::Str),
+        ],
         flags: &[],
         doc: "A contour from SVG path data (the `d` attribute: M, L, H, V, C, S, Q, T, A, Z), \
-              in mm with y up; `index` picks one of several subpaths.",
+              in mm with y up, or from an SVG file (`svg(\"part.svg\")`, a name ending in \
+              .svg, relative to the recipe): its `<path>` elements, one user unit per mm, \
+              without transforms; `id: \"outline\"` picks the path with that id; `index` \
+              picks one of several contours (subpaths, or the paths of a file in document \
+              order).",
+        unsupported: false,
+    },
+    // Marking (issue 19): text.
+    ProfileKind {
+        name: "text",
+        params: &[
+            req("text", PTy::Str),
+            req("height", L),
+            opt("origin", PTy::Point),
+            opt("align", PTy::Str),
+            opt("spacing", L),
+            opt("angle", ANG),
+            opt("radius", L),
+            opt("font", PTy::Str),
+        ],
+        flags: &[],
+        doc: "Text as a list of profiles. Without `font`, lase's built-in single-stroke font \
+              (Hershey Simplex, ASCII 32–126): open strokes to `follow`. With `font: \
+              \"file.ttf\"` (TrueType or OpenType, relative to the recipe): each glyph's closed \
+              outlines, curves flattened within the planner's tolerance, to fill with a `raster` \
+              scan. `height` is the height of a capital letter; `origin` the anchor on the \
+              baseline (default the origin); `align` is \"left\" (default), \"center\" or \
+              \"right\" of the anchor; `spacing` is added between letters; `angle` turns the \
+              baseline (default 0 deg). With `radius` the baseline is an arc of that radius \
+              about `origin`, the anchor at polar angle `angle` (default 90 deg), the letters \
+              upright outward and reading clockwise (a negative radius puts them inside, \
+              reading counter-clockwise).",
         unsupported: false,
     },
 ];
@@ -559,9 +671,13 @@ const SCAN_COMMON: [SettingSpec; 8] = [
     set(
         "power",
         PTy::Dim(Dim::POWER),
-        "Laser power for this scan only.",
+        "Laser power for this scan only (default: the `laser` power in force).",
     ),
-    set("spot", L, "Spot diameter for this scan only."),
+    set(
+        "spot",
+        L,
+        "Spot diameter for this scan only (default: the `laser` spot in force).",
+    ),
 ];
 
 pub const SCAN_KINDS: &[ScanKind] = &[
@@ -577,17 +693,25 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             SCAN_COMMON[5],
             SCAN_COMMON[6],
             SCAN_COMMON[7],
-            set("pitch", L, "L1: spot spacing along a row."),
+            set(
+                "pitch",
+                L,
+                "L1: spot spacing along a row (required, except for a list of points, where it defaults to the spot diameter and only sets the row grouping).",
+            ),
             set(
                 "row_pitch",
                 L,
                 "L2: spacing between rows (default: `pitch`; with `layout hex`, pitch·√3/2).",
             ),
-            set("rows", NUM, "Rows of an array given by its origin point."),
+            set(
+                "rows",
+                NUM,
+                "Rows of an array given by its origin point (required with a point region).",
+            ),
             set(
                 "cols",
                 NUM,
-                "Spots per row of an array given by its origin point.",
+                "Spots per row of an array given by its origin point (required with a point region).",
             ),
             set(
                 "layout",
@@ -607,10 +731,10 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             set(
                 "inset",
                 L,
-                "Keep spot centers this far inside the region's borders (offset machinery).",
+                "Keep spot centers this far inside the region's borders (offset machinery; default 0 mm).",
             ),
         ],
-        doc: "A texturing dot array: spots on a lattice (L1 along a row, L2 between rows), in or from the region, fired with the pulse settings in force (`pulse { width, energy }`). Spots are counted from the lattice origin, never accumulated.",
+        doc: "A texturing dot array: spots on a lattice (L1 along a row, L2 between rows), in or from the region, fired with the pulse settings in force (the `pulse` width and energy). Spots are counted from the lattice origin, never accumulated.",
     },
     ScanKind {
         name: "raster",
@@ -628,12 +752,12 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             set(
                 "cross",
                 PTy::Flag,
-                "Cross-hatch: a second set of lines at `angle` + 90°, after the first in every pass.",
+                "Cross-hatch: a second set of lines at `angle` + 90°, after the first in every pass (a flag: write `cross`; default off).",
             ),
             set(
                 "inset",
                 L,
-                "Shrink the region by this much from every border first (outer borders move in, holes grow), with the offset machinery.",
+                "Shrink the region by this much from every border first (outer borders move in, holes grow), with the offset machinery (default 0 mm).",
             ),
         ],
         doc: "A hatch fill: parallel lines `pitch` apart clipped to the region, lit at `speed`; with `pulse interval` in force the beam pulses along each line from its start.",

@@ -32,7 +32,7 @@ pub trait Files {
     /// `importer` is empty for the main recipe). Returns the resolved name (what diagnostics
     /// show) and the text, or why it cannot.
     fn read(&mut self, importer: &str, path: &str) -> Result<(String, String), String>;
-    /// Reads `path` as bytes (an image), resolved as [`Files::read`] does.
+    /// Reads `path` as bytes (an image to engrave, a font), resolved as [`Files::read`] does.
     fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String>;
 }
 
@@ -179,11 +179,14 @@ impl Files for MemFiles {
         }
     }
 
+    /// A file's bytes: blobs and texts from the map; a name not in the map given by an absolute
+    /// path (a system font in a test) is read from the disk under the usual limits.
     fn read_bytes(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
         let name = resolve(importer, path).to_string_lossy().into_owned();
         match (self.blobs.get(&name), self.files.get(&name)) {
             (Some(b), _) => Ok((name, b.clone())),
             (None, Some(t)) => Ok((name, t.clone().into_bytes())),
+            (None, None) if Path::new(path).is_absolute() => FsFiles.read_bytes(importer, path),
             (None, None) => Err(format!("no file {name}")),
         }
     }

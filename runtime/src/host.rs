@@ -14,11 +14,11 @@ pub trait Host {
         let _ = importer;
         Err(format!("data files are not available here (\"{path}\")"))
     }
-    /// Reads a binary data file (an image to engrave) given by path, relative to the file
-    /// `importer`, with the same IO limits as text. Returns the resolved name and the bytes.
+    /// Reads a binary data file (an image to engrave, a font) given by path, relative to the
+    /// file `importer`, with the same IO limits as text. Returns the resolved name and the bytes.
     fn binary_file(&mut self, importer: &str, path: &str) -> Result<(String, Vec<u8>), String> {
         let _ = importer;
-        Err(format!("data files are not available here (\"{path}\")"))
+        Err(format!("binary files are not available here (\"{path}\")"))
     }
     /// Reads an extension module (`use "file.rhai"`) or a preset (`use "file.toml"`) given by
     /// path, relative to the file `importer`. Returns the resolved name and the text.

@@ -21,6 +21,7 @@ pub(crate) mod host;
 pub mod kinematics;
 pub mod link;
 pub mod machine;
+pub mod marking;
 pub mod motion;
 pub mod planner;
 pub mod program;

@@ -9,7 +9,10 @@ use lase_runtime::motion::{Job, plan_program};
 use lase_runtime::program::{
     Coupling, Laser, Op, OpKind, P3, ProcessProgram, Pulse, PulseMode, Ramp,
 };
-use lase_runtime::report::{plot_svg, pulse_events, summarize, write_trace};
+use lase_runtime::report::{
+    DOT_LIMIT, PNG_SCALE, PlotOptions, SpeedUnit, plot_png, plot_svg, pulse_events, summarize,
+    write_trace,
+};
 
 // ------------------------------------------------------------------ helpers
 
@@ -338,7 +341,7 @@ fn plot_is_an_svg_with_paths_and_speeds() {
             line([0.0, 20.0, 0.0], 40.0, None),
         ],
     ));
-    let svg = plot_svg(&job).unwrap();
+    let svg = plot_svg(&job, &PlotOptions::default()).unwrap();
     assert!(svg.starts_with("<svg xmlns=\"http://www.w3.org/2000/svg\""));
     assert!(svg.trim_end().ends_with("</svg>"));
     assert_eq!(svg.matches("<svg").count(), 1);
@@ -351,11 +354,7 @@ fn plot_is_an_svg_with_paths_and_speeds() {
     );
     assert!(svg.contains(">t [s]<") && svg.contains(">v [mm/s]<"));
     // Every element with content is closed (a cheap well-formedness check).
-    for (open, close) in [
-        ("<text", "</text>"),
-        ("<g ", "</g>"),
-        ("<circle", "</circle>"),
-    ] {
+    for (open, close) in [("<text", "</text>"), ("<g", "</g>"), ("<title", "</title>")] {
         assert_eq!(
             svg.matches(open).count(),
             svg.matches(close).count(),
@@ -376,12 +375,88 @@ fn plot_sampling_is_capped_for_long_jobs() {
         })
         .collect();
     let job = plan(program("xy_table", ops));
-    let svg = plot_svg(&job).unwrap();
+    let svg = plot_svg(&job, &PlotOptions::default()).unwrap();
     // 20 000 samples, drawn twice (path and speed), plus the points repeated where a
     // polyline changes color.
     let points = svg.matches(',').count();
     assert!(points <= 60_000, "{points} coordinate pairs");
     assert!(svg.contains("<polyline"));
+}
+
+/// Past `DOT_LIMIT` pulses the toolpath is a density view: no marks, and cells whose counts
+/// add up to every pulse.
+#[test]
+fn plot_shows_a_density_view_past_the_dot_limit() {
+    // 100 mm at a 5 µm pitch: 20 001 pulses.
+    let job = plan(program(
+        "xy_table",
+        vec![line(
+            [100.0, 0.0, 0.0],
+            20.0,
+            laser(50.0, Some(PulseMode::Distance { pitch_mm: 0.005 })),
+        )],
+    ));
+    let pulses = summarize(&job).pulses;
+    assert_eq!(pulses, 20_001);
+    assert!(pulses > DOT_LIMIT);
+    let svg = plot_svg(&job, &PlotOptions::default()).unwrap();
+    assert!(!svg.contains(r#"class="pulse""#));
+    let counted: u64 = svg
+        .lines()
+        .filter(|l| l.contains(r#"class="density""#))
+        .map(|l| {
+            let at = l.find("data-n=\"").unwrap() + 8;
+            l[at..at + l[at..].find('"').unwrap()]
+                .parse::<u64>()
+                .unwrap()
+        })
+        .sum();
+    assert_eq!(counted, pulses);
+    assert!(svg.contains("20001 pulses: density"));
+}
+
+/// The PNG is the SVG at `PNG_SCALE` pixels per unit, and the lit path is inked.
+#[test]
+fn plot_png_is_the_svg_rasterized() {
+    let job = ten_mm(Ramp::Scurve, None);
+    let opts = PlotOptions::default();
+    let svg = plot_svg(&job, &opts).unwrap();
+    let png = plot_png(&job, &opts).unwrap();
+    let pixmap = resvg::tiny_skia::Pixmap::decode_png(&png).unwrap();
+    let head = svg.lines().next().unwrap();
+    let attr = |name: &str| -> f64 {
+        let at = head.find(&format!(" {name}=\"")).unwrap() + name.len() + 3;
+        head[at..at + head[at..].find('"').unwrap()]
+            .parse()
+            .unwrap()
+    };
+    assert_eq!(pixmap.width() as f64, attr("width") * f64::from(PNG_SCALE));
+    assert_eq!(
+        pixmap.height() as f64,
+        attr("height") * f64::from(PNG_SCALE)
+    );
+    let lit = svg.lines().find(|l| l.contains(r#"class="lit""#)).unwrap();
+    let at = lit.find("points=\"").unwrap() + 8;
+    let (x, y) = lit[at..]
+        .split(' ')
+        .next()
+        .unwrap()
+        .split_once(',')
+        .unwrap();
+    let (x, y): (f64, f64) = (x.parse().unwrap(), y.parse().unwrap());
+    let s = f64::from(PNG_SCALE);
+    let p = pixmap.pixel((x * s) as u32 + 2, (y * s) as u32).unwrap();
+    assert!(p.red() < 230 || p.green() < 230 || p.blue() < 230, "{p:?}");
+}
+
+#[test]
+fn the_speed_unit_is_the_recipes() {
+    let min = "let cut = 950 mm/min\nmove to (1 mm, 0) at 3000 mm/min // 50 mm/s\n";
+    assert_eq!(SpeedUnit::of_source(min), SpeedUnit::MmPerMin);
+    let s = "follow p at 20 mm/s\nlimits { a 500 mm/s^2 } // 3 m/min\n";
+    assert_eq!(SpeedUnit::of_source(s), SpeedUnit::MmPerS);
+    assert_eq!(SpeedUnit::of_source(""), SpeedUnit::MmPerS);
+    assert_eq!(SpeedUnit::MmPerMin.per_mm_s(), 60.0);
 }
 
 /// The live progress counts pulses from the plan: all of them by the end, none before the

@@ -266,6 +266,7 @@ impl Session {
                 let before = self.eval.ops().len();
                 if self.input(&text, path) {
                     self.loaded = Some(path.into());
+                    // The ops the recipe wrote, as `:plan` counts them first.
                     println!(
                         "loaded {path}: {} ops to run",
                         self.eval.ops().len().saturating_sub(before)
@@ -367,8 +368,8 @@ impl Session {
     fn summary_line(&self, job: &Job) -> String {
         let s = lase_runtime::report::summarize(job);
         let mut line = format!(
-            "{} ops, cycle time {:.4} s, path {:.4} mm, laser on {:.4} mm",
-            job.program.ops.len(),
+            "{}, cycle time {:.4} s, path {:.4} mm, laser on {:.4} mm",
+            crate::output::ops_count(job),
             s.cycle_time_s,
             s.path_length_mm,
             s.laser_on_length_mm
@@ -417,15 +418,24 @@ impl Session {
     fn plot(&self, arg: Option<&str>) {
         let Some(job) = self.job() else { return };
         let path = arg.unwrap_or("lase-repl.svg");
-        let svg = match lase_runtime::report::plot_svg(&job) {
-            Ok(s) => s,
+        // `.png` rasterizes, as `lase plot -o f.png` does.
+        let opts = Default::default();
+        let bytes = if path.to_ascii_lowercase().ends_with(".png") {
+            lase_runtime::report::plot_png(&job, &opts)
+        } else {
+            lase_runtime::report::plot_svg(&job, &opts)
+                .map(String::into_bytes)
+                .map_err(|e| e.to_string())
+        };
+        let bytes = match bytes {
+            Ok(b) => b,
             Err(e) => {
                 self.say_error(&format!("cannot draw the plot: {e}"));
                 return;
             }
         };
         match crate::output::write_atomic(Path::new(path), |w| {
-            w.write_all(svg.as_bytes()).map_err(|e| {
+            w.write_all(&bytes).map_err(|e| {
                 (
                     SourceMap::new(),
                     Failure::one(driver::IoError {

@@ -10,7 +10,7 @@
 //! controller moves; at the prompt rustyline reads Ctrl-C as a key.
 
 use crate::driver::Failure;
-use crate::live::{Display, Key, Keys};
+use crate::live::{Display, Key, Keys, SigGuard};
 use lase_runtime::emit::NcLine;
 use lase_runtime::link::grbl::GrblLink;
 use lase_runtime::link::job::{self, JobLines, NewJournal, Origin, Refused, Started};
@@ -22,8 +22,6 @@ use lase_runtime::link::{
 };
 use lase_runtime::machine::Machine;
 use lase_runtime::motion::Job;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// An open link.
@@ -86,53 +84,6 @@ impl From<LinkError> for Trouble {
 }
 
 type R<T> = Result<T, Trouble>;
-
-/// Ctrl-C, caught as a signal while the controller moves (and the terminal is not in raw
-/// mode); outside that window SIGINT keeps its default action. The handlers are installed once
-/// per process: removing a signal action would leave SIGINT ignored, not restored.
-struct SigGuard {
-    caught: Arc<AtomicBool>,
-    idle: Arc<AtomicBool>,
-}
-
-fn sigint_flags() -> &'static (Arc<AtomicBool>, Arc<AtomicBool>) {
-    static FLAGS: std::sync::OnceLock<(Arc<AtomicBool>, Arc<AtomicBool>)> =
-        std::sync::OnceLock::new();
-    FLAGS.get_or_init(|| {
-        let caught = Arc::new(AtomicBool::new(false));
-        let idle = Arc::new(AtomicBool::new(true));
-        let sig = signal_hook::consts::SIGINT;
-        // Without the handlers Ctrl-C would still stop the process: nothing to do about a
-        // failure here but run without them.
-        // 130: how a shell reports a process ended by SIGINT.
-        let _ = signal_hook::flag::register_conditional_shutdown(sig, 130, idle.clone());
-        let _ = signal_hook::flag::register(sig, caught.clone());
-        (caught, idle)
-    })
-}
-
-impl SigGuard {
-    fn new() -> SigGuard {
-        let (caught, idle) = sigint_flags();
-        caught.store(false, Ordering::SeqCst);
-        idle.store(false, Ordering::SeqCst);
-        SigGuard {
-            caught: caught.clone(),
-            idle: idle.clone(),
-        }
-    }
-
-    fn take(&self) -> bool {
-        self.caught.swap(false, Ordering::SeqCst)
-    }
-}
-
-impl Drop for SigGuard {
-    fn drop(&mut self) {
-        self.idle.store(true, Ordering::SeqCst);
-        self.caught.store(false, Ordering::SeqCst);
-    }
-}
 
 /// Everything a job needs to be streamed: its NC lines and how to point back at the recipe.
 pub struct Stream<'a> {
@@ -377,8 +328,9 @@ impl Station {
     /// interrupted by a lost link is dropped.
     pub fn abort(&mut self, machine: Option<&Machine>) -> R<String> {
         let dropped = self.lost.take().map(|j| j.name);
+        let letters = self.letters.clone();
         let link = self.link(machine)?;
-        let stop = stream::stop_safely(&mut **link);
+        let stop = stream::stop_safely(&mut **link, &letters);
         Ok(match dropped {
             Some(name) => format!("dropped the interrupted job `{name}` (check the part); {stop}"),
             None => stop,

@@ -46,6 +46,10 @@ pub const PRESETS: &[(&str, &str)] = &[
         include_str!("../presets/cam_hardening.toml"),
     ),
     (
+        "material_test",
+        include_str!("../presets/material_test.toml"),
+    ),
+    (
         "micro_texturing",
         include_str!("../presets/micro_texturing.toml"),
     ),

@@ -168,8 +168,11 @@ pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
         };
         for (to, lit) in pieces {
             let length = dist(prev, to);
+            // A run is lit moves in a row with one pulse pitch: a scan of explicit spots (a
+            // Data Matrix's module centres) lights runs of different pitch end to end.
+            let same_pitch = runs.last().is_some_and(|r| r.3 == pitch);
             if lit {
-                if in_run {
+                if in_run && same_pitch {
                     let r = runs.last_mut().unwrap();
                     r.1 = to;
                     r.2 += length;

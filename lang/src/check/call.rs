@@ -107,6 +107,8 @@ impl Checker {
             Ret::Point => Ty::Point,
             Ret::Profile => Ty::Profile,
             Ret::Points => Ty::List(Box::new(Ty::Point)),
+            Ret::Str => Ty::Str,
+            Ret::Profiles => Ty::List(Box::new(Ty::Profile)),
             Ret::SameAsFirst => match (first, tys.get(1).cloned().flatten()) {
                 (Ty::Zero, Some(t)) => t,
                 (t, _) => t,
@@ -177,6 +179,13 @@ impl Checker {
                     positional += 1;
                     positional - 1
                 }
+            };
+            // A variadic builtin's last parameter takes the rest of the positional arguments.
+            let idx = if idx >= params.len() && a.name.is_none() && schema::VARIADIC.contains(&name)
+            {
+                params.len() - 1
+            } else {
+                idx
             };
             if idx >= params.len() {
                 too_many = true;

@@ -125,6 +125,18 @@ impl Checker {
             PTy::Profile => self.expect_ty(t, &Ty::Profile, e, context),
             PTy::Points => self.expect_ty(t, &Ty::List(Box::new(Ty::Point)), e, context),
             PTy::List => self.expect_ty(t, &Ty::List(Box::new(Ty::Unknown)), e, context),
+            PTy::ListOrStr => {
+                if !matches!(t, Ty::List(_) | Ty::Str | Ty::Unknown) {
+                    self.err(CheckError::TypeMismatch {
+                        expected: ty.describe(),
+                        found: t.describe(),
+                        context: context.into(),
+                        span: e.span,
+                        help: None,
+                    })
+                }
+            }
+            PTy::Any => {}
             PTy::Bool => self.expect_ty(t, &Ty::Bool, e, context),
             PTy::Str => self.expect_ty(t, &Ty::Str, e, context),
             PTy::Word(_) | PTy::Flag => {}

@@ -6,6 +6,7 @@ use crate::ast::*;
 use crate::diag::{CheckError, did_you_mean};
 use crate::schema;
 use crate::units::{self, Dim};
+use std::collections::HashMap;
 
 impl Checker {
     pub(super) fn expr(&mut self, e: &Expr) -> Ty {
@@ -164,14 +165,33 @@ impl Checker {
                 self.expect_count(&i, index, "an index");
                 match t {
                     Ty::List(elem) => *elem,
+                    // A string's item is its character at the index, itself a string.
+                    Ty::Str => Ty::Str,
                     Ty::Unknown => Ty::Unknown,
                     other => {
-                        self.type_err("a list", &other, expr, "indexing");
+                        self.type_err("a list or a string", &other, expr, "indexing");
                         Ty::Unknown
                     }
                 }
             }
             ExprKind::Call { callee, args } => self.call(callee, args, e.span),
+            ExprKind::Comprehension {
+                item,
+                var,
+                iter,
+                cond,
+            } => {
+                let var_ty = self.for_iter(iter, "a list comprehension");
+                self.scopes.push(HashMap::new());
+                self.bind(&var.name, var_ty);
+                if let Some(c) = cond {
+                    let t = self.expr(c);
+                    self.expect_ty(&t, &Ty::Bool, c, "the condition of a list comprehension");
+                }
+                let t = self.expr(item);
+                self.scopes.pop();
+                Ty::List(Box::new(t))
+            }
             ExprKind::Profile { kind, args, flags } => {
                 let Some(pk) = schema::profile_kind(&kind.name) else {
                     self.err(CheckError::UnknownName {
@@ -226,16 +246,55 @@ impl Checker {
                         });
                     }
                 }
-                if flags.iter().any(|f| f.name == "cw") && flags.iter().any(|f| f.name == "ccw") {
-                    self.err(CheckError::UnknownSetting {
-                        stmt: name,
-                        key: "cw".into(),
-                        span: e.span,
-                        help: Some("give `cw` or `ccw`, not both".into()),
+                let dir = |n: &str| flags.iter().find(|f| f.name == n);
+                if let (Some(cw), Some(ccw)) = (dir("cw"), dir("ccw")) {
+                    let (a, b) = if cw.span.start <= ccw.span.start {
+                        (cw, ccw)
+                    } else {
+                        (ccw, cw)
+                    };
+                    self.err(CheckError::ConflictingFlags {
+                        first: a.name.clone(),
+                        second: b.name.clone(),
+                        first_span: a.span,
+                        second_span: b.span,
                     });
                 }
-                Ty::Profile
+                // Text is many strokes or outlines: a list of profiles.
+                if pk.name == "text" {
+                    Ty::List(Box::new(Ty::Profile))
+                } else {
+                    Ty::Profile
+                }
             }
+        }
+    }
+
+    /// The type a loop variable takes from what it runs over: a count from a range, an item
+    /// from a list (`for` statements and list comprehensions alike).
+    pub(super) fn for_iter(&mut self, iter: &ForIter, context: &str) -> Ty {
+        match iter {
+            ForIter::Range { start, end, .. } => {
+                for e in [start, end] {
+                    let t = self.expr(e);
+                    self.expect_count(&t, e, "a range bound");
+                }
+                Ty::Num(Dim::NONE)
+            }
+            ForIter::Expr(e) => match self.expr(e) {
+                Ty::List(t) => *t,
+                Ty::Unknown => Ty::Unknown,
+                other => {
+                    self.err(CheckError::TypeMismatch {
+                        expected: "a list or a range".into(),
+                        found: other.describe(),
+                        context: context.into(),
+                        span: e.span,
+                        help: Some("loop over a list `[a, b]` or a range `0..n`".into()),
+                    });
+                    Ty::Unknown
+                }
+            },
         }
     }
 
@@ -291,6 +350,13 @@ impl Checker {
                     (Num(_), Zero) | (Zero, Zero) => l.clone(),
                     (Point, Point) if op != BinOp::Rem => Point,
                     (Str, Str) if op == BinOp::Add => Str,
+                    // `+` on two lists concatenates them; their items must be of one kind.
+                    (List(a), List(b)) if op == BinOp::Add => match (&**a, &**b) {
+                        (Unknown, _) => r.clone(),
+                        (_, Unknown) => l.clone(),
+                        (a, b) if same_kind(a, b) => l.clone(),
+                        _ => mismatch(self, "concatenate"),
+                    },
                     _ => mismatch(self, verb),
                 }
             }

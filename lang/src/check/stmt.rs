@@ -156,29 +156,7 @@ impl Checker {
                 }
             }
             StmtKind::For { var, iter, body } => {
-                let var_ty = match iter {
-                    ForIter::Range { start, end, .. } => {
-                        for e in [start, end] {
-                            let t = self.expr(e);
-                            self.expect_count(&t, e, "a range bound");
-                        }
-                        Ty::Num(Dim::NONE)
-                    }
-                    ForIter::Expr(e) => match self.expr(e) {
-                        Ty::List(t) => *t,
-                        Ty::Unknown => Ty::Unknown,
-                        other => {
-                            self.err(CheckError::TypeMismatch {
-                                expected: "a list or a range".into(),
-                                found: other.describe(),
-                                context: "`for`".into(),
-                                span: e.span,
-                                help: Some("loop over a list `[a, b]` or a range `0..n`".into()),
-                            });
-                            Ty::Unknown
-                        }
-                    },
-                };
+                let var_ty = self.for_iter(iter, "`for`");
                 let inner = if place == Place::Main {
                     Place::Nested
                 } else {

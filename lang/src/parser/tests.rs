@@ -141,3 +141,64 @@ fn incomplete_input_is_detected() {
     assert!(is_incomplete("let a = [1,"));
     assert!(!is_incomplete("let a = [1, 2] // [ "));
 }
+
+#[test]
+fn a_list_comprehension_parses_into_item_variable_source_and_condition() {
+    let m = parse(
+        "let xs = [x * 2 mm for x in 0..=4 if x % 2 == 0]\nlet ys = [y for y in xs]\nlet zs = [1, 2,]",
+    );
+    let StmtKind::Let { value, .. } = &m.stmts[0].kind else {
+        panic!()
+    };
+    let ExprKind::Comprehension {
+        item,
+        var,
+        iter,
+        cond,
+    } = &value.kind
+    else {
+        panic!("{:?}", value.kind)
+    };
+    assert_eq!(var.name, "x");
+    assert!(matches!(item.kind, ExprKind::Binary { op: BinOp::Mul, .. }));
+    assert!(matches!(
+        **iter,
+        ForIter::Range {
+            inclusive: true,
+            ..
+        }
+    ));
+    assert!(matches!(
+        cond.as_deref().map(|c| &c.kind),
+        Some(ExprKind::Binary { op: BinOp::Eq, .. })
+    ));
+    let StmtKind::Let { value, .. } = &m.stmts[1].kind else {
+        panic!()
+    };
+    assert!(matches!(
+        &value.kind,
+        ExprKind::Comprehension { cond: None, .. }
+    ));
+    let StmtKind::Let { value, .. } = &m.stmts[2].kind else {
+        panic!()
+    };
+    assert!(matches!(&value.kind, ExprKind::List(items) if items.len() == 2));
+}
+
+#[test]
+fn deeply_nested_lists_parse_without_backtracking() {
+    // The first item is parsed once whether a comprehension's `for` or a `,` follows: 100
+    // nested lists would take 2^100 attempts (a hang) if either alternative re-parsed it.
+    let src = format!("let x = {}1{}", "[".repeat(100), "]".repeat(100));
+    let m = parse(&src);
+    let StmtKind::Let { value, .. } = &m.stmts[0].kind else {
+        panic!()
+    };
+    let mut depth = 0;
+    let mut e = value;
+    while let ExprKind::List(items) = &e.kind {
+        depth += 1;
+        e = &items[0];
+    }
+    assert_eq!(depth, 100);
+}

@@ -19,6 +19,7 @@
 //! | pulses in the program                       | [`crate::program::MAX_PULSES`] (10 000 000), in `ProcessProgram::validate` | |
 //! | moves and machine events                    | [`MAX_OPS`](super::MAX_OPS) | an image row is one move |
 //! | pixel runs of image rows                    | [`MAX_RUNS`](super::MAX_RUNS) (20 000 000) | 8 B a run |
+//! | a point's coordinates                       | within ±1 km of the origin | beyond any machine's travel; the geometry's tolerances are relative to 0.1 µm |
 
 use super::{EvalError, Evaluator, Kind, R, bad};
 use crate::program::{Pulse, PulseMode};
@@ -115,6 +116,36 @@ pub(super) const JERK: Range = Range {
     dim: Dim::JERK,
     why: "an axis's jerk is 1 mm/s³ at least; lower, a move takes hours to reach speed",
 };
+
+/// The farthest a point may lie from the origin on any axis: 1 km, beyond any machine's travel.
+/// Curve fitting and offsetting work to absolute tolerances of 0.1 µm, which an f64 can no
+/// longer tell apart beyond about 10⁹ mm: a spline through (1e300 mm, 0) never converged.
+pub(crate) const MAX_COORD_MM: f64 = 1e6;
+
+/// A point value (a literal or the result of point arithmetic) whose coordinates lie within
+/// [`MAX_COORD_MM`]; anything else passes through.
+pub(super) fn point_in_range(v: super::Value, span: Span) -> R<super::Value> {
+    if let super::Value::Point(p, _) = &v
+        && let Some(c) = p.iter().find(|c| c.abs() > MAX_COORD_MM)
+    {
+        let value = if c.abs() < 1e12 {
+            format_quantity(*c, Dim::LENGTH)
+        } else {
+            format!("{c:e} mm")
+        };
+        return Err(bad(
+            Kind::OutOfRange,
+            span,
+            &format!("the point's coordinate {value} is beyond 1 km from the origin"),
+            "too far",
+            Some(
+                "a point's coordinates lie within ±1 km (1e6 mm) of the origin: beyond any \
+                 machine's travel, and beyond what the geometry's 0.1 µm tolerances can resolve",
+            ),
+        ));
+    }
+    Ok(v)
+}
 
 impl Evaluator {
     /// `x` (of `what`, at `span`), or a diagnostic naming the range and why it ends there.

@@ -126,8 +126,14 @@ impl Evaluator {
                 None,
             ));
         };
+        if b.name == "format" {
+            return self.format_call(args, span, cx);
+        }
         let names: Vec<&str> = b.params.iter().map(|p| p.name).collect();
         let a = self.bind_args(&names, args, cx)?;
+        if matches!(b.name, "qr" | "qr_dots" | "datamatrix" | "datamatrix_dots") {
+            return self.code_call(b.name, &a, span);
+        }
         let arg = |i: usize| {
             a.get(i).cloned().flatten().ok_or_else(|| {
                 bad(
@@ -329,7 +335,8 @@ impl Evaluator {
                 let (v, sp) = arg(0)?;
                 match v {
                     Value::List(items) => Value::Num(items.len() as f64, Dim::NONE),
-                    other => return Err(type_err("a list", &other, sp, "`len`")),
+                    Value::Str(s) => Value::Num(s.chars().count() as f64, Dim::NONE),
+                    other => return Err(type_err("a list or a string", &other, sp, "`len`")),
                 }
             }
             other => {

@@ -23,7 +23,11 @@
 //! - `division_by_zero`: a division or remainder by zero;
 //! - `no_orientation`: a `move` on a machine that orients the beam before any path set it;
 //! - `not_loaded`: an `import` whose module was not loaded;
-//! - `empty`: a scan with nothing to scan.
+//! - `empty`: a scan with nothing to scan;
+//! - `format`: a `format` template that does not fit its values (an unmatched brace, a spec
+//!   it does not know, too few or too many values);
+//! - `marking`: text or a 2D code that cannot be made (a character the font lacks, a font
+//!   file that cannot be read, more text than the largest symbol holds).
 //!
 //! The rest name the machine and the process sheet: `no_machine`, `unknown_machine`,
 //! `machine_file`, `machine_changed`, `unknown_axis`, `unknown_event`, `above_machine` (a
@@ -286,6 +290,30 @@ pub enum EvalError {
         help: Option<String>,
     },
 
+    /// A `format` template that does not fit its values.
+    #[error("{message}")]
+    #[diagnostic(code(lase::eval::format))]
+    Format {
+        message: String,
+        #[label("{label}")]
+        span: Span,
+        label: String,
+        #[help]
+        help: Option<String>,
+    },
+
+    /// Text or a 2D code that cannot be made.
+    #[error("{message}")]
+    #[diagnostic(code(lase::eval::marking))]
+    Marking {
+        message: String,
+        #[label("{label}")]
+        span: Span,
+        label: String,
+        #[help]
+        help: Option<String>,
+    },
+
     /// A scan with nothing to scan (no spot in the list or the region).
     #[error("{message}")]
     #[diagnostic(code(lase::eval::empty))]
@@ -394,6 +422,8 @@ impl EvalError {
             | EvalError::NoOrientation { span, .. }
             | EvalError::NotLoaded { span, .. }
             | EvalError::Empty { span, .. }
+            | EvalError::Format { span, .. }
+            | EvalError::Marking { span, .. }
             | EvalError::Type { span, .. }
             | EvalError::Geometry { span, .. }
             | EvalError::Image { span, .. }
@@ -426,6 +456,8 @@ pub(crate) enum Kind {
     NoOrientation,
     NotLoaded,
     Empty,
+    Format,
+    Marking,
     /// Geometry that cannot be built (`lase::eval::geometry`).
     Geometry,
 }
@@ -536,6 +568,18 @@ impl EvalError {
                 label,
                 help,
             },
+            Kind::Format => EvalError::Format {
+                message,
+                span,
+                label,
+                help,
+            },
+            Kind::Marking => EvalError::Marking {
+                message,
+                span,
+                label,
+                help,
+            },
         }
     }
 }
@@ -579,6 +623,8 @@ mod tests {
             (Kind::NotLoaded, "not_loaded"),
             (Kind::Empty, "empty"),
             (Kind::Geometry, "geometry"),
+            (Kind::Format, "format"),
+            (Kind::Marking, "marking"),
         ];
         let doc = include_str!("error.rs");
         for (kind, name) in kinds {

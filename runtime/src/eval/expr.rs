@@ -120,7 +120,7 @@ impl Evaluator {
                 if items.len() == 2 {
                     p[2] = 0.0;
                 }
-                Ok(Value::Point(p, items.len().min(3) as u8))
+                super::bounds::point_in_range(Value::Point(p, items.len().min(3) as u8), e.span)
             }
             ExprKind::List(items) => {
                 let mut out = Vec::with_capacity(items.len());
@@ -141,7 +141,7 @@ impl Evaluator {
                 }
                 let l = self.expr(lhs, cx)?;
                 let r = self.expr(rhs, cx)?;
-                binary(*op, l, r, lhs.span, rhs.span)
+                super::bounds::point_in_range(binary(*op, l, r, lhs.span, rhs.span)?, e.span)
             }
             ExprKind::Unary { op, expr } => {
                 let v = self.expr(expr, cx)?;
@@ -198,12 +198,87 @@ impl Evaluator {
                                 )
                             })
                     }
-                    other => Err(type_err("a list", &other, expr.span, "indexing")),
+                    // A string's items are its characters (Unicode scalar values), so a
+                    // serial number's digits can be taken one by one.
+                    Value::Str(text) => {
+                        let len = text.chars().count() as i64;
+                        let k = if i < 0 { len + i } else { i };
+                        text.chars()
+                            .nth(k as usize)
+                            .filter(|_| k >= 0)
+                            .map(|c| Value::Str(c.to_string().into()))
+                            .ok_or_else(|| {
+                                bad(
+                                    Kind::OutOfRange,
+                                    index.span,
+                                    &format!(
+                                        "index {i} is out of range for a string of {len} characters"
+                                    ),
+                                    "out of range",
+                                    Some("indices run from 0; negative ones count from the end"),
+                                )
+                            })
+                    }
+                    other => Err(type_err(
+                        "a list or a string",
+                        &other,
+                        expr.span,
+                        "indexing",
+                    )),
                 }
             }
             ExprKind::Call { callee, args } => self.call(callee, args, e.span, cx),
+            ExprKind::Comprehension {
+                item,
+                var,
+                iter,
+                cond,
+            } => {
+                let items = self.for_items(iter, "a list comprehension", cx)?;
+                let mut out = Vec::new();
+                for v in items {
+                    self.step(var.span)?;
+                    // Each item is a value held at once: the list is bounded before it can
+                    // grow past what memory holds (the step budget alone would allow 20 M).
+                    if out.len() >= MAX_LIST_ITEMS {
+                        return Err(bad(
+                            Kind::TooLarge,
+                            e.span,
+                            &format!("this list would hold more than {MAX_LIST_ITEMS} items"),
+                            "too many items",
+                            Some("filter earlier, or loop with `for` instead of building a list"),
+                        ));
+                    }
+                    self.scopes.push(std::collections::HashMap::new());
+                    self.bind(&var.name, v);
+                    let r = self.comprehension_item(item, cond.as_deref(), cx);
+                    self.scopes.pop();
+                    if let Some(v) = r? {
+                        out.push(v);
+                    }
+                }
+                Ok(Value::List(Rc::new(out)))
+            }
             ExprKind::Profile { kind, args, flags } => self.profile(kind, args, flags, e.span, cx),
         }
+    }
+}
+
+impl Evaluator {
+    /// One turn of a list comprehension: the item, unless the condition drops it.
+    fn comprehension_item(
+        &mut self,
+        item: &Expr,
+        cond: Option<&Expr>,
+        cx: &mut Cx,
+    ) -> R<Option<Value>> {
+        if let Some(c) = cond {
+            let keep = self.expr(c, cx)?;
+            if !self.as_bool(&keep, c.span, "the condition of a list comprehension")? {
+                return Ok(None);
+            }
+        }
+        self.expr(item, cx).map(Some)
     }
 }
 
@@ -300,6 +375,27 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
             Ok(Point([a[0] / k, a[1] / k, a[2] / k], *n))
         }
         (BinOp::Add, Str(a), Str(b)) => Ok(Str(format!("{a}{b}").into())),
+        // List concatenation, capped so doubling a list in a loop or recursion cannot exhaust
+        // memory before the step budget notices.
+        (BinOp::Add, List(a), List(b)) => {
+            let n = a.len() + b.len();
+            if n > MAX_LIST_ITEMS {
+                return Err(EvalError::TooLarge {
+                    message: format!(
+                        "the concatenated list would hold {} items, above the {} lase handles",
+                        lase_lang::units::format_number(n as f64),
+                        lase_lang::units::format_number(MAX_LIST_ITEMS as f64)
+                    ),
+                    span: ls.to(rs),
+                    label: "too many items".into(),
+                    help: Some("build smaller lists, or split the job into several recipes".into()),
+                });
+            }
+            let mut out = Vec::with_capacity(n);
+            out.extend(a.iter().cloned());
+            out.extend(b.iter().cloned());
+            Ok(List(Rc::new(out)))
+        }
         (BinOp::Eq, Bool(a), Bool(b)) => Ok(Bool(a == b)),
         (BinOp::Ne, Bool(a), Bool(b)) => Ok(Bool(a != b)),
         (BinOp::Eq, Str(a), Str(b)) => Ok(Bool(a == b)),
@@ -307,6 +403,9 @@ fn binary(op: BinOp, l: Value, r: Value, ls: Span, rs: Span) -> R<Value> {
         _ => Err(mismatch(&l, &r)),
     }
 }
+
+/// Items a list made by `+` or by a comprehension may hold (as many as an extension's arrays).
+pub(crate) const MAX_LIST_ITEMS: usize = 1_000_000;
 
 /// `x / 0`: the error at the divisor.
 fn division_by_zero(divisor: Span) -> EvalError {

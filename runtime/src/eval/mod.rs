@@ -11,6 +11,7 @@ mod bounds;
 mod builtins;
 mod error;
 mod expr;
+mod marking;
 mod image;
 mod moves;
 mod profiles;

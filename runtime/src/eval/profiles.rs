@@ -65,6 +65,9 @@ impl Evaluator {
             }
             Ok(r)
         };
+        if pk.name == "text" {
+            return self.text_profile(&a, span, cx);
+        }
         let r = match pk.name {
             "polyline" => {
                 let (v, sp) = get(0)?;
@@ -327,10 +330,36 @@ impl Evaluator {
             flip_y: kind == "svg",
             ..ImportOptions::default()
         };
+        let id = match a.get(2).cloned().flatten() {
+            Some((Value::Str(id), isp)) => Some((id.to_string(), isp)),
+            Some((other, isp)) => return Err(type_err("a string", &other, isp, "`id`")),
+            None => None,
+        };
         let (profiles, what) = if kind == "dxf" {
             let text = self.data_file(src, sp, cx)?;
             (dxf_profiles(&text, &opts), format!("DXF file \"{src}\""))
+        } else if src.to_ascii_lowercase().ends_with(".svg") {
+            let text = self.data_file(src, sp, cx)?;
+            let what = format!("SVG file \"{src}\"");
+            let paths = crate::geometry::svg_file::svg_document_paths(&text).map_err(|e| {
+                EvalError::Geometry {
+                    message: format!("{what}: {e}"),
+                    span: sp,
+                    label: "cannot be read".into(),
+                    help: None,
+                }
+            })?;
+            (svg_file_profiles(&paths, id.as_ref(), &what, &opts)?, what)
         } else {
+            if let Some((_, isp)) = &id {
+                return Err(bad(
+                    Kind::Conflict,
+                    *isp,
+                    "`id` picks a path of an SVG file, and this is path data",
+                    "no ids here",
+                    Some("name a file (`svg(\"part.svg\", id: \"outline\")`), or drop `id`"),
+                ));
+            }
             (svg_path_profiles(src, &opts), "SVG path data".to_string())
         };
         let profiles = profiles.map_err(|e| EvalError::Geometry {
@@ -391,4 +420,47 @@ impl Evaluator {
                 help: Some("paths are relative to the recipe's folder".into()),
             })
     }
+}
+
+/// The contours of an SVG file's paths: the one `id` names (an error listing the ids there
+/// are when none has it), else every path's, in document order.
+fn svg_file_profiles(
+    paths: &[crate::geometry::svg_file::SvgPath],
+    id: Option<&(String, Span)>,
+    what: &str,
+    opts: &crate::geometry::import::ImportOptions,
+) -> R<Result<Vec<Profile>, crate::geometry::import::ImportError>> {
+    use crate::geometry::import::svg_path_profiles;
+    let chosen: Vec<&crate::geometry::svg_file::SvgPath> = match id {
+        Some((want, isp)) => {
+            let found: Vec<_> = paths
+                .iter()
+                .filter(|p| p.id.as_deref() == Some(want.as_str()))
+                .collect();
+            if found.is_empty() {
+                let ids: Vec<&str> = paths.iter().filter_map(|p| p.id.as_deref()).collect();
+                return Err(bad(
+                    Kind::OutOfRange,
+                    *isp,
+                    &format!("{what} has no path with id \"{want}\""),
+                    "no such path",
+                    Some(&if ids.is_empty() {
+                        "its paths have no ids: pick one with `index`".to_string()
+                    } else {
+                        format!("its path ids: {}", ids.join(", "))
+                    }),
+                ));
+            }
+            found
+        }
+        None => paths.iter().collect(),
+    };
+    let mut out = Vec::new();
+    for p in chosen {
+        match svg_path_profiles(&p.d, opts) {
+            Ok(v) => out.extend(v),
+            Err(e) => return Ok(Err(e)),
+        }
+    }
+    Ok(Ok(out))
 }

@@ -332,6 +332,22 @@ impl Evaluator {
             }
         }
         self.pulse_in_range(&pulse, set)?;
+        // The setting that makes energy and rate meet: the energy if written, else the rate.
+        let at = |k: &str| {
+            set.iter()
+                .find(|s| s.key.name == k)?
+                .value
+                .as_ref()
+                .map(|e| e.span)
+        };
+        if let (Some(power), Some(span)) = (
+            self.laser.power_w,
+            at("energy")
+                .or_else(|| at("rate"))
+                .or_else(|| at("interval")),
+        ) {
+            pulse_energy_agrees(power, &pulse, span, "this pulse setting")?;
+        }
         if !mode_set {
             let span = set.first().map(|s| s.span).unwrap_or_default();
             return Err(bad(
@@ -449,4 +465,56 @@ impl Evaluator {
             }
         })
     }
+}
+
+/// Pulses by time at a rate `f` with energy `E` each deliver `E·f` of average power: a laser
+/// `power` that differs (by more than 1 %) contradicts them, and one of the three is a slip
+/// (`rate 20 kHz, energy 1 mJ` is 20 W, not the 50 W set). An error, not a warning: lase sends
+/// the power, so the energy written beside it would silently not be what the part gets.
+/// Pulses by distance have no fixed rate (it follows the speed) and are not checked.
+pub(super) fn pulse_energy_agrees(power_w: f64, pulse: &Pulse, span: Span, what: &str) -> R<()> {
+    let (PulseMode::Time { period_s }, Some(energy)) = (pulse.mode, pulse.energy_j) else {
+        return Ok(());
+    };
+    if !period_s.is_finite() || power_w <= 0.0 {
+        return Ok(());
+    }
+    let rate = 1.0 / period_s;
+    let average = energy * rate;
+    if (average - power_w).abs() <= 0.01 * power_w {
+        return Ok(());
+    }
+    // In the units a laser's data sheet uses: mJ, kHz.
+    let q = |v: f64, d: Dim| {
+        let n = lase_lang::units::format_number;
+        if d == Dim::ENERGY && v < 1.0 {
+            format!("{} mJ", n(v * 1e3))
+        } else if d == Dim::FREQUENCY && v >= 1e3 {
+            format!("{} kHz", n(v / 1e3))
+        } else {
+            format_quantity(v, d)
+        }
+    };
+    Err(EvalError::Conflict {
+        message: format!(
+            "pulses of {} at {} deliver {} on average, but the laser power is {}",
+            q(energy, Dim::ENERGY),
+            q(rate, Dim::FREQUENCY),
+            q(average, Dim::POWER),
+            q(power_w, Dim::POWER),
+        ),
+        span,
+        label: format!(
+            "{what}: {} × {} = {}",
+            q(energy, Dim::ENERGY),
+            q(rate, Dim::FREQUENCY),
+            q(average, Dim::POWER)
+        ),
+        help: Some(format!(
+            "power = energy × rate: set `energy {}`, `rate {}`, or `laser {{ power {} }}`",
+            q(power_w / rate, Dim::ENERGY),
+            q(power_w / energy, Dim::FREQUENCY),
+            q(average, Dim::POWER),
+        )),
+    })
 }

@@ -156,6 +156,14 @@ impl Evaluator {
                 LaserStmt::Settings(set) => {
                     let ls = self.laser_settings(set, cx)?;
                     if let Some(p) = ls.power {
+                        if let (Some(pulse), Some(e)) = (
+                            &self.pulse,
+                            set.iter()
+                                .find(|s| s.key.name == "power")
+                                .and_then(|s| s.value.as_ref()),
+                        ) {
+                            super::sheet::pulse_energy_agrees(p, pulse, e.span, "this power")?;
+                        }
                         self.laser.power_w = Some(p);
                     }
                     if let Some(d) = ls.spot {
@@ -285,7 +293,29 @@ impl Evaluator {
         body: &[Stmt],
         cx: &mut Cx,
     ) -> R<Flow> {
-        let items: Box<dyn Iterator<Item = Value>> = match iter {
+        let items = self.for_items(iter, "`for`", cx)?;
+        for item in items {
+            self.step(var.span)?;
+            self.scopes.push(HashMap::new());
+            self.bind(&var.name, item);
+            let r = self.block(body, cx);
+            self.scopes.pop();
+            if let Flow::Return(v) = r? {
+                return Ok(Flow::Return(v));
+            }
+        }
+        Ok(Flow::Normal)
+    }
+
+    /// What a `for` statement or a list comprehension runs over: the counts of a range,
+    /// produced as they are needed, or a list's items.
+    pub(super) fn for_items(
+        &mut self,
+        iter: &ForIter,
+        context: &str,
+        cx: &mut Cx,
+    ) -> R<Box<dyn Iterator<Item = Value>>> {
+        Ok(match iter {
             ForIter::Range {
                 start,
                 end,
@@ -300,20 +330,9 @@ impl Evaluator {
             }
             ForIter::Expr(e) => match self.expr(e, cx)? {
                 Value::List(items) => Box::new((*items).clone().into_iter()),
-                other => return Err(type_err("a list or a range", &other, e.span, "`for`")),
+                other => return Err(type_err("a list or a range", &other, e.span, context)),
             },
-        };
-        for item in items {
-            self.step(var.span)?;
-            self.scopes.push(HashMap::new());
-            self.bind(&var.name, item);
-            let r = self.block(body, cx);
-            self.scopes.pop();
-            if let Flow::Return(v) = r? {
-                return Ok(Flow::Return(v));
-            }
-        }
-        Ok(Flow::Normal)
+        })
     }
 
     pub(super) fn import(&mut self, path: &StrLit, cx: &mut Cx) -> R<()> {

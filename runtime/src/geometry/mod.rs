@@ -18,6 +18,7 @@ pub mod import;
 pub mod offset;
 pub mod resample;
 pub mod spline;
+pub mod svg_file;
 pub mod toolpath;
 
 pub use cam::{CamLaw, CamSegment, CamSegmentKind};

@@ -394,6 +394,7 @@ impl Started {
                 lead: &self.lead,
                 restored: self.restored.clone(),
                 guards: &self.guards,
+                letters: &job.letters(),
             },
             self.journal.as_mut(),
             &StreamOptions::default(),

@@ -105,6 +105,9 @@ pub struct StreamJob<'a> {
     /// From [`super::resume::send_guards`], or empty: lines held back until earlier ones are
     /// acknowledged, so that a dropped link can always be resumed.
     pub guards: &'a [Option<usize>],
+    /// The machine's axis letters, which a stop's report shows (`Idle | X12 Z0 B0` on the
+    /// notcher, never a `Y` it does not have); empty: every axis the controller reports.
+    pub letters: &'a [char],
 }
 
 impl<'a> StreamJob<'a> {
@@ -116,6 +119,7 @@ impl<'a> StreamJob<'a> {
             lead: &[],
             restored: None,
             guards: &[],
+            letters: &[],
         }
     }
 }
@@ -194,7 +198,7 @@ pub fn stream(
                 if let Some(j) = journal.as_deref_mut()
                     && let Err(e) = j.sync()
                 {
-                    let note = stop_safely(link);
+                    let note = stop_safely(link, job.letters);
                     end!(Outcome::Failed(e), Some(note));
                 }
             }
@@ -205,7 +209,7 @@ pub fn stream(
             if let Some(j) = journal.as_deref_mut()
                 && let Err(e) = j.will_send(next, limit)
             {
-                let note = stop_safely(link);
+                let note = stop_safely(link, job.letters);
                 end!(Outcome::Failed(e), Some(note));
             }
             if let Err(e) = link.send_line(&text) {
@@ -247,7 +251,7 @@ pub fn stream(
                 end!(Outcome::Lost(e), None);
             }
             Err(e) => {
-                let note = stop_safely(link);
+                let note = stop_safely(link, job.letters);
                 finish(&mut journal, "error link");
                 end!(Outcome::Failed(e), Some(note));
             }
@@ -273,7 +277,7 @@ pub fn stream(
                     Event::Ack if lead_acked < lead_sent => lead_acked += 1,
                     Event::Rejected { code, message } if lead_acked < lead_sent => {
                         let line = job.lead[lead_acked].clone();
-                        let note = stop_safely(link);
+                        let note = stop_safely(link, job.letters);
                         finish(&mut journal, &format!("error lead {code}"));
                         end!(
                             Outcome::Failed(LinkError::NotReady {
@@ -299,7 +303,7 @@ pub fn stream(
                     }
                     Event::Rejected { code, message } => {
                         let index = acked;
-                        let note = stop_safely(link);
+                        let note = stop_safely(link, job.letters);
                         finish(&mut journal, &format!("error {index} {code}"));
                         end!(
                             Outcome::Rejected {
@@ -312,7 +316,7 @@ pub fn stream(
                     }
                     Event::Alarm { code, message } => {
                         let index = (acked < next).then_some(acked);
-                        let note = stop_after_alarm(link);
+                        let note = stop_after_alarm(link, job.letters);
                         finish(&mut journal, &format!("alarm {code}"));
                         end!(
                             Outcome::Alarm {
@@ -378,7 +382,7 @@ pub fn stream(
                 }
             }
             Some(Control::Abort) => {
-                let note = stop_safely(link);
+                let note = stop_safely(link, job.letters);
                 finish(&mut journal, "abort");
                 end!(Outcome::Aborted, Some(note));
             }
@@ -389,14 +393,19 @@ pub fn stream(
 
 /// After an alarm the controller has stopped by itself (and ignores status queries until
 /// reset): soft reset at once.
-fn stop_after_alarm(link: &mut dyn Link) -> String {
+fn stop_after_alarm(link: &mut dyn Link, letters: &[char]) -> String {
     let _ = link.realtime(Realtime::FeedHold);
-    reset(link, vec!["the controller halted itself (alarm)".into()])
+    reset(
+        link,
+        vec!["the controller halted itself (alarm)".into()],
+        letters,
+    )
 }
 
 /// Feed hold, wait for the machine to stop, soft reset (buffers emptied, laser off). Returns
-/// what happened, for the report.
-pub fn stop_safely(link: &mut dyn Link) -> String {
+/// what happened, for the report, with the position on the machine's own axes (`letters`;
+/// empty: every axis reported).
+pub fn stop_safely(link: &mut dyn Link, letters: &[char]) -> String {
     let mut note = Vec::new();
     if link.realtime(Realtime::FeedHold).is_err() {
         return "the link is gone: the controller could not be told to stop".into();
@@ -422,10 +431,10 @@ pub fn stop_safely(link: &mut dyn Link) -> String {
         Some(s) => note.push(format!("feed hold: {}", s.state.name())),
         None => note.push("feed hold sent, no status came back".into()),
     }
-    reset(link, note)
+    reset(link, note, letters)
 }
 
-fn reset(link: &mut dyn Link, mut note: Vec<String>) -> String {
+fn reset(link: &mut dyn Link, mut note: Vec<String>, letters: &[char]) -> String {
     if link.realtime(Realtime::SoftReset).is_ok() {
         let deadline = Instant::now() + Duration::from_secs(3);
         let mut reset = false;
@@ -446,7 +455,7 @@ fn reset(link: &mut dyn Link, mut note: Vec<String>) -> String {
         });
     }
     if let Ok(s) = link.query_status(Duration::from_millis(500)) {
-        note.push(format!("controller now {}", s.summary()));
+        note.push(format!("controller now {}", s.summary_for(None, letters)));
     }
     note.join("; ")
 }

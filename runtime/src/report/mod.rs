@@ -17,9 +17,9 @@ mod pulses;
 mod summary;
 mod trace;
 
-pub use plot::plot_svg;
+pub use plot::{DOT_LIMIT, PNG_SCALE, PlotOptions, SpeedUnit, plot_png, plot_svg, svg_to_png};
 pub use pulses::{PulseEvent, PulseEvents, pulse_events, write_pulses};
-pub use summary::{AxisPeaks, Summary, summarize};
+pub use summary::{AxisPeaks, Summary, TimeSplit, summarize, time_split};
 pub use trace::write_trace;
 
 use crate::motion::Job;
@@ -76,6 +76,73 @@ pub fn beam_at(job: &Job, t: f64) -> (Sample, bool, f64) {
         _ => 0.0,
     };
     (sample, lit, power)
+}
+
+/// A standstill op (dwell, M-function, machine event, dot-mode window) and when it begins.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Standstill {
+    /// The op's index.
+    pub op: usize,
+    /// Job time at which it begins, s.
+    pub t: f64,
+    /// How long the machine stands for it, s (0 for an M-function).
+    pub duration: f64,
+}
+
+/// How long the machine stands still for op `i` (0 for motion ops).
+fn stand_s(job: &Job, i: usize) -> f64 {
+    match &job.program.ops[i].kind {
+        OpKind::Dwell { seconds } => *seconds,
+        OpKind::Fire { window_s, .. } => *window_s,
+        OpKind::Event { name } => job
+            .program
+            .machine
+            .events
+            .get(name)
+            .map_or(0.0, |e| e.dwell_s),
+        _ => 0.0,
+    }
+}
+
+/// Every standstill op with its start time, in op order. A standstill begins when the motion
+/// before it has ended and the standstills between (which the plan folds into that segment's
+/// dwell, or into `initial_dwell_s` before the first move) have passed.
+pub(super) fn standstills(job: &Job) -> Vec<Standstill> {
+    let ops = &job.program.ops;
+    let segs = job.plan.segments();
+    let mut out = Vec::new();
+    // (segment before, next op not yet summed, time reached): consecutive standstills after
+    // one segment continue the running sum instead of summing from the segment again.
+    let mut cursor: Option<(Option<usize>, usize, f64)> = None;
+    for (i, op) in ops.iter().enumerate() {
+        if !matches!(
+            op.kind,
+            OpKind::Dwell { .. }
+                | OpKind::MCode { .. }
+                | OpKind::Event { .. }
+                | OpKind::Fire { .. }
+        ) {
+            continue;
+        }
+        let j = segs
+            .partition_point(|s| (s.tag as usize) < i)
+            .checked_sub(1);
+        let (from, t) = match cursor {
+            Some((cj, next, t)) if cj == j => (next, t),
+            _ => match j {
+                Some(j) => (
+                    segs[j].tag as usize + 1,
+                    job.initial_dwell_s + segs[j].t_start + segs[j].motion_duration(),
+                ),
+                None => (0, 0.0),
+            },
+        };
+        let t = t + (from..i).map(|k| stand_s(job, k)).sum::<f64>();
+        let duration = stand_s(job, i);
+        out.push(Standstill { op: i, t, duration });
+        cursor = Some((j, i + 1, t + duration));
+    }
+    out
 }
 
 /// Rounds to 9 significant digits, so goldens do not change with the last bits of a platform's

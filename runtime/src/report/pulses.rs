@@ -3,7 +3,7 @@
 //! mode the same every `period_s` of lit time. The instant a distance is reached is solved on
 //! the plan's closed-form path law, to 1e-12 s.
 
-use super::{dwell_lit, segment_laser};
+use super::{dwell_lit, segment_laser, standstills};
 use crate::motion::Job;
 use crate::planner::Segment;
 use crate::program::{OpKind, P3, Pulse, PulseMode};
@@ -127,47 +127,30 @@ pub fn write_pulses(job: &Job, out: &mut dyn std::io::Write) -> std::io::Result<
 pub(super) fn fire_events(job: &Job) -> Vec<PulseEvent> {
     let ops = &job.program.ops;
     let segs = job.plan.segments();
-    let stand = |i: usize| match &ops[i].kind {
-        OpKind::Dwell { seconds } => *seconds,
-        OpKind::Fire { window_s, .. } => *window_s,
-        OpKind::Event { name } => job
-            .program
-            .machine
-            .events
-            .get(name)
-            .map_or(0.0, |e| e.dwell_s),
-        _ => 0.0,
-    };
     let mut out = Vec::new();
-    for (i, op) in ops.iter().enumerate() {
+    for st in standstills(job) {
         let OpKind::Fire {
             count, period_s, ..
-        } = &op.kind
+        } = &ops[st.op].kind
         else {
             continue;
         };
-        let j = segs.partition_point(|s| (s.tag as usize) < i);
-        let (t0, s, q, tag, after) = match j.checked_sub(1) {
-            Some(j) => {
-                let seg = &segs[j];
-                (
-                    job.initial_dwell_s + seg.t_start + seg.motion_duration(),
-                    seg.s_start + seg.length,
-                    job.plan.segment_target(j),
-                    seg.tag,
-                    seg.tag as usize + 1,
-                )
-            }
-            None => (0.0, 0.0, job.start, 0, 0),
+        let j = segs.partition_point(|s| (s.tag as usize) < st.op);
+        let (s, q, tag) = match j.checked_sub(1) {
+            Some(j) => (
+                segs[j].s_start + segs[j].length,
+                job.plan.segment_target(j),
+                segs[j].tag,
+            ),
+            None => (0.0, job.start, 0),
         };
-        let t0 = t0 + (after..i).map(stand).sum::<f64>();
         let pos = job.spot(&q, tag);
         for k in 0..*count {
             out.push(PulseEvent {
-                t: t0 + f64::from(k) * period_s,
+                t: st.t + f64::from(k) * period_s,
                 s,
                 pos,
-                op: i as u32,
+                op: st.op as u32,
             });
         }
     }

@@ -25,6 +25,12 @@ pub struct Summary {
     /// Beam-on time: lit motion plus dwells between lit moves, s.
     pub laser_on_time_s: f64,
     pub pulses: u64,
+    /// Of `pulses`: fired while the spot moves (lit moves with a pulse setting) …
+    pub pulses_moving: u64,
+    /// … and fired at standstill (dot-mode windows), where no lit length or time accrues.
+    pub pulses_standstill: u64,
+    /// Gate time of the dot-mode windows, s (the spot stands; not in `laser_on_time_s`).
+    pub standstill_fire_time_s: f64,
     /// Moves handed to the planner (arcs count once per chord).
     pub blocks: usize,
     /// Ops of the process program.
@@ -43,16 +49,17 @@ pub struct AxisPeaks {
     pub j_max: Option<f64>,
 }
 
-/// Pulses of the dot-mode fire windows.
-fn fire_pulses(job: &Job) -> u64 {
+/// Pulses of the dot-mode fire windows and how long their gates are open in all.
+fn fire_pulses(job: &Job) -> (u64, f64) {
     job.program
         .ops
         .iter()
-        .map(|o| match o.kind {
-            crate::program::OpKind::Fire { count, .. } => u64::from(count),
-            _ => 0,
+        .fold((0, 0.0), |(n, t), o| match o.kind {
+            crate::program::OpKind::Fire {
+                count, window_s, ..
+            } => (n + u64::from(count), t + window_s),
+            _ => (n, t),
         })
-        .sum()
 }
 
 /// Summarizes a planned job.
@@ -120,6 +127,8 @@ pub fn summarize(job: &Job) -> Summary {
             )
         })
         .collect();
+    let moving = sections(job).iter().map(|s| s.count()).sum::<u64>();
+    let (standstill, fire_time) = fire_pulses(job);
     Summary {
         recipe: job.program.recipe.clone(),
         machine: machine.name.clone(),
@@ -129,9 +138,56 @@ pub fn summarize(job: &Job) -> Summary {
         rapid_length_mm: round_sig(rapid),
         laser_on_length_mm: round_sig(lit_len),
         laser_on_time_s: round_sig(lit_time),
-        pulses: sections(job).iter().map(|s| s.count()).sum::<u64>() + fire_pulses(job),
+        pulses: moving + standstill,
+        pulses_moving: moving,
+        pulses_standstill: standstill,
+        standstill_fire_time_s: round_sig(fire_time),
         blocks: job.moves.len(),
         ops: job.program.ops.len(),
         axes,
+    }
+}
+
+/// Where a job's cycle time goes, s: lit motion (and dwells between lit moves), unlit motion
+/// at a feed (a scan's overscan, lead-ins and -outs, the approach to a row), rapid travel, and
+/// standstill (unlit dwells, stops, the wait before the first move). The four add up to the
+/// cycle time. `lase plan` prints it, so a job whose time goes mostly to overscan shows it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeSplit {
+    pub lit_s: f64,
+    pub unlit_feed_s: f64,
+    pub rapid_s: f64,
+    pub still_s: f64,
+}
+
+impl TimeSplit {
+    /// Unlit motion, feed and rapid.
+    pub fn unlit_motion_s(&self) -> f64 {
+        self.unlit_feed_s + self.rapid_s
+    }
+}
+
+/// The [`TimeSplit`] of a planned job, from the same segments and rules as [`summarize`]'s
+/// laser-on time (so `lit_s` is its `laser_on_time_s`).
+pub fn time_split(job: &Job) -> TimeSplit {
+    let (mut lit, mut feed, mut rapid) = (0.0, 0.0, 0.0);
+    for (i, seg) in job.plan.segments().iter().enumerate() {
+        let t = seg.motion_duration();
+        if segment_laser(job, i).is_some() {
+            lit += t;
+            if dwell_lit(job, i) {
+                lit += seg.dwell;
+            }
+        } else if segment_is_rapid(job, i) {
+            rapid += t;
+        } else {
+            feed += t;
+        }
+    }
+    TimeSplit {
+        lit_s: lit,
+        unlit_feed_s: feed,
+        rapid_s: rapid,
+        still_s: (job.cycle_time() - lit - feed - rapid).max(0.0),
     }
 }
