@@ -10,6 +10,7 @@
 
 mod path;
 mod png;
+mod shade;
 mod speed;
 mod svg;
 
@@ -105,11 +106,13 @@ enum Kind {
     Lit,
     /// A lit move that fires pulses: the pulses are the marks, the move is travel between.
     Pulsed,
+    /// A lit image row: its pixel runs are drawn shaded by power (`shade`), not by speed.
+    Shaded,
 }
 
 impl Kind {
     fn lit(self) -> bool {
-        matches!(self, Kind::Lit | Kind::Pulsed)
+        matches!(self, Kind::Lit | Kind::Pulsed | Kind::Shaded)
     }
 }
 
@@ -201,7 +204,13 @@ fn sample(job: &Job, plane_w: usize) -> Vec<Pt> {
         if segment_is_rapid(job, i) {
             Kind::Rapid
         } else {
+            let row = plan.segments().get(i).is_some_and(|s| {
+                job.program.ops.get(s.tag as usize).is_some_and(|o| {
+                    matches!(o.kind, crate::program::OpKind::Line { row: Some(_), .. })
+                })
+            });
             match segment_laser(job, i) {
+                Some(_) if row => Kind::Shaded,
                 Some(l) if l.pulse.is_some() => Kind::Pulsed,
                 Some(_) => Kind::Lit,
                 None => Kind::Feed,
