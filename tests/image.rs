@@ -131,7 +131,8 @@ struct Block {
 }
 
 /// The feed blocks of a GRBL program (power = S / 1000 · 100 %, `s_max` 1000 on xy_table;
-/// `G0` runs dark in laser mode) or a LinuxCNC one (`M67 E0 Q` is the power, `M62 P0`/`M63 P0`
+/// `G0` runs dark in laser mode), an ISO one (the same S, lit between `M3` and `M5`, a power
+/// change as an `S` block of its own before the run's move) or a LinuxCNC one (`M67 E0 Q` is the power, `M62 P0`/`M63 P0`
 /// the gate, both taking effect with the next motion block).
 fn blocks(nc: &str) -> Vec<Block> {
     let (mut x, mut y, mut s, mut q, mut gate, mut g) = (0.0, 0.0, 0.0, 0.0, false, 0);
@@ -146,6 +147,9 @@ fn blocks(nc: &str) -> Vec<Block> {
         match (get('M'), get('P')) {
             (Some(m), Some(p)) if m == 62.0 && p == 0.0 => gate = true,
             (Some(m), Some(p)) if m == 63.0 && p == 0.0 => gate = false,
+            // ISO: M3 (with its S) lights, M5 darkens; the S words between are the power.
+            (Some(m), None) if m == 3.0 => gate = true,
+            (Some(m), None) if m == 5.0 => gate = false,
             _ => {}
         }
         if let Some(v) = get('G')
@@ -160,6 +164,8 @@ fn blocks(nc: &str) -> Vec<Block> {
         if (nx, ny) != (x, y) && g == 1 {
             let pct = if nc.contains("for grbl") {
                 s / 10.0
+            } else if nc.contains("for iso") {
+                if gate { s / 10.0 } else { 0.0 }
             } else if gate {
                 q
             } else {
@@ -222,7 +228,7 @@ fn grayscale_power_per_pixel_is_the_mapped_shade() {
             &luma,
             &format!("width 4 mm, speed 50 mm/s, power 40 W, min_power 10 W, gamma {gamma}"),
         );
-        for dialect in ["grbl", "linuxcnc"] {
+        for dialect in ["grbl", "linuxcnc", "iso"] {
             let nc = emit(&j.recipe, dialect);
             let px = pixels(&blocks(&nc), w, h, 0.1, 0.0);
             let mut lit = 0;
@@ -235,7 +241,7 @@ fn grayscale_power_per_pixel_is_the_mapped_shade() {
                     10.0 + 30.0 * shade / 255.0
                 };
                 let got = px[i].unwrap_or(0.0);
-                // GRBL: S (0..1000) to 4 decimals = 5e-6 %; LinuxCNC: Q % to 4 decimals.
+                // GRBL and ISO: S (0..1000) to 4 decimals = 5e-6 %; LinuxCNC: Q % to 4 decimals.
                 assert!(
                     (got - want).abs() <= 5e-5 + 1e-9,
                     "{dialect} gamma {gamma} pixel {i}: {got} %, expected {want} %"
