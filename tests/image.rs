@@ -148,8 +148,8 @@ fn blocks(nc: &str) -> Vec<Block> {
             (Some(m), Some(p)) if m == 62.0 && p == 0.0 => gate = true,
             (Some(m), Some(p)) if m == 63.0 && p == 0.0 => gate = false,
             // ISO: M3 (with its S) lights, M5 darkens; the S words between are the power.
-            (Some(m), None) if m == 3.0 => gate = true,
-            (Some(m), None) if m == 5.0 => gate = false,
+            (Some(3.0), None) => gate = true,
+            (Some(5.0), None) => gate = false,
             _ => {}
         }
         if let Some(v) = get('G')

@@ -2,9 +2,10 @@
 //! `crate::raster::image`). Binds the settings (`schema::IMAGE_SCAN`), reads the file through
 //! the host (the compile pipeline's `Files`, with its IO limits), decodes it under the pixel
 //! limit, places it by `width`/`height` or `dpi` at `origin`, takes the overscan from the
-//! planner's ramps as `scan raster` does, and appends the ops: per row a lit `Line` per run of
-//! equal pixels at its power (a white run inside the row at 0 W, so the row is one lit section
-//! at speed and the lead-ins or the overscan extend only its ends).
+//! planner's ramps as `scan raster` does, and appends the ops: per row one lit `Line` carrying
+//! its runs of equal pixels as a `PixelRow` (a white run inside the row at 0 W, so the row is
+//! one lit section at speed and the lead-ins or the overscan extend only its ends). The emitter
+//! writes a block per run; the runs count against `MAX_RUNS`, the row as one op.
 //!
 //! The beam's power follows the speed (`Coupling::Speed`): GRBL and grblHAL get `M4` with an
 //! `S` word per block (LaserGRBL's and LightBurn's setting for rasters, so a feed hold or a
