@@ -176,6 +176,28 @@ impl PixelRow {
         }
     }
 
+    /// The power set where the row passes part point `p` (x, y): the shade of the run over
+    /// it (the first or last run's before or past the row's ends).
+    pub fn power_w_at(&self, p: [f64; 2]) -> f64 {
+        let (sin, cos) = self.angle.sin_cos();
+        let (dx, dy) = (p[0] - self.origin[0], p[1] - self.origin[1]);
+        // In pixel columns along the row, the row's shift taken off.
+        let col = ((dx * cos + dy * sin) - self.shift) / self.px;
+        let backward = self.runs.len() > 1 && self.runs[1].0 < self.runs[0].0;
+        let run = self
+            .runs
+            .iter()
+            .find(|r| {
+                if backward {
+                    f64::from(r.0) < col
+                } else {
+                    f64::from(r.0) > col
+                }
+            })
+            .or(self.runs.last());
+        run.map_or(0.0, |r| self.power_w(r.1))
+    }
+
     /// The part point (x, y) where a run ending at column `c` ends.
     pub fn end_of(&self, c: u32) -> [f64; 2] {
         let f = crate::raster::Frame::new(
@@ -729,5 +751,35 @@ mod tests {
             errs[1].to_string(),
             "laser power 150 W is above the machine's 100 W"
         );
+    }
+
+    /// An image row's power along it: forward, the run whose end column lies past the spot;
+    /// backward (run ends falling) the one whose end lies before it; turned rows alike.
+    #[test]
+    fn a_pixel_row_gives_the_power_of_the_run_under_the_spot() {
+        let row = |angle: f64, shift: f64, runs: Vec<(u32, u8)>| PixelRow {
+            origin: [1.0, 2.0],
+            angle,
+            v: 0.05,
+            px: 0.1,
+            shift,
+            min_w: 10.0,
+            max_w: 40.0,
+            runs,
+        };
+        // Columns 2..4 at shade 255 (40 W), 4..5 white, 5..7 at 51 (16 W).
+        let fwd = row(0.0, 0.0, vec![(4, 255), (5, 0), (7, 51)]);
+        let at = |r: &PixelRow, u: f64| {
+            let (s, c) = r.angle.sin_cos();
+            r.power_w_at([1.0 + u * c - 0.05 * s, 2.0 + u * s + 0.05 * c])
+        };
+        assert_eq!(at(&fwd, 0.25), 40.0);
+        assert_eq!(at(&fwd, 0.45), 0.0);
+        assert!((at(&fwd, 0.65) - 16.0).abs() < 1e-12);
+        // The same runs backward, shifted by 0.02 mm, on a row turned 30°.
+        let back = row(30f64.to_radians(), 0.02, vec![(5, 51), (4, 0), (2, 255)]);
+        assert!((at(&back, 0.67) - 16.0).abs() < 1e-12);
+        assert_eq!(at(&back, 0.47), 0.0);
+        assert_eq!(at(&back, 0.27), 40.0);
     }
 }

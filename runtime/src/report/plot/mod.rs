@@ -222,7 +222,16 @@ fn sample(job: &Job, plane_w: usize) -> Vec<Pt> {
         let spot = job.spot(&s.pos, s.tag);
         let power = match segment_laser(job, i) {
             Some(l) if lit_at(job, i, t_local.min(segs[i].motion_duration() * 0.999_999)) => {
-                l.power_at(s.v, segs[i].feed)
+                let p = l.power_at(s.v, segs[i].feed);
+                // An image row: its run's power under the spot, coupled to speed alike.
+                match job.program.ops.get(s.tag as usize).map(|o| &o.kind) {
+                    Some(crate::program::OpKind::Line { row: Some(row), .. })
+                        if l.power_w > 0.0 =>
+                    {
+                        p / l.power_w * row.power_w_at([spot[0], spot[1]])
+                    }
+                    _ => p,
+                }
             }
             _ => 0.0,
         };
