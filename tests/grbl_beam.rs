@@ -20,6 +20,7 @@ use common::{lase_files, nc_words, root};
 use lase_runtime::FsFiles;
 use lase_runtime::emit::{Dialect, EmitOptions, NcLine};
 use lase_runtime::motion::{Job, beam};
+use lase_runtime::program::{Laser, OpKind};
 use std::path::Path;
 
 fn main() {
@@ -164,9 +165,27 @@ fn check(ex: &Path, dialect: Dialect) {
     // Power per lit block, and dark where the plan is dark.
     let ops = &job.program.ops;
     let mut lit_blocks = 0;
+    // The blocks written so far of the current op: an image row's k-th block is its k-th run.
+    let mut seen: (Option<u32>, usize) = (None, 0);
     for blk in blocks.iter().filter(|b| b.motion == Some(true)) {
         let op = &ops[blk.op.expect("a motion block comes from an op") as usize];
-        match op.laser() {
+        seen = if seen.0 == blk.op {
+            (blk.op, seen.1 + 1)
+        } else {
+            (blk.op, 0)
+        };
+        let run_laser = match &op.kind {
+            OpKind::Line {
+                laser: Some(l),
+                row: Some(row),
+                ..
+            } => Some(Laser {
+                power_w: row.power_w(row.runs[seen.1].1),
+                ..l.clone()
+            }),
+            _ => None,
+        };
+        match run_laser.as_ref().or(op.laser()) {
             // A lit op at 0 W (a white run inside an image row: the row stays one lit
             // section) is S0, and checked to be.
             Some(l) if blk.lit || l.power_w == 0.0 => {

@@ -131,7 +131,8 @@ struct Block {
 }
 
 /// The feed blocks of a GRBL program (power = S / 1000 · 100 %, `s_max` 1000 on xy_table;
-/// `G0` runs dark in laser mode) or a LinuxCNC one (`M67 E0 Q` is the power, `M62 P0`/`M63 P0`
+/// `G0` runs dark in laser mode), an ISO one (the same S, lit between `M3` and `M5`, a power
+/// change as an `S` block of its own before the run's move) or a LinuxCNC one (`M67 E0 Q` is the power, `M62 P0`/`M63 P0`
 /// the gate, both taking effect with the next motion block).
 fn blocks(nc: &str) -> Vec<Block> {
     let (mut x, mut y, mut s, mut q, mut gate, mut g) = (0.0, 0.0, 0.0, 0.0, false, 0);
@@ -146,6 +147,9 @@ fn blocks(nc: &str) -> Vec<Block> {
         match (get('M'), get('P')) {
             (Some(m), Some(p)) if m == 62.0 && p == 0.0 => gate = true,
             (Some(m), Some(p)) if m == 63.0 && p == 0.0 => gate = false,
+            // ISO: M3 (with its S) lights, M5 darkens; the S words between are the power.
+            (Some(3.0), None) => gate = true,
+            (Some(5.0), None) => gate = false,
             _ => {}
         }
         if let Some(v) = get('G')
@@ -160,6 +164,8 @@ fn blocks(nc: &str) -> Vec<Block> {
         if (nx, ny) != (x, y) && g == 1 {
             let pct = if nc.contains("for grbl") {
                 s / 10.0
+            } else if nc.contains("for iso") {
+                if gate { s / 10.0 } else { 0.0 }
             } else if gate {
                 q
             } else {
@@ -222,7 +228,7 @@ fn grayscale_power_per_pixel_is_the_mapped_shade() {
             &luma,
             &format!("width 4 mm, speed 50 mm/s, power 40 W, min_power 10 W, gamma {gamma}"),
         );
-        for dialect in ["grbl", "linuxcnc"] {
+        for dialect in ["grbl", "linuxcnc", "iso"] {
             let nc = emit(&j.recipe, dialect);
             let px = pixels(&blocks(&nc), w, h, 0.1, 0.0);
             let mut lit = 0;
@@ -235,7 +241,7 @@ fn grayscale_power_per_pixel_is_the_mapped_shade() {
                     10.0 + 30.0 * shade / 255.0
                 };
                 let got = px[i].unwrap_or(0.0);
-                // GRBL: S (0..1000) to 4 decimals = 5e-6 %; LinuxCNC: Q % to 4 decimals.
+                // GRBL and ISO: S (0..1000) to 4 decimals = 5e-6 %; LinuxCNC: Q % to 4 decimals.
                 assert!(
                     (got - want).abs() <= 5e-5 + 1e-9,
                     "{dialect} gamma {gamma} pixel {i}: {got} %, expected {want} %"
@@ -430,4 +436,121 @@ fn bad_images_are_diagnostics() {
         assert!(err.contains("help:"), "{name}: {err}");
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
+}
+
+/// `angle`: the rows turned 30° about the image's corner at (5, 5). The NC's lit blocks,
+/// turned back into the image frame, give every pixel its shade's power exactly as an
+/// unturned scan does: the runs' ends are the turned pixel edges (within the NC's 3 decimals).
+#[test]
+fn a_turned_image_puts_every_pixel_at_its_power_in_the_turned_frame() {
+    let (w, h) = (24, 5);
+    let luma = ramp(w, h);
+    let j = job(
+        w,
+        h,
+        &luma,
+        "width 2.4 mm, speed 50 mm/s, power 40 W, angle 30 deg, origin (5 mm, 5 mm)",
+    );
+    let nc = emit(&j.recipe, "grbl");
+    let (sin, cos) = 30f64.to_radians().sin_cos();
+    let local = |x: f64, y: f64| {
+        let (dx, dy) = (x - 5.0, y - 5.0);
+        (dx * cos + dy * sin, -dx * sin + dy * cos)
+    };
+    let (mut x, mut y, mut s, mut g) = (0.0, 0.0, 0.0, 0);
+    let mut bl = Vec::new();
+    for line in nc.lines() {
+        let wd = nc_words(line);
+        let get = |c: char| wd.iter().find(|(k, _)| *k == c).map(|(_, v)| *v);
+        if let Some(v) = get('G')
+            && (v == 0.0 || v == 1.0)
+        {
+            g = v as i32;
+        }
+        if let Some(v) = get('S') {
+            s = v;
+        }
+        let (nx, ny) = (get('X').unwrap_or(x), get('Y').unwrap_or(y));
+        if (nx, ny) != (x, y) && g == 1 && s > 0.0 {
+            let ((u0, v0), (u1, v1)) = (local(x, y), local(nx, ny));
+            // Along a row: the same v at both ends, up to the NC's rounding.
+            assert!((v0 - v1).abs() < 2e-3, "{line}: not along a turned row");
+            // Snap v to its row's centre line for `pixels`, after checking it is on it.
+            let r = (f64::from(h) - 0.5 - v0 / 0.1).round();
+            let vr = (f64::from(h) - 0.5 - r) * 0.1;
+            assert!((v0 - vr).abs() < 2e-3, "{line}: v {v0} off row {r}");
+            bl.push(Block {
+                y: vr,
+                x0: u0,
+                x1: u1,
+                pct: s / 10.0,
+            });
+        }
+        (x, y) = (nx, ny);
+    }
+    let px = pixels(&bl, w, h, 0.1, 0.0);
+    let mut lit = 0;
+    for (i, &l) in luma.iter().enumerate() {
+        let shade = (255.0 * tone(l, 1.0, false)).round();
+        let want = 40.0 * shade / 255.0;
+        let got = px[i].unwrap_or(0.0);
+        assert!(
+            (got - want).abs() <= 5e-5,
+            "pixel {i}: {got} %, expected {want} %"
+        );
+        lit += usize::from(want > 0.0);
+    }
+    assert!(lit >= 4 * 17, "{lit} lit pixels");
+}
+
+/// `lase plot`: a ramp image's pixel runs are drawn grey by power — each run's line has the
+/// opacity power / the scan's power, so the strokes darken left to right as the ramp does.
+#[test]
+fn the_plot_shades_image_runs_by_power() {
+    let (w, h) = (40, 6);
+    let luma = ramp(w, h);
+    let j = job(w, h, &luma, "width 4 mm, speed 50 mm/s, power 40 W");
+    let svg_path = j.recipe.with_extension("svg");
+    let (code, _, err) = lase(&[
+        "plot",
+        j.recipe.to_str().unwrap(),
+        "-o",
+        svg_path.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let svg = std::fs::read_to_string(&svg_path).unwrap();
+    let attr = |l: &str, k: &str| -> f64 {
+        let at = l.find(&format!(" {k}=\"")).unwrap() + k.len() + 3;
+        l[at..at + l[at..].find('"').unwrap()].parse().unwrap()
+    };
+    // (x centre on the page, opacity, power) of every drawn run, row by row.
+    let runs: Vec<(f64, f64, f64)> = svg
+        .lines()
+        .filter(|l| l.contains(r#"class="pixel""#))
+        .map(|l| {
+            (
+                0.5 * (attr(l, "x1") + attr(l, "x2")),
+                attr(l, "stroke-opacity"),
+                attr(l, "data-power"),
+            )
+        })
+        .collect();
+    // One line per lit pixel of the 5 scanned rows: every ramp pixel is its own shade.
+    assert_eq!(runs.len(), 5 * (w as usize - 7), "{}", runs.len());
+    for &(_, op, p) in &runs {
+        assert!((op - p / 40.0).abs() <= 5e-4, "opacity {op} for {p} W");
+    }
+    // Darker where the power is higher: sorted by x, opacity never falls, and it spans the
+    // ramp from near white to black.
+    let mut by_x = runs.clone();
+    by_x.sort_by(|a, b| a.0.total_cmp(&b.0));
+    for pair in by_x.windows(2) {
+        if pair[1].0 - pair[0].0 > 1e-6 {
+            assert!(pair[1].1 >= pair[0].1, "{pair:?}");
+        }
+    }
+    assert!(
+        by_x[0].1 < 0.05 && by_x[by_x.len() - 1].1 > 0.99,
+        "{by_x:?}"
+    );
 }

@@ -48,6 +48,7 @@ fn line(line: usize, to: P3, feed_mm_s: f64, laser: Option<Laser>) -> Op {
             feed_mm_s,
             laser,
             orient: None,
+            row: None,
         },
     )
 }

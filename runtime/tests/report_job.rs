@@ -43,6 +43,7 @@ fn line(to: P3, feed_mm_s: f64, laser: Option<Laser>) -> Op {
         feed_mm_s,
         laser,
         orient: None,
+        row: None,
     })
 }
 

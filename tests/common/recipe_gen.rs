@@ -629,7 +629,8 @@ impl Gen<'_, '_> {
                 self.out.push(')');
                 Ok(())
             }
-            PTy::Points | PTy::List => {
+            // `len`'s list-or-string and `format`'s any value take a list as well as the rest.
+            PTy::Points | PTy::List | PTy::ListOrStr | PTy::Any => {
                 let n = self.u.int_in_range(2..=self.limits.max_list.clamp(2, 8))?;
                 self.points(n)
             }
@@ -669,7 +670,6 @@ impl Gen<'_, '_> {
                 Ok(())
             }
             PTy::Flag => Ok(()),
-            PTy::ListOrStr | PTy::Any => self.leaf(PTy::Str),
         }
     }
 

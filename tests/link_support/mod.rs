@@ -131,33 +131,60 @@ pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
     let mut runs: Vec<PlannedRun> = Vec::new();
     let mut prev = map(&job.start);
     let mut in_run = false;
+    let mut part = job.program.start;
     for m in &job.moves {
-        let to = map(&m.target);
+        let end = map(&m.target);
         let op = &job.program.ops[m.tag as usize];
-        // An op lit at 0 W (a white run inside an image row) is dark, as its S0 block is.
-        let lit =
-            op.laser().is_some_and(|l| l.power_w > 0.0) && !matches!(op.kind, OpKind::Rapid { .. });
         let pitch = op
             .laser()
             .and_then(|l| match l.pulse.as_ref().map(|p| p.mode) {
                 Some(lase_runtime::program::PulseMode::Distance { pitch_mm }) => Some(pitch_mm),
                 _ => None,
             });
-        let length = dist(prev, to);
-        // A run is lit moves in a row with one pulse pitch: a scan of explicit spots (a Data
-        // Matrix's module centres) lights runs of different pitch end to end.
-        let same_pitch = runs.last().is_some_and(|r| r.3 == pitch);
-        if lit {
-            if in_run && same_pitch {
-                let r = runs.last_mut().unwrap();
-                r.1 = to;
-                r.2 += length;
-            } else {
-                runs.push((prev, to, length, pitch));
+        // Pieces (end, lit) of the move: an image row's runs (the NC writes a block per run,
+        // part of the way along the row's straight move), else the move whole. An op or a run
+        // lit at 0 W (a white run inside an image row) is dark, as its S0 block is.
+        let pieces: Vec<(AxisPos, bool)> = match &op.kind {
+            OpKind::Line {
+                to, row: Some(row), ..
+            } => {
+                let total = lase_runtime::program::dist(part, *to);
+                let from = prev;
+                row.runs
+                    .iter()
+                    .map(|&(c, shade)| {
+                        let [x, y] = row.end_of(c);
+                        let f = (lase_runtime::program::dist(part, [x, y, to[2]]) / total).min(1.0);
+                        let at = std::array::from_fn(|i| from[i] + f * (end[i] - from[i]));
+                        (at, row.power_w(shade) > 0.0)
+                    })
+                    .collect()
             }
+            _ => vec![(
+                end,
+                op.laser().is_some_and(|l| l.power_w > 0.0)
+                    && !matches!(op.kind, OpKind::Rapid { .. }),
+            )],
+        };
+        for (to, lit) in pieces {
+            let length = dist(prev, to);
+            // A run is lit moves in a row with one pulse pitch: a scan of explicit spots (a
+            // Data Matrix's module centres) lights runs of different pitch end to end.
+            let same_pitch = runs.last().is_some_and(|r| r.3 == pitch);
+            if lit {
+                if in_run && same_pitch {
+                    let r = runs.last_mut().unwrap();
+                    r.1 = to;
+                    r.2 += length;
+                } else {
+                    runs.push((prev, to, length, pitch));
+                }
+            }
+            in_run = lit;
+            prev = to;
         }
-        in_run = lit;
-        prev = to;
+        prev = end;
+        part = op.target().unwrap_or(part);
     }
     runs
 }

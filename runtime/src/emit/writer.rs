@@ -19,11 +19,12 @@ use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
 use crate::axes::{self, Axes, MAX_AXES};
 use crate::machine::AxisKind;
-use crate::motion::{Job, beam, power};
+use crate::motion::{Job, beam};
 use crate::program::{Coupling, Op, OpKind, P3};
 use std::io;
 
 mod pulse;
+mod row;
 
 /// ISO block numbers step by 10 (room to insert blocks by hand, as in the paper's program)
 /// and wrap before six digits, since many Fanuc controls read at most N99999.
@@ -306,105 +307,112 @@ pub(super) fn write(
                 if !op.moves_from(m.pos) {
                     continue;
                 }
-                let coupled = op.laser().is_some_and(|l| l.couple == Coupling::Speed);
-                let blocks = if coupled && !dialect.is_grbl_family() {
-                    power::coupled_blocks(job, i)
-                } else {
-                    Vec::new()
-                };
-                train.pso(op, m.laser_on, &mut out, post, tag)?;
-                if let Some(laser) = op.laser() {
-                    let first = blocks.first().map_or(laser.power_w, |b| b.power_w);
-                    if flying {
-                        // Armed already: the S word on the block switches the beam.
-                        m.laser_on = true;
-                        m.power_w = laser.power_w;
-                    } else if !m.laser_on {
-                        for t in &post.laser_on {
-                            let line = format::fill(t, words(first));
-                            out.put(
-                                &if coupled {
-                                    dynamic(dialect, &line)
-                                } else {
-                                    line
-                                },
-                                tag,
-                            )?;
-                        }
-                        m.laser_on = true;
-                        m.power_w = first;
-                    } else if blocks.is_empty()
-                        && (laser.power_w - m.power_w).abs() > 1e-9 * laser.power_w.abs().max(1.0)
-                    {
-                        for t in &post.power {
-                            out.put(&format::fill(t, words(laser.power_w)), tag)?;
-                        }
-                        m.power_w = laser.power_w;
-                    }
-                }
-                // By machine, not dialect: every dialect that can drive an oriented machine's
-                // axes writes its feed moves in inverse time.
-                if oriented && !m.inverse_time && matches!(op.kind, OpKind::Line { .. }) {
-                    out.put("G93", tag)?;
-                    m.inverse_time = true;
-                }
-                let gated = if blocks.is_empty() {
-                    train.gated(ops, i, post)
-                } else {
-                    None
-                };
-                if let Some(pitch) = gated {
-                    pulse::write_gated(ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag)?;
-                } else if blocks.is_empty() {
-                    let mut line = motion_line(op, job.op_axes[i], &mut m, machine, arc_axes);
-                    if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
-                        // Every feed move carries its power, S0 when unlit: in laser mode an S
-                        // word on a G1/G2/G3 block changes power as the block starts, without
-                        // a stop. A G0 needs none: GRBL runs rapids with the laser off
-                        // (gcode.c: a block not in G1/G2/G3 is GC_PARSER_LASER_DISABLE'd).
-                        let s = s_word(op.laser().map_or(0.0, |l| l.power_w));
-                        if m.s.as_deref() != Some(s.as_str()) {
-                            line.push(' ');
-                            line.push_str(&s);
-                            m.s = Some(s);
-                        }
-                    }
-                    out.put(&line, tag)?;
-                    out.stats.motion_blocks += 1;
-                } else {
-                    let (from, from_q) = (m.pos, m.q);
-                    let total = blocks.last().map_or(0.0, |b| b.s_end);
-                    for (k, b) in blocks.iter().enumerate() {
-                        let changed = post.power.first().is_some_and(|t| {
-                            format::fill(t, words(b.power_w)) != format::fill(t, words(m.power_w))
-                        });
-                        if changed {
-                            for t in &post.power {
-                                let line = format::fill(t, words(b.power_w));
-                                out.put(&synchronized(dialect, &line), tag)?;
+                // An image row is written one block per pixel run (`row`); any other op as is.
+                let pieces = row::pieces(job, i, m.pos, m.q, !dialect.is_grbl_family());
+                let n_pieces = pieces.len();
+                for (k, piece) in pieces.into_iter().enumerate() {
+                    let (op, q_end, blocks) = (&*piece.op, piece.q, piece.blocks);
+                    // The runs of a row are all lit: only its last piece looks past the row.
+                    let more = k + 1 < n_pieces;
+                    let coupled = op.laser().is_some_and(|l| l.couple == Coupling::Speed);
+                    train.pso(op, m.laser_on, &mut out, post, tag)?;
+                    if let Some(laser) = op.laser() {
+                        let first = blocks.first().map_or(laser.power_w, |b| b.power_w);
+                        if flying {
+                            // Armed already: the S word on the block switches the beam.
+                            m.laser_on = true;
+                            m.power_w = laser.power_w;
+                        } else if !m.laser_on {
+                            for t in &post.laser_on {
+                                let line = format::fill(t, words(first));
+                                out.put(
+                                    &if coupled {
+                                        dynamic(dialect, &line)
+                                    } else {
+                                        line
+                                    },
+                                    tag,
+                                )?;
                             }
-                            m.power_w = b.power_w;
+                            m.laser_on = true;
+                            m.power_w = first;
+                        } else if blocks.is_empty()
+                            && (laser.power_w - m.power_w).abs()
+                                > 1e-9 * laser.power_w.abs().max(1.0)
+                        {
+                            for t in &post.power {
+                                out.put(&format::fill(t, words(laser.power_w)), tag)?;
+                            }
+                            m.power_w = laser.power_w;
                         }
-                        let f = if k + 1 == blocks.len() || total <= 0.0 {
-                            1.0
-                        } else {
-                            b.s_end / total
-                        };
-                        let (sub, q) = part_way(op, (from, &from_q), &job.op_axes[i], f, arc_axes);
-                        let line = motion_line(&sub, q, &mut m, machine, arc_axes);
+                    }
+                    // By machine, not dialect: every dialect that can drive an oriented machine's
+                    // axes writes its feed moves in inverse time.
+                    if oriented && !m.inverse_time && matches!(op.kind, OpKind::Line { .. }) {
+                        out.put("G93", tag)?;
+                        m.inverse_time = true;
+                    }
+                    let gated = if blocks.is_empty() {
+                        train.gated(ops, i, post)
+                    } else {
+                        None
+                    };
+                    if let Some(pitch) = gated {
+                        pulse::write_gated(
+                            ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag,
+                        )?;
+                    } else if blocks.is_empty() {
+                        let mut line = motion_line(op, q_end, &mut m, machine, arc_axes);
+                        if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
+                            // Every feed move carries its power, S0 when unlit: in laser mode an S
+                            // word on a G1/G2/G3 block changes power as the block starts, without
+                            // a stop. A G0 needs none: GRBL runs rapids with the laser off
+                            // (gcode.c: a block not in G1/G2/G3 is GC_PARSER_LASER_DISABLE'd).
+                            let s = s_word(op.laser().map_or(0.0, |l| l.power_w));
+                            if m.s.as_deref() != Some(s.as_str()) {
+                                line.push(' ');
+                                line.push_str(&s);
+                                m.s = Some(s);
+                            }
+                        }
                         out.put(&line, tag)?;
                         out.stats.motion_blocks += 1;
+                    } else {
+                        let (from, from_q) = (m.pos, m.q);
+                        let total = blocks.last().map_or(0.0, |b| b.s_end);
+                        for (k, b) in blocks.iter().enumerate() {
+                            let changed = post.power.first().is_some_and(|t| {
+                                format::fill(t, words(b.power_w))
+                                    != format::fill(t, words(m.power_w))
+                            });
+                            if changed {
+                                for t in &post.power {
+                                    let line = format::fill(t, words(b.power_w));
+                                    out.put(&synchronized(dialect, &line), tag)?;
+                                }
+                                m.power_w = b.power_w;
+                            }
+                            let f = if k + 1 == blocks.len() || total <= 0.0 {
+                                1.0
+                            } else {
+                                b.s_end / total
+                            };
+                            let (sub, q) = part_way(op, (from, &from_q), &q_end, f, arc_axes);
+                            let line = motion_line(&sub, q, &mut m, machine, arc_axes);
+                            out.put(&line, tag)?;
+                            out.stats.motion_blocks += 1;
+                        }
                     }
-                }
-                if flying && m.laser_on && !next_move_lit(&ops[i + 1..], m.pos) {
-                    // No M5 (it would stop the table): the next feed move says S0.
-                    m.laser_on = false;
-                } else if m.laser_on && !next_move_lit(&ops[i + 1..], m.pos) {
-                    for t in &post.laser_off {
-                        out.put(&format::fill(t, words(0.0)), tag)?;
+                    if flying && m.laser_on && !(more || next_move_lit(&ops[i + 1..], m.pos)) {
+                        // No M5 (it would stop the table): the next feed move says S0.
+                        m.laser_on = false;
+                    } else if m.laser_on && !(more || next_move_lit(&ops[i + 1..], m.pos)) {
+                        for t in &post.laser_off {
+                            out.put(&format::fill(t, words(0.0)), tag)?;
+                        }
+                        out.after_off = true;
+                        m.laser_on = false;
                     }
-                    out.after_off = true;
-                    m.laser_on = false;
                 }
             }
         }

@@ -17,7 +17,8 @@
 //! | pulse `energy`                              | up to 1 kJ                 | |
 //! | `limits` `a`, `j`                           | at least 1 mm/s², 1 mm/s³  | |
 //! | pulses in the program                       | [`crate::program::MAX_PULSES`] (10 000 000), in `ProcessProgram::validate` | |
-//! | moves and machine events                    | [`MAX_OPS`](super::MAX_OPS) | |
+//! | moves and machine events                    | [`MAX_OPS`](super::MAX_OPS) | an image row is one move |
+//! | pixel runs of image rows                    | [`MAX_RUNS`](super::MAX_RUNS) (20 000 000) | 8 B a run |
 //! | a point's coordinates                       | within ±1 km of the origin | beyond any machine's travel; the geometry's tolerances are relative to 0.1 µm |
 
 use super::{EvalError, Evaluator, Kind, R, bad};
@@ -201,6 +202,25 @@ impl Evaluator {
 
     /// Refuses work of `n` more ops (a path's segments or stations) that would take the
     /// program past [`super::MAX_OPS`], before any of it is generated.
+    /// Refuses image rows whose pixel runs would take the program past [`super::MAX_RUNS`]
+    /// (a run is 8 B inside its row's op, so this budget is far larger than the op budget).
+    pub(super) fn room_for_runs(&self, n: f64, what: &str, help: &str, span: Span) -> R<()> {
+        let total = self.runs as f64 + n;
+        if total > super::MAX_RUNS as f64 {
+            return Err(EvalError::TooLarge {
+                message: format!(
+                    "{what} would take the program to {} pixel runs, above the {} lase handles",
+                    lase_lang::units::format_number(total.round()),
+                    lase_lang::units::format_number(super::MAX_RUNS as f64)
+                ),
+                span,
+                label: "too many pixel runs".into(),
+                help: Some(format!("{help}, or split the job into several recipes")),
+            });
+        }
+        Ok(())
+    }
+
     pub(super) fn room_for_ops(&self, n: f64, what: &str, help: &str, span: Span) -> R<()> {
         let total = self.ops.len() as f64 + n;
         if total > super::MAX_OPS as f64 {

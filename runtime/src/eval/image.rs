@@ -2,9 +2,10 @@
 //! `crate::raster::image`). Binds the settings (`schema::IMAGE_SCAN`), reads the file through
 //! the host (the compile pipeline's `Files`, with its IO limits), decodes it under the pixel
 //! limit, places it by `width`/`height` or `dpi` at `origin`, takes the overscan from the
-//! planner's ramps as `scan raster` does, and appends the ops: per row a lit `Line` per run of
-//! equal pixels at its power (a white run inside the row at 0 W, so the row is one lit section
-//! at speed and the lead-ins or the overscan extend only its ends).
+//! planner's ramps as `scan raster` does, and appends the ops: per row one lit `Line` carrying
+//! its runs of equal pixels as a `PixelRow` (a white run inside the row at 0 W, so the row is
+//! one lit section at speed and the lead-ins or the overscan extend only its ends). The emitter
+//! writes a block per run; the runs count against `MAX_RUNS`, the row as one op.
 //!
 //! The beam's power follows the speed (`Coupling::Speed`): GRBL and grblHAL get `M4` with an
 //! `S` word per block (LaserGRBL's and LightBurn's setting for rasters, so a feed hold or a
@@ -209,11 +210,21 @@ impl Evaluator {
                 }),
             ));
         }
+        // A row is one op (up to four with its travel and overscan) whatever its runs; the
+        // runs, 8 B each, count against their own budget.
         let runs: usize = rows.iter().map(|(_, r)| r.len()).sum();
+        let help =
+            "use larger pixels (a smaller image), `mode dither` with fewer runs, or fewer passes";
         self.room_for_ops(
-            (runs + 4 * rows.len()) as f64 * f64::from(set.passes),
+            (4 * rows.len()) as f64 * f64::from(set.passes),
             "this image scan",
-            "use larger pixels (a smaller image), `mode dither` with fewer runs, or fewer passes",
+            help,
+            span,
+        )?;
+        self.room_for_runs(
+            runs as f64 * f64::from(set.passes),
+            "this image scan",
+            help,
             span,
         )?;
 
@@ -281,22 +292,8 @@ impl Evaluator {
             },
         );
 
-        // One laser per shade in use, built once.
-        let power_of = |shade: u8| match shade {
-            0 => 0.0,
-            s => min_w + (max_w - min_w) * f64::from(s) / 255.0,
-        };
-        let lasers: Vec<Laser> = (0..=255u8)
-            .map(|s| Laser {
-                power_w: power_of(s),
-                spot_mm: laser.spot_mm,
-                pulse: None,
-                couple: Coupling::Speed,
-                // Rows are lines across the image, not outlines: no kerf to apply.
-                kerf_mm: 0.0,
-            })
-            .collect();
         let z = self.pos[2];
+        let origin = [set.origin.x, set.origin.y];
         for st in steps {
             let at = |p: V2| [p.x, p.y, z];
             match st {
@@ -313,18 +310,44 @@ impl Evaluator {
                         feed_mm_s: speed,
                         laser: None,
                         orient: None,
+                        row: None,
                     },
                     span,
                 ),
-                ImageStep::Burn { to, shade } => self.push_motion(
-                    OpKind::Line {
-                        to: at(to),
-                        feed_mm_s: speed,
-                        laser: Some(lasers[shade as usize].clone()),
-                        orient: None,
-                    },
-                    span,
-                ),
+                ImageStep::Row { to, v, shift, runs } => {
+                    let row = PixelRow {
+                        origin,
+                        angle: set.angle,
+                        v,
+                        shift,
+                        px,
+                        min_w,
+                        max_w,
+                        runs,
+                    };
+                    // The row's own power is its brightest run's: what checks and reports
+                    // that see the row as one lit move take it for.
+                    self.runs += row.runs.len();
+                    let top = row.runs.iter().map(|r| r.1).max().unwrap_or(0);
+                    let laser = Laser {
+                        power_w: row.power_w(top),
+                        spot_mm: laser.spot_mm,
+                        pulse: None,
+                        couple: Coupling::Speed,
+                        // A row is a line across the image, not an outline: no kerf.
+                        kerf_mm: 0.0,
+                    };
+                    self.push_motion(
+                        OpKind::Line {
+                            to: at(to),
+                            feed_mm_s: speed,
+                            laser: Some(laser),
+                            orient: None,
+                            row: Some(Box::new(row)),
+                        },
+                        span,
+                    )
+                }
             }
         }
         Ok(())

@@ -48,6 +48,11 @@ const STEP_BUDGET: u64 = 20_000_000;
 /// loop that produces more is stopped at the statement that passes it; a path or a scan that
 /// would is refused before any of its ops is made (`bounds::room_for_ops`).
 const MAX_OPS: usize = 500_000;
+/// Pixel runs the image rows of a program may carry (`scan image`): a run is 8 B inside its
+/// row's op and one NC block when written, so 20 million (a 4096 × 4096 photo at one run per
+/// pixel, passes aside) is some 160 MB held and an NC program of a few hundred MB, written as
+/// it streams. Counted by `bounds::room_for_runs`.
+const MAX_RUNS: usize = 20_000_000;
 /// Nested function calls before the recipe is stopped as runaway recursion.
 const MAX_DEPTH: usize = 200;
 
@@ -103,6 +108,8 @@ pub struct Evaluator {
     pos: P3,
     start: P3,
     ops: Vec<Op>,
+    /// Pixel runs carried by the image rows among `ops` (see [`MAX_RUNS`]).
+    runs: usize,
     steps: u64,
     /// The statement running now: where a step budget overrun inside an expression points.
     at: Span,
@@ -148,6 +155,7 @@ impl Evaluator {
             pos: [0.0; 3],
             start: [0.0; 3],
             ops: Vec::new(),
+            runs: 0,
             steps: 0,
             at: Span::new(0, 0),
             depth: 0,

@@ -49,6 +49,7 @@ impl Evaluator {
                         feed_mm_s: feed,
                         laser,
                         orient,
+                        row: None,
                     },
                     span,
                 );
@@ -174,6 +175,7 @@ impl Evaluator {
                         feed_mm_s: feed,
                         laser: None,
                         orient: None,
+                        row: None,
                     }
                 };
                 self.push(kind, span);
@@ -304,6 +306,7 @@ impl Evaluator {
                     feed_mm_s: feed,
                     laser: Some(laser.clone()),
                     orient: Some(o),
+                    row: None,
                 },
                 span,
             );

@@ -144,6 +144,15 @@ fn is_feed(op: &Op) -> bool {
     matches!(op.kind, OpKind::Line { .. } | OpKind::Arc { .. })
 }
 
+/// Whether a path carries an image row (`scan image`): its pixel runs are laid out in the
+/// direction it was scanned, so it is never reversed or moved; it stays where it is, like a
+/// dwell.
+fn has_row(feeds: &[Op]) -> bool {
+    feeds
+        .iter()
+        .any(|o| matches!(o.kind, OpKind::Line { row: Some(_), .. }))
+}
+
 fn split(ops: &[Op], start: P3) -> Vec<Item> {
     let mut items = Vec::new();
     let mut i = 0;
@@ -155,6 +164,12 @@ fn split(ops: &[Op], start: P3) -> Vec<Item> {
             // to it; it is a path all the same (ordered, and given its kerf by containment),
             // reached by a rapid from the start that is empty unless it is reordered.
             let n = ops[i..].iter().take_while(|o| is_feed(o)).count();
+            if has_row(&ops[i..i + n]) {
+                items.extend(ops[i..i + n].iter().cloned().map(Item::Keep));
+                moved = true;
+                i += n;
+                continue;
+            }
             items.push(Item::Path(Path {
                 span: op.span,
                 from_rapid: Op {
@@ -173,6 +188,11 @@ fn split(ops: &[Op], start: P3) -> Vec<Item> {
         moved |= op.target().is_some();
         if matches!(op.kind, OpKind::Rapid { .. }) && ops.get(i + 1).is_some_and(is_feed) {
             let n = ops[i + 1..].iter().take_while(|o| is_feed(o)).count();
+            if has_row(&ops[i + 1..i + 1 + n]) {
+                items.extend(ops[i..i + 1 + n].iter().cloned().map(Item::Keep));
+                i += 1 + n;
+                continue;
+            }
             items.push(Item::Path(Path {
                 span: op.span,
                 from_rapid: op.clone(),
@@ -273,6 +293,8 @@ fn reversed(op: &Op, to: P3) -> Op {
             feed_mm_s: *feed_mm_s,
             laser: laser.clone(),
             orient: *orient,
+            // Paths with image rows are kept as scanned (`has_row`), never reversed.
+            row: None,
         },
         OpKind::Arc {
             center,
@@ -388,6 +410,7 @@ pub(super) fn profile_ops(profile: &Profile, z: f64, feed: f64, laser: &Laser) -
                 feed_mm_s: feed,
                 laser: Some(laser.clone()),
                 orient: None,
+                row: None,
             }),
             Seg::Arc {
                 center,

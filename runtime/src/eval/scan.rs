@@ -447,6 +447,7 @@ impl Evaluator {
                         feed_mm_s: speed,
                         laser: None,
                         orient: None,
+                        row: None,
                     },
                     span,
                 ),
@@ -471,6 +472,7 @@ impl Evaluator {
                             feed_mm_s: speed,
                             laser: Some(l),
                             orient: None,
+                            row: None,
                         },
                         span,
                     );

@@ -175,6 +175,7 @@ mod tests {
                     couple,
                     kerf_mm: 0.0,
                 }),
+                row: None,
             },
             span: Span::default(),
         }

@@ -337,15 +337,22 @@ pub struct ImageLayout {
 }
 
 /// One step of an image scan, part coordinates.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum ImageStep {
     /// Positioning with the beam off.
     Travel(V2),
     /// A move at the scan speed with the beam off (overscan).
     Idle(V2),
-    /// A move at the scan speed over one run, at its shade (0: a dark gap inside the row,
-    /// which stays in the lit section so the row runs through at speed).
-    Burn { to: V2, shade: u8 },
+    /// A move at the scan speed across a row's runs to `to`, each run at its shade (0: a dark
+    /// gap inside the row, which stays in the lit section so the row runs through at speed):
+    /// `v` and `shift` place the row in the frame, `runs` are `(end column, shade)` in scan
+    /// order (one op for the whole row: `crate::program::PixelRow`).
+    Row {
+        to: V2,
+        v: f64,
+        shift: f64,
+        runs: Vec<(u32, u8)>,
+    },
 }
 
 /// The rows of an image: `(v, runs)` bottom up, empty rows left out.
@@ -392,18 +399,17 @@ pub fn image_path(rows: &[(f64, Vec<PixelRun>)], lay: &ImageLayout) -> Vec<Image
             if o > 0.0 {
                 out.push(ImageStep::Idle(f.to_part(first, *y)));
             }
-            let mut burn = |run: &PixelRun| {
-                let to = if backward { x(run.c0) } else { x(run.c1) };
-                out.push(ImageStep::Burn {
-                    to: f.to_part(to, *y),
-                    shade: run.shade,
-                });
-            };
-            if backward {
-                runs.iter().rev().for_each(&mut burn);
-            } else {
-                runs.iter().for_each(&mut burn);
-            }
+            let burn = |run: &PixelRun| (if backward { run.c0 } else { run.c1 }, run.shade);
+            out.push(ImageStep::Row {
+                to: f.to_part(last, *y),
+                v: *y,
+                shift,
+                runs: if backward {
+                    runs.iter().rev().map(burn).collect()
+                } else {
+                    runs.iter().map(burn).collect()
+                },
+            });
             if o > 0.0 {
                 out.push(ImageStep::Idle(f.to_part(last + d * o, *y)));
             }
@@ -572,10 +578,13 @@ mod tests {
             line_offset: 0.02,
         };
         let steps = image_path(&rows, &lay);
+        // Each row's first run end.
         let burns: Vec<V2> = steps
             .iter()
             .filter_map(|s| match s {
-                ImageStep::Burn { to, .. } => Some(*to),
+                ImageStep::Row { v, shift, runs, .. } => {
+                    Some(V2::new(f64::from(runs[0].0) * 0.1 + shift, *v))
+                }
                 _ => None,
             })
             .collect();

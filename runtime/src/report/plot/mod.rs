@@ -10,6 +10,7 @@
 
 mod path;
 mod png;
+mod shade;
 mod speed;
 mod svg;
 
@@ -105,11 +106,13 @@ enum Kind {
     Lit,
     /// A lit move that fires pulses: the pulses are the marks, the move is travel between.
     Pulsed,
+    /// A lit image row: its pixel runs are drawn shaded by power (`shade`), not by speed.
+    Shaded,
 }
 
 impl Kind {
     fn lit(self) -> bool {
-        matches!(self, Kind::Lit | Kind::Pulsed)
+        matches!(self, Kind::Lit | Kind::Pulsed | Kind::Shaded)
     }
 }
 
@@ -201,7 +204,13 @@ fn sample(job: &Job, plane_w: usize) -> Vec<Pt> {
         if segment_is_rapid(job, i) {
             Kind::Rapid
         } else {
+            let row = plan.segments().get(i).is_some_and(|s| {
+                job.program.ops.get(s.tag as usize).is_some_and(|o| {
+                    matches!(o.kind, crate::program::OpKind::Line { row: Some(_), .. })
+                })
+            });
             match segment_laser(job, i) {
+                Some(_) if row => Kind::Shaded,
                 Some(l) if l.pulse.is_some() => Kind::Pulsed,
                 Some(_) => Kind::Lit,
                 None => Kind::Feed,
@@ -213,7 +222,16 @@ fn sample(job: &Job, plane_w: usize) -> Vec<Pt> {
         let spot = job.spot(&s.pos, s.tag);
         let power = match segment_laser(job, i) {
             Some(l) if lit_at(job, i, t_local.min(segs[i].motion_duration() * 0.999_999)) => {
-                l.power_at(s.v, segs[i].feed)
+                let p = l.power_at(s.v, segs[i].feed);
+                // An image row: its run's power under the spot, coupled to speed alike.
+                match job.program.ops.get(s.tag as usize).map(|o| &o.kind) {
+                    Some(crate::program::OpKind::Line { row: Some(row), .. })
+                        if l.power_w > 0.0 =>
+                    {
+                        p / l.power_w * row.power_w_at([spot[0], spot[1]])
+                    }
+                    _ => p,
+                }
             }
             _ => 0.0,
         };

@@ -199,6 +199,9 @@ impl Panel {
         // A speed range below 0.1 % of the speed is constant speed: one colour, no bar.
         let constant = v_hi - v_lo <= 1e-3 * v_hi.abs();
         self.draw_path(s, ctx, v_lo, v_hi, constant)?;
+        let plane_w = ctx.plane_w;
+        let at = |p: [f64; 3]| (self.px(p[0]), self.py(p[plane_w]));
+        super::shade::draw(s, ctx, &at, self.scale)?;
         self.draw_pulses(s, ctx)?;
         if job.kin.oriented() {
             self.draw_beams(s, ctx)?;
@@ -239,6 +242,16 @@ impl Panel {
                 ly,
                 r##"stroke="#777" stroke-opacity="0.5" stroke-width="0.8""##,
                 "travel between pulses",
+            )?;
+            ly += 16.0;
+        }
+        if super::shade::any(ctx) {
+            legend_line(
+                s,
+                lx,
+                ly,
+                r#"stroke="black" stroke-opacity="0.5" stroke-width="4""#,
+                "image: grey = power",
             )?;
             ly += 16.0;
         }
@@ -316,6 +329,8 @@ impl Panel {
             r#"<g fill="none" stroke-linecap="round" stroke-linejoin="round" clip-path="url(#toolpath-clip)">"#
         )?;
         let style = |a: &Pt, b: &Pt| match b.kind {
+            // Drawn by `shade`, run by run.
+            Kind::Shaded => String::new(),
             Kind::Rapid => format!(
                 r#"class="rapid" stroke="{RAPID_COLOR}" stroke-opacity="0.6" stroke-width="1" stroke-dasharray="4 3""#
             ),
@@ -344,6 +359,12 @@ impl Panel {
             }
             let st = style(a, b);
             let (pa, pb) = ((self.px(a.h), self.py(a.w)), (self.px(b.h), self.py(b.w)));
+            if st.is_empty() {
+                if let Some((cs, line)) = current.take() {
+                    polyline(s, &cs, &line)?;
+                }
+                continue;
+            }
             match &mut current {
                 Some((cs, line)) if *cs == st && line.last() == Some(&pa) => line.push(pb),
                 _ => {

@@ -1,0 +1,144 @@
+//! The blocks of one motion op as the writer lays them out: the op itself, or, for an image
+//! row (`Line` with a [`PixelRow`]), one lit `Line` per pixel run, made here at write time so
+//! the runs never exist as ops (a million-run photo stays a thousand ops through planning).
+//!
+//! A run's block ends where a `Line` per run would have ended (the row's column times the
+//! pixel size, through the image frame), its axes come from the same inverse kinematics as the
+//! planned ops' (motion's), and on dialects whose power follows the speed block by block
+//! (`power::coupled_blocks`) the row's planned blocks are cut at the run ends, each scaled
+//! from the row's power to the run's: the plan's speed is the row's, the power the run's.
+
+use crate::axes::Axes;
+use crate::motion::power::{self, PowerBlock};
+use crate::motion::{Job, tool_pose};
+use crate::program::{Laser, Op, OpKind, P3, dist};
+use std::borrow::Cow;
+
+/// One motion block (or a coupled op's sub-blocks) to write.
+pub(super) struct Piece<'a> {
+    pub op: Cow<'a, Op>,
+    /// The axes the piece ends at.
+    pub q: Axes,
+    /// Its power sub-blocks when the power follows the speed on this dialect; else empty.
+    pub blocks: Vec<PowerBlock>,
+}
+
+/// The pieces of motion op `i` starting at `from` (axes `from_q`); `split` asks for the
+/// coupled power sub-blocks (`power::coupled_blocks`).
+pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -> Vec<Piece<'_>> {
+    let op = &job.program.ops[i];
+    let split = split
+        && op
+            .laser()
+            .is_some_and(|l| l.couple == crate::program::Coupling::Speed);
+    let blocks = if split {
+        power::coupled_blocks(job, i)
+    } else {
+        Vec::new()
+    };
+    let OpKind::Line {
+        to,
+        feed_mm_s,
+        laser: Some(laser),
+        orient,
+        row: Some(row),
+    } = &op.kind
+    else {
+        return vec![Piece {
+            op: Cow::Borrowed(op),
+            q: job.op_axes[i],
+            blocks,
+        }];
+    };
+    let total = dist(from, *to);
+    let mut out = Vec::with_capacity(row.runs.len());
+    let (mut s0, mut q_prev, mut b) = (0.0, from_q, 0);
+    for (k, &(c, shade)) in row.runs.iter().enumerate() {
+        let last = k + 1 == row.runs.len();
+        let p = if last {
+            *to
+        } else {
+            let [x, y] = row.end_of(c);
+            [x, y, to[2]]
+        };
+        let s1 = if last { total } else { dist(from, p) };
+        let q = if last {
+            job.op_axes[i]
+        } else {
+            run_axes(
+                job,
+                p,
+                *orient,
+                &q_prev,
+                &from_q,
+                &job.op_axes[i],
+                s1 / total,
+            )
+        };
+        let power_w = row.power_w(shade);
+        let mut sub = Vec::new();
+        // The row's planned blocks over [s0, s1], at this run's power.
+        while b < blocks.len() {
+            let end = blocks[b].s_end.min(s1);
+            let scale = scale(laser, power_w);
+            sub.push(PowerBlock {
+                s_end: end - s0,
+                power_w: blocks[b].power_w * scale,
+                max_error_w: blocks[b].max_error_w * scale,
+            });
+            if blocks[b].s_end > s1 + 1e-12 && !last {
+                break;
+            }
+            b += 1;
+        }
+        out.push(Piece {
+            op: Cow::Owned(Op {
+                kind: OpKind::Line {
+                    to: p,
+                    feed_mm_s: *feed_mm_s,
+                    laser: Some(Laser {
+                        power_w,
+                        ..laser.clone()
+                    }),
+                    orient: *orient,
+                    row: None,
+                },
+                span: op.span,
+            }),
+            q,
+            blocks: sub,
+        });
+        s0 = s1;
+        q_prev = q;
+    }
+    out
+}
+
+/// The factor from the row's power to a run's (0 for a row lit at 0 W throughout).
+fn scale(row: &Laser, run_w: f64) -> f64 {
+    if row.power_w > 0.0 {
+        run_w / row.power_w
+    } else {
+        0.0
+    }
+}
+
+/// A run end's axes: the machine's inverse at that point, as motion computes every op's; on an
+/// oriented machine (whose beam turns along the op) the planned axes interpolated, as a
+/// coupled op's sub-blocks are.
+fn run_axes(
+    job: &Job,
+    p: P3,
+    orient: Option<crate::program::Orient>,
+    prev: &Axes,
+    from_q: &Axes,
+    to_q: &Axes,
+    f: f64,
+) -> Axes {
+    if job.kin.oriented() {
+        return from_q.lerp(to_q, f);
+    }
+    job.kin
+        .inverse(&tool_pose(p, orient), Some(prev))
+        .unwrap_or_else(|_| from_q.lerp(to_q, f))
+}
