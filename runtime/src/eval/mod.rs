@@ -97,6 +97,8 @@ pub struct Evaluator {
     pos: P3,
     start: P3,
     ops: Vec<Op>,
+    /// Row starts to settle (`scan … { settle }`), indices into `ops`.
+    settles: Vec<crate::program::Settle>,
     steps: u64,
     /// The statement running now: where a step budget overrun inside an expression points.
     at: Span,
@@ -141,6 +143,7 @@ impl Evaluator {
             pos: [0.0; 3],
             start: [0.0; 3],
             ops: Vec::new(),
+            settles: Vec::new(),
             steps: 0,
             at: Span::new(0, 0),
             depth: 0,
@@ -234,6 +237,7 @@ impl Evaluator {
     /// Drops the ops produced so far: they never ran, so the spot is back where they began.
     pub fn discard(&mut self) {
         self.ops.clear();
+        self.settles.clear();
         self.pos = self.start;
     }
 
@@ -246,6 +250,7 @@ impl Evaluator {
     pub fn take_program(&mut self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let p = self.program(recipe, span)?;
         self.ops.clear();
+        self.settles.clear();
         self.start = self.pos;
         Ok(p)
     }
@@ -261,6 +266,7 @@ impl Evaluator {
             planner,
             start: self.start,
             ops: self.ops.clone(),
+            settles: self.settles.clone(),
             machine,
         })
     }

@@ -43,6 +43,7 @@ pub fn program(
         },
         start: [0.0; 3],
         ops,
+        settles: Vec::new(),
         machine: m,
     }
 }
