@@ -718,6 +718,10 @@ pub struct SimArgs {
     /// Allow listening on a non-loopback address.
     #[arg(long)]
     pub allow_remote: bool,
+    /// The table's positioning error, reported through MPos as a 1 µm scale reads it:
+    /// backlash=3um,random=5um,drift=0.1um/s,scale=1um,seed=7 (any subset).
+    #[arg(long, value_name = "SPEC")]
+    pub position_error: Option<String>,
 }
 
 /// Loads a stock machine by name or a machine file by path.
@@ -782,6 +786,12 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
         },
         settings,
         log: true,
+        position_error: args
+            .position_error
+            .as_deref()
+            .map(str::parse)
+            .transpose()
+            .map_err(io_fail)?,
     };
     let handle = sim::serve(&machine, addr, opts)
         .map_err(|e| io_fail(format!("cannot listen on {addr}: {e}")))?;

@@ -138,3 +138,85 @@ fn no_nc_program_claims_to_settle_until_its_dialect_can() {
         .is_ok()
     );
 }
+
+/// Row-start errors (along the row, µm) the simulated table shows when `src` streams to a
+/// simulated controller with the position error `spec`, from the simulator's own record of
+/// where it was when each row's first pulse fired.
+fn open_loop_row_errors(src: &str, spec: &str) -> Vec<f64> {
+    use lase_runtime::emit::{Dialect, EmitOptions, emit_lines};
+    use lase_runtime::link::sim::{Controller, ControllerConfig};
+    let j = job(src);
+    let (lines, _) = emit_lines(&j, Dialect::Grbl, &EmitOptions::default()).unwrap();
+    let mut ctl = Controller::new(ControllerConfig {
+        rx_buffer: 1 << 20,
+        position_error: Some(spec.parse().unwrap()),
+        ..ControllerConfig::for_machine(&j.program.machine)
+    });
+    // A client streaming faster than the table moves: the planner stays full, so rows run
+    // up from rest once and fly through their spots.
+    for l in &lines {
+        for b in l.text.bytes().chain(std::iter::once(b'\n')) {
+            ctl.receive(b);
+        }
+        ctl.run_while_blocked();
+    }
+    ctl.run(f64::INFINITY);
+    let rec = ctl.recording();
+    // Serpentine rows alternate direction: the error along the row is signed by it.
+    rec.row_starts
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let d = if k % 2 == 0 { 1.0 } else { -1.0 };
+            (r.actual[0] - r.commanded[0]) * d * 1e3
+        })
+        .collect()
+}
+
+#[test]
+fn without_settling_the_simulated_table_starts_rows_outside_the_window() {
+    // texture_array's numbers: 6 rows of 11 spots, 5 passes.
+    let src = ARRAY
+        .replace("passes 3", "passes 5")
+        .replace(", SETTINGS", "");
+    let exact = open_loop_row_errors(&src, "seed=1");
+    assert_eq!(exact.len(), 30, "a first pulse per row and pass");
+    assert!(exact.iter().all(|e| e.abs() < 1e-6), "{exact:?}");
+    let e = open_loop_row_errors(&src, "backlash=3um,random=5um,seed=11");
+    assert_eq!(e.len(), 30);
+    let outside = e.iter().filter(|e| !(-0.5..=1.5).contains(*e)).count();
+    let worst = e.iter().fold(0f64, |m, e| m.max(e.abs()));
+    let mean = e.iter().map(|e| e.abs()).sum::<f64>() / e.len() as f64;
+    eprintln!(
+        "open loop: {outside}/30 row starts outside −0.5 … +1.5 µm; |error| worst {worst:.2} µm, mean {mean:.2} µm"
+    );
+    assert!(outside >= 10, "{e:?}");
+    assert!(worst > 3.0 && worst <= 5.0 + 1.5 + 1e-9, "{worst}");
+}
+
+#[test]
+fn the_status_report_shows_the_scales_reading_of_the_table() {
+    use lase_runtime::link::sim::{Controller, ControllerConfig};
+    let m = job(&array("order serpentine")).program.machine;
+    let mut ctl = Controller::new(ControllerConfig {
+        position_error: Some("backlash=4um".parse().unwrap()),
+        ..ControllerConfig::for_machine(&m)
+    });
+    let status = |ctl: &mut Controller, line: &str| {
+        for b in line.bytes() {
+            ctl.receive(b);
+        }
+        ctl.run(f64::INFINITY);
+        ctl.receive(b'?');
+        ctl.run(0.0);
+        let out = String::from_utf8(ctl.take_output()).unwrap();
+        let at = out.find("MPos:").unwrap() + 5;
+        out[at..].split([',', '|']).next().unwrap().to_string()
+    };
+    // +x to 1 mm: the table lags half the 4 µm play.
+    assert_eq!(status(&mut ctl, "G1 X1 F600\n"), "0.998");
+    // 3 µm back is inside the play: the scale still reads 0.998.
+    assert_eq!(status(&mut ctl, "G1 X0.997\n"), "0.998");
+    // 10 µm back: the table follows, now 2 µm ahead of the command.
+    assert_eq!(status(&mut ctl, "G1 X0.987\n"), "0.989");
+}

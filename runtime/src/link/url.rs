@@ -26,6 +26,8 @@ pub struct SimUrlOptions {
     pub rx_buffer: usize,
     pub baud: Option<u32>,
     pub error_at_line: Vec<(u64, u32)>,
+    /// The table's positioning error (`position-error=backlash=3um,random=5um`).
+    pub position_error: Option<super::sim::poserr::PositionErrorConfig>,
 }
 
 impl Default for SimUrlOptions {
@@ -35,6 +37,7 @@ impl Default for SimUrlOptions {
             rx_buffer: 128,
             baud: None,
             error_at_line: Vec::new(),
+            position_error: None,
         }
     }
 }
@@ -49,6 +52,7 @@ impl SimUrlOptions {
                 error_at_line: self.error_at_line.clone(),
                 ..Faults::default()
             },
+            position_error: self.position_error,
             ..SimOptions::default()
         }
     }
@@ -101,6 +105,9 @@ impl LinkUrl {
                         "error-at-line" => o
                             .error_at_line
                             .push(super::sim::parse_error_at(v).map_err(|e| bad(&e))?),
+                        "position-error" => {
+                            o.position_error = Some(v.parse().map_err(|e: String| bad(&e))?)
+                        }
                         other => return Err(bad(&format!("unknown sim option `{other}`"))),
                     }
                 }
@@ -170,6 +177,9 @@ impl fmt::Display for LinkUrl {
                     }
                     for (line, code) in &o.error_at_line {
                         write!(f, "&error-at-line={line}:{code}")?;
+                    }
+                    if let Some(p) = &o.position_error {
+                        write!(f, "&position-error={p}")?;
                     }
                 }
                 Ok(())

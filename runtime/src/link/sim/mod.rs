@@ -18,6 +18,7 @@
 pub mod controller;
 pub mod gcode;
 pub mod motion;
+pub mod poserr;
 
 pub use controller::{
     Controller, ControllerConfig, Effect, ExecutedBlock, Firmware, LaserEvent, LineRecord,
@@ -127,6 +128,8 @@ pub struct SimOptions {
     pub settings: Vec<(u32, f64)>,
     /// Log connections and faults to stderr.
     pub log: bool,
+    /// The table's positioning error, reported through `MPos` (`--position-error`).
+    pub position_error: Option<poserr::PositionErrorConfig>,
 }
 
 impl Default for SimOptions {
@@ -139,6 +142,7 @@ impl Default for SimOptions {
             faults: Faults::default(),
             settings: Vec::new(),
             log: false,
+            position_error: None,
         }
     }
 }
@@ -204,6 +208,7 @@ impl SimHandle {
 fn controller_for(machine: &Machine, opts: &SimOptions) -> Controller {
     let mut cfg = ControllerConfig::for_machine(machine);
     cfg.settings.extend(opts.settings.iter().copied());
+    cfg.position_error = opts.position_error;
     cfg.rx_buffer = opts.rx_buffer.max(16);
     cfg.planner_blocks = opts.planner_blocks.max(1);
     cfg.error_at_line = opts.faults.error_at_line.clone();

@@ -69,6 +69,8 @@ pub struct ControllerConfig {
     pub settings: BTreeMap<u32, f64>,
     /// Answer `error:CODE` to line `K` (1-based count of lines received) instead of running it.
     pub error_at_line: Vec<(u64, u32)>,
+    /// The table's positioning error model; `None`: the table is where the controller is.
+    pub position_error: Option<crate::link::sim::poserr::PositionErrorConfig>,
 }
 
 impl ControllerConfig {
@@ -81,6 +83,7 @@ impl ControllerConfig {
             travel: travel_for(machine),
             settings: settings_for(machine),
             error_at_line: Vec::new(),
+            position_error: None,
         }
     }
 
