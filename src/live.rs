@@ -6,7 +6,7 @@
 use crate::driver::{self, Failure, IoError};
 use crate::output::{self, outln};
 use lase_lang::{SourceMap, Span};
-use lase_runtime::emit::{Dialect, NcLine};
+use lase_runtime::emit::{Dialect, EmitOptions, NcLine};
 use lase_runtime::link::job::{self, JobLines, NewJournal, Origin, Refused, Started};
 use lase_runtime::link::journal;
 use lase_runtime::link::sim::{self, Faults, SimOptions, TimeScale};
@@ -358,6 +358,9 @@ fn stream_run(
         summary.laser_on_time_s,
         summary.pulses
     );
+    if let Some(s) = lase_runtime::link::settle::SettleSummary::of(&report.settled) {
+        outln!("  {s}");
+    }
     Ok(())
 }
 
@@ -521,8 +524,12 @@ impl Display {
             0 => String::new(),
             n => format!(" | ≈{} of {n} pulses", self.eta.pulses_done(done)),
         };
+        let settled = match p.settled {
+            (_, 0) => String::new(),
+            (k, n) => format!(" | {k}/{n} rows settled"),
+        };
         bar.set_message(format!(
-            "ETA {left:.1} s of {:.1} s planned{}{pulses} | {}/{} lines | {state}",
+            "ETA {left:.1} s of {:.1} s planned{}{pulses}{settled} | {}/{} lines | {state}",
             self.eta.total(),
             if p.held { " (held)" } else { "" },
             p.acked,
@@ -821,7 +828,12 @@ pub fn nc_lines(
     dialect: Dialect,
 ) -> Result<Vec<NcLine>, (SourceMap, Failure)> {
     let locate = |s: Span| recipe.locate(s);
-    lase_runtime::emit::emit_lines(job, dialect, &crate::emit_options(&locate))
+    // The live link settles row starts itself.
+    let options = EmitOptions {
+        live: true,
+        ..crate::emit_options(&locate)
+    };
+    lase_runtime::emit::emit_lines(job, dialect, &options)
         .map(|(lines, _)| lines)
         .map_err(|e| (recipe.map.clone(), Failure::one(e)))
 }

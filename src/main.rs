@@ -212,6 +212,7 @@ pub(crate) fn emit_options(locate: &dyn Fn(lase_lang::Span) -> String) -> EmitOp
     EmitOptions {
         locate: Some(locate),
         comments: true,
+        live: false,
     }
 }
 

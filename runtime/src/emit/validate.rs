@@ -154,7 +154,6 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
             ),
         })?;
     check_axes(machine, dialect, first_span)?;
-    check_settles(program, dialect)?;
     let mut warnings = Vec::new();
 
     if let Some(lit) = ops
@@ -577,7 +576,7 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
 /// Row-start settling (`scan … { settle }`) reads the machine's position and loops until it
 /// is within the window: no NC program lase writes does that yet, and writing one that fires
 /// without settling would pass off an open loop as the closed one the recipe asked for.
-fn check_settles(
+pub(super) fn check_settles(
     program: &crate::program::ProcessProgram,
     dialect: Dialect,
 ) -> Result<(), EmitError> {
@@ -589,8 +588,8 @@ fn check_settles(
             format!(
                 "{dialect} cannot settle a row start in an NC program: it can neither loop nor read its position"
             ),
-            "settling needs a link that reads the controller's position between rows; \
-             leave `settle` out to write the open-loop program",
+            "stream it with `lase run`, which reads the position between rows and settles \
+             each row start; or leave `settle` out to write the open-loop program",
         ),
         Dialect::LinuxCnc => (
             "lase cannot yet write LinuxCNC's settling loop (an O-word loop reading the position)"

@@ -262,6 +262,8 @@ pub fn preflight(
             }));
         }
     }
+    // Row-start settling needs X and Y the part's (checked before anything is sent).
+    super::settle::settle_points(job.job, job.nc)?;
     // A resumed job first waits for the controller to finish what it had received (`$$` is
     // refused while it moves) and finds where the job stands.
     let (from, resumed_start) = match origin {
@@ -386,6 +388,8 @@ impl Started {
         job: &JobLines<'_>,
         observer: &mut dyn FnMut(&Progress, Option<&Event>) -> Option<Control>,
     ) -> Report {
+        // Checked by the preflight.
+        let settles = super::settle::settle_points(job.job, job.nc).unwrap_or_default();
         stream::stream(
             link,
             &StreamJob {
@@ -395,6 +399,7 @@ impl Started {
                 restored: self.restored.clone(),
                 guards: &self.guards,
                 letters: &job.letters(),
+                settles: &settles,
             },
             self.journal.as_mut(),
             &StreamOptions::default(),

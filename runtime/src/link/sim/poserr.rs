@@ -5,10 +5,12 @@
 //! * **backlash** — a dead band of `backlash` per axis: after a reversal the table does not
 //!   move until the command has taken up the play (the classic play operator, exact along a
 //!   straight block because each axis moves one way within it);
-//! * **random** — an error drawn uniformly in ±`random` per axis whenever a positioning move
-//!   ends (a block longer than [`SMALL_MOVE_MM`]), from a seeded generator, so a run repeats;
-//!   corrective steps smaller than that keep the error they found, as a servo's final
-//!   increments do;
+//! * **random** — an error drawn uniformly in ±`random` per axis whenever the table comes to
+//!   rest after a positioning move (more than [`SMALL_MOVE_MM`] of travel since the last
+//!   rest), from a seeded generator, so a run repeats; the table carries it through the moves
+//!   that follow until the next rest (a row runs with the error its start had, as on the
+//!   seed's table, whose scale counts the spots from the row start), and corrective steps
+//!   smaller than that keep the error they found, as a servo's final increments do;
 //! * **drift** — a slow linear drift of `drift` per second on every axis (thermal growth).
 //!
 //! The reading is the table's position rounded to the scale's resolution (`scale`, 1 µm),
@@ -18,8 +20,8 @@ use crate::link::{AxisPos, MAX_AXES};
 use std::fmt;
 use std::str::FromStr;
 
-/// A block longer than this is a positioning move and draws a new random error; shorter ones
-/// are corrective steps. mm.
+/// More travel than this between two rests is a positioning move and draws a new random
+/// error; less is a corrective step. mm.
 pub const SMALL_MOVE_MM: f64 = 0.01;
 
 /// The settable model, mm and mm/s.
@@ -117,6 +119,8 @@ pub struct PositionError {
     /// The table's position before the random error and drift (the play operator's output).
     played: AxisPos,
     random: AxisPos,
+    /// Travel since the table last came to rest, mm.
+    travelled: f64,
     rng: u64,
 }
 
@@ -126,6 +130,7 @@ impl PositionError {
             cfg,
             played: start,
             random: [0.0; MAX_AXES],
+            travelled: 0.0,
             // splitmix64 needs any non-zero state.
             rng: cfg.seed ^ 0x9E37_79B9_7F4A_7C15,
         }
@@ -143,9 +148,9 @@ impl PositionError {
         }
     }
 
-    /// A block from `from` to `to` ended: the table follows, and a positioning move draws a
-    /// new random error.
-    pub fn block_done(&mut self, from: &AxisPos, to: &AxisPos) {
+    /// A block from `from` to `to` ended (`at_rest`: at zero speed): the table follows, and
+    /// coming to rest after a positioning move draws a new random error.
+    pub fn block_done(&mut self, from: &AxisPos, to: &AxisPos, at_rest: bool) {
         self.follow(to);
         let len = from
             .iter()
@@ -153,11 +158,16 @@ impl PositionError {
             .map(|(a, b)| (b - a) * (b - a))
             .sum::<f64>()
             .sqrt();
-        if len > SMALL_MOVE_MM && self.cfg.random_mm > 0.0 {
+        self.travelled += len;
+        if !at_rest {
+            return;
+        }
+        if self.travelled > SMALL_MOVE_MM && self.cfg.random_mm > 0.0 {
             for k in 0..MAX_AXES {
                 self.random[k] = self.cfg.random_mm * (2.0 * self.uniform() - 1.0);
             }
         }
+        self.travelled = 0.0;
     }
 
     /// Where the table really is at time `t` s (after [`follow`](Self::follow)ing the command).
@@ -227,8 +237,8 @@ mod tests {
         let mut seen = Vec::new();
         let mut x = 0.0;
         for _ in 0..200 {
-            a.block_done(&at(x), &at(x + 1.0));
-            b.block_done(&at(x), &at(x + 1.0));
+            a.block_done(&at(x), &at(x + 1.0), true);
+            b.block_done(&at(x), &at(x + 1.0), true);
             x += 1.0;
             let e = a.actual(0.0)[0] - x;
             assert!(e.abs() <= 0.005 + 1e-12);
@@ -238,8 +248,12 @@ mod tests {
         assert!(seen.iter().any(|e| *e > 0.004) && seen.iter().any(|e| *e < -0.004));
         // A 0.5 µm step keeps the error and moves the table by the step.
         let before = a.actual(0.0)[0];
-        a.block_done(&at(x), &at(x + 0.0005));
+        a.block_done(&at(x), &at(x + 0.0005), true);
         assert!((a.actual(0.0)[0] - before - 0.0005).abs() < 1e-12);
+        // A long move that does not stop (a row's run-up into its first spot) keeps it too.
+        let before = a.actual(0.0)[0] - x - 0.0005;
+        a.block_done(&at(x), &at(x + 1.0), false);
+        assert!((a.actual(0.0)[0] - (x + 1.0) - before).abs() < 1e-12);
     }
 
     #[test]

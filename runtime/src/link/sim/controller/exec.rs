@@ -215,7 +215,7 @@ impl Controller {
         self.v = e.profile.exit;
         self.mpos = done.b.to;
         if let Some(m) = &mut self.perr {
-            m.block_done(&done.b.from, &done.b.to);
+            m.block_done(&done.b.from, &done.b.to, e.profile.exit <= 1e-9);
         }
         self.rest_laser = done.rest_after;
         if self.state == St::Jog {
