@@ -412,9 +412,10 @@ fn lase_sim_serves_over_tcp() {
         .spawn()
         .unwrap();
     let mut first = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut first)
-        .unwrap();
+    // Kept open while the simulator runs: `lase sim` ends quietly on a closed stdout (its
+    // outln!), so dropping the reader after the first line raced its second line.
+    let mut reader = BufReader::new(child.stdout.take().unwrap());
+    reader.read_line(&mut first).unwrap();
     let addr = first
         .split("listening on ")
         .nth(1)
@@ -436,6 +437,7 @@ fn lase_sim_serves_over_tcp() {
     ]);
     let _ = child.kill();
     let _ = child.wait();
+    drop(reader);
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("done"), "{out}");
     // Not on a public address unless asked.
