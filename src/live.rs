@@ -522,6 +522,9 @@ fn stream_run(
         summary.laser_on_time_s,
         summary.pulses
     );
+    if let Some(s) = lase_runtime::link::settle::SettleSummary::of(&report.settled) {
+        outln!("  {s}");
+    }
     Ok(())
 }
 
@@ -684,8 +687,12 @@ impl Display {
             0 => String::new(),
             n => format!(" | ≈{} of {n} pulses", self.eta.pulses_done(done)),
         };
+        let settled = match p.settled {
+            (_, 0) => String::new(),
+            (k, n) => format!(" | {k}/{n} rows settled"),
+        };
         bar.set_message(format!(
-            "ETA {left:.1} s of {:.1} s planned{}{pulses} | {}/{} lines | {state}",
+            "ETA {left:.1} s of {:.1} s planned{}{pulses}{settled} | {}/{} lines | {state}",
             self.eta.total(),
             if p.held { " (held)" } else { "" },
             p.acked,
@@ -881,6 +888,10 @@ pub struct SimArgs {
     /// Allow listening on a non-loopback address.
     #[arg(long)]
     pub allow_remote: bool,
+    /// The table's positioning error, reported through MPos as a 1 µm scale reads it:
+    /// backlash=3um,random=5um,drift=0.1um/s,scale=1um,seed=7 (any subset).
+    #[arg(long, value_name = "SPEC")]
+    pub position_error: Option<String>,
 }
 
 /// Loads a stock machine by name or a machine file by path.
@@ -946,6 +957,12 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
         settings,
         log: true,
         keep: Some(sim::KEEP_LIVE),
+        position_error: args
+            .position_error
+            .as_deref()
+            .map(str::parse)
+            .transpose()
+            .map_err(io_fail)?,
     };
     let handle = sim::serve(&machine, addr, opts)
         .map_err(|e| io_fail(format!("cannot listen on {addr}: {e}")))?;

@@ -288,6 +288,7 @@ pub(crate) fn emit_options(locate: &dyn Fn(lase_lang::Span) -> String) -> EmitOp
     EmitOptions {
         locate: Some(locate),
         comments: true,
+        live: false,
     }
 }
 

@@ -93,6 +93,7 @@ fn check(ex: &Path, dialect: Dialect) {
     let options = EmitOptions {
         locate: None,
         comments: true,
+        live: false,
     };
     let Ok((lines, _)) = lase_runtime::emit::emit_lines(&job, dialect, &options) else {
         // GRBL refuses the rotary machines (pinned by the golden tests).

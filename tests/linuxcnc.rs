@@ -109,6 +109,7 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
         &EmitOptions {
             locate: None,
             comments: true,
+            live: false,
         },
     )
     .unwrap();

@@ -67,6 +67,7 @@ fn lines_of(job: &lase_runtime::Job) -> Vec<String> {
         &EmitOptions {
             locate: None,
             comments: true,
+            live: false,
         },
     )
     .unwrap()

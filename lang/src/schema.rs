@@ -736,6 +736,47 @@ const SCAN_COMMON: [SettingSpec; 8] = [
     ),
 ];
 
+// Row-start settling (issue 15, PROCESS.md §3): closed-loop positioning of each row start
+// from the scale before the row fires. Kept in one block so merges stay simple.
+pub const SETTLE_WINDOW_UM: (f64, f64) = (-0.5, 1.5);
+pub const SETTLE_ACROSS_UM: f64 = 1.0;
+pub const SETTLE_STEP_UM: f64 = 0.5;
+pub const SETTLE_MAX_STEPS: u32 = 20;
+pub const SETTLE_TIMEOUT_S: f64 = 5.0;
+
+const SCAN_SETTLE: [SettingSpec; 6] = [
+    set(
+        "settle",
+        PTy::Flag,
+        "Row-start settling (PROCESS.md §3, seed 3): before each row of each pass fires, the table stops at the row's start, its position is read from the controller (the scale), and corrective steps of `settle_step` are sent until the error is within `settle_window` along the row and `settle_across` across it. Needs the live link (`lase run`, the REPL) or LinuxCNC's NC program; a flag: write `settle`. Any other `settle_*` setting turns it on too.",
+    ),
+    set(
+        "settle_window",
+        PTy::List,
+        "The accepted error along the row, in the row's direction of travel, as `[low, high]` (default the seed's `[-0.5 um, 1.5 um]`). Must contain 0 and be at least one `settle_step` wide.",
+    ),
+    set(
+        "settle_across",
+        L,
+        "The accepted error across the row, either way (default 1 um: the seed states none; one count of a 1 µm scale).",
+    ),
+    set(
+        "settle_step",
+        L,
+        "One corrective step (default 0.5 um: the seed's servo increment).",
+    ),
+    set(
+        "settle_steps",
+        NUM,
+        "Corrective steps allowed per row start before the job stops with a diagnostic here (default 20).",
+    ),
+    set(
+        "settle_timeout",
+        PTy::Dim(Dim::TIME),
+        "Time allowed per row start, from the stop to within the window, before the job stops with a diagnostic here (default 5 s).",
+    ),
+];
+
 pub const SCAN_KINDS: &[ScanKind] = &[
     ScanKind {
         name: "dots",
@@ -749,6 +790,12 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             SCAN_COMMON[5],
             SCAN_COMMON[6],
             SCAN_COMMON[7],
+            SCAN_SETTLE[0],
+            SCAN_SETTLE[1],
+            SCAN_SETTLE[2],
+            SCAN_SETTLE[3],
+            SCAN_SETTLE[4],
+            SCAN_SETTLE[5],
             set(
                 "pitch",
                 L,
@@ -804,6 +851,12 @@ pub const SCAN_KINDS: &[ScanKind] = &[
             SCAN_COMMON[5],
             SCAN_COMMON[6],
             SCAN_COMMON[7],
+            SCAN_SETTLE[0],
+            SCAN_SETTLE[1],
+            SCAN_SETTLE[2],
+            SCAN_SETTLE[3],
+            SCAN_SETTLE[4],
+            SCAN_SETTLE[5],
             set("pitch", L, "Spacing between hatch lines (required)."),
             set(
                 "cross",

@@ -250,6 +250,9 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         },
     )?;
     program.ops = led.ops;
+    for s in &mut program.settles {
+        s.op = led.index[s.op] as usize;
+    }
     // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
     let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;
     let mut moves: Vec<Move> = Vec::new();

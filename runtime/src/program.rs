@@ -459,6 +459,10 @@ pub struct ProcessProgram {
     /// What `planner { order ... }` did, when it ordered the paths.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ordering: Option<OrderReport>,
+    /// Row starts to settle in a closed loop before the row fires (`scan … { settle }`),
+    /// in op order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub settles: Vec<Settle>,
 }
 
 /// The travel of a job's paths as written and as ordered (`planner { order ... }`).
@@ -586,6 +590,73 @@ impl ProcessProgram {
             ordering: None,
             ..self.clone()
         })
+    }
+}
+
+/// One row start to position from the controller's reading before its row fires (PROCESS.md
+/// §3): the table stops where op `op` ends, and corrective steps bring the reading within
+/// the window. Errors are counted from the programmed position (from the origin A, never
+/// from the previous row), so they cannot accumulate.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Settle {
+    /// The op that brings the table to the row start.
+    pub op: usize,
+    /// The row's direction of travel, a unit vector in part x, y: "along" is measured on it,
+    /// "across" on it turned +90°.
+    pub dir: [f64; 2],
+    /// Accepted error along the row (low, high), mm.
+    pub window_mm: (f64, f64),
+    /// Accepted error across the row, either way, mm.
+    pub across_mm: f64,
+    /// One corrective step, mm.
+    pub step_mm: f64,
+    pub max_steps: u32,
+    pub timeout_s: f64,
+    /// Pass and row (from 0), for reports.
+    pub pass: u32,
+    pub row: u32,
+    /// The recipe's `settle` setting (or the scan, when only `settle_*` turned it on).
+    pub span: Span,
+}
+
+impl Settle {
+    /// The error (along, across) of a position `dx`, `dy` mm from the target.
+    pub fn error(&self, dx: f64, dy: f64) -> (f64, f64) {
+        let [ux, uy] = self.dir;
+        (dx * ux + dy * uy, -dx * uy + dy * ux)
+    }
+
+    /// Whether an error (along, across) is within the window.
+    pub fn within(&self, along: f64, across: f64) -> bool {
+        const EPS: f64 = 1e-9;
+        along >= self.window_mm.0 - EPS
+            && along <= self.window_mm.1 + EPS
+            && across.abs() <= self.across_mm + EPS
+    }
+
+    /// The corrective move (dx, dy) for an error: one step back along the row when past the
+    /// window, forward when short; the same across. `None` when within.
+    pub fn correction(&self, along: f64, across: f64) -> Option<(f64, f64)> {
+        if self.within(along, across) {
+            return None;
+        }
+        let s = self.step_mm;
+        let a = if along < self.window_mm.0 {
+            s
+        } else if along > self.window_mm.1 {
+            -s
+        } else {
+            0.0
+        };
+        let c = if across < -self.across_mm {
+            s
+        } else if across > self.across_mm {
+            -s
+        } else {
+            0.0
+        };
+        let [ux, uy] = self.dir;
+        Some((a * ux - c * uy, a * uy + c * ux))
     }
 }
 
@@ -830,6 +901,7 @@ mod tests {
             start: [0.0; 3],
             ordering: None,
             ops,
+            settles: Vec::new(),
             machine: m,
         }
     }
@@ -1021,6 +1093,7 @@ mod frame_tests {
             },
             start: [0.0; 3],
             ops: vec![rapid, arc([5.0, 0.0, 0.0]), arc([15.0, 0.0, 0.0])],
+            settles: Vec::new(),
             ordering: None,
             machine: m,
         };

@@ -465,6 +465,7 @@ fn grbl_lines_fit_the_buffer_and_use_grbl_words_only() {
         &EmitOptions {
             locate: Some(&locate),
             comments: true,
+            live: false,
         },
     )
     .unwrap();
@@ -662,6 +663,7 @@ fn recipe_lines_are_traced_in_comments() {
     let opts = EmitOptions {
         locate: Some(&locate),
         comments: true,
+        live: false,
     };
     let nc = emit_to_string_with(&j, Dialect::LinuxCnc, &opts).unwrap();
     for k in 1..=9 {
@@ -673,6 +675,7 @@ fn recipe_lines_are_traced_in_comments() {
         &EmitOptions {
             locate: Some(&locate),
             comments: false,
+            live: false,
         },
     )
     .unwrap();
@@ -1038,6 +1041,7 @@ fn grblhal_lines_fit_its_256_character_buffer() {
         &EmitOptions {
             locate: Some(&locate),
             comments: true,
+            live: false,
         },
     )
     .unwrap();

@@ -41,6 +41,21 @@ pub(super) fn run(
         ));
     }
     let (recipe, job) = driver::compile(file)?;
+    if let Some(s) = job.program.settles.first() {
+        // The program runs from a file on LinuxCNC: lase cannot step between its lines.
+        return Err((
+            recipe.map.clone(),
+            Failure::one(LinkError::Unsettled {
+                message: "row-start settling over a LinuxCNC link is not built yet: LinuxCNC runs \
+                          the program as a file, so lase cannot settle between its lines"
+                    .into(),
+                span: s.span,
+                help: "stream the job to a GRBL controller (`--link tcp://…` or `serial://…`), \
+                       or leave `settle` out"
+                    .into(),
+            }),
+        ));
+    }
     let map = recipe.map.clone();
     let fail = |e: LinkError| (map.clone(), Failure::one(e));
     // LinuxCNC runs the program from a file, so the whole text is made here (the GRBL

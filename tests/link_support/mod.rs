@@ -38,6 +38,7 @@ pub fn compile(path: &Path) -> Compiled {
         &EmitOptions {
             locate: Some(&locate),
             comments: true,
+            live: true,
         },
     )
     .unwrap();

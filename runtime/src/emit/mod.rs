@@ -138,6 +138,9 @@ pub struct EmitOptions<'a> {
     /// Write traceability comments and the comments of M-code ops. The header comment is
     /// always written.
     pub comments: bool,
+    /// The lines go to a live link, which settles row starts itself (`link::settle`): a
+    /// program with `settle` is refused only as an NC file.
+    pub live: bool,
 }
 
 impl Default for EmitOptions<'_> {
@@ -145,6 +148,7 @@ impl Default for EmitOptions<'_> {
         EmitOptions {
             locate: None,
             comments: true,
+            live: false,
         }
     }
 }
@@ -308,6 +312,9 @@ pub fn emit(
     options: &EmitOptions<'_>,
     sink: &mut dyn FnMut(&NcLine) -> std::io::Result<()>,
 ) -> Result<EmitStats, EmitError> {
+    if !options.live {
+        validate::check_settles(&job.program, dialect)?;
+    }
     let checked = validate::validate(job, dialect)?;
     let mut stats = writer::write(job, dialect, options, &checked, sink)?;
     stats.warnings = checked.warnings;

@@ -610,3 +610,42 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
     }
     Ok(())
 }
+
+/// Row-start settling (`scan … { settle }`) reads the machine's position and loops until it
+/// is within the window: no NC program lase writes does that yet, and writing one that fires
+/// without settling would pass off an open loop as the closed one the recipe asked for.
+pub(super) fn check_settles(
+    program: &crate::program::ProcessProgram,
+    dialect: Dialect,
+) -> Result<(), EmitError> {
+    let Some(s) = program.settles.first() else {
+        return Ok(());
+    };
+    let (message, help) = match dialect {
+        Dialect::Grbl | Dialect::GrblHal => (
+            format!(
+                "{dialect} cannot settle a row start in an NC program: it can neither loop nor read its position"
+            ),
+            "stream it with `lase run`, which reads the position between rows and settles \
+             each row start; or leave `settle` out to write the open-loop program",
+        ),
+        Dialect::LinuxCnc => (
+            "lase cannot yet write LinuxCNC's settling loop (an O-word loop reading the position)"
+                .to_string(),
+            "leave `settle` out to write the open-loop program",
+        ),
+        _ => (
+            format!(
+                "lase cannot yet write {dialect}'s settling (a call of the machine's own macro)"
+            ),
+            "leave `settle` out to write the open-loop program",
+        ),
+    };
+    Err(EmitError::Dialect {
+        message,
+        dialect,
+        span: s.span,
+        label: "row-start settling asked here".into(),
+        help: help.into(),
+    })
+}

@@ -110,6 +110,8 @@ pub struct Evaluator {
     ops: Vec<Op>,
     /// Pixel runs carried by the image rows among `ops` (see [`MAX_RUNS`]).
     runs: usize,
+    /// Row starts to settle (`scan … { settle }`), indices into `ops`.
+    settles: Vec<crate::program::Settle>,
     steps: u64,
     /// The statement running now: where a step budget overrun inside an expression points.
     at: Span,
@@ -156,6 +158,7 @@ impl Evaluator {
             start: [0.0; 3],
             ops: Vec::new(),
             runs: 0,
+            settles: Vec::new(),
             steps: 0,
             at: Span::new(0, 0),
             depth: 0,
@@ -249,6 +252,7 @@ impl Evaluator {
     /// Drops the ops produced so far: they never ran, so the spot is back where they began.
     pub fn discard(&mut self) {
         self.ops.clear();
+        self.settles.clear();
         self.pos = self.start;
     }
 
@@ -261,6 +265,7 @@ impl Evaluator {
     pub fn take_program(&mut self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let p = self.program(recipe, span)?;
         self.ops.clear();
+        self.settles.clear();
         // An ordered program may end elsewhere than the ops as written.
         self.pos = p.ops.iter().rev().find_map(Op::target).unwrap_or(self.pos);
         self.start = self.pos;
@@ -271,12 +276,19 @@ impl Evaluator {
     pub fn program(&self, recipe: &str, span: Span) -> R<ProcessProgram> {
         let machine = self.machine.clone().ok_or_else(|| no_machine(span))?;
         let planner = self.planner_settings_now();
-        let (ops, ordering) = order::order_ops(
-            &self.ops,
-            self.start,
-            planner.order,
-            planner.arc_tolerance_mm,
-        )?;
+        // Settled row starts are indices into the ops as written, so a program that settles
+        // keeps its source order and no kerf (cut order and kerf serve cutting; settling,
+        // texturing).
+        let (ops, ordering) = if self.settles.is_empty() {
+            order::order_ops(
+                &self.ops,
+                self.start,
+                planner.order,
+                planner.arc_tolerance_mm,
+            )?
+        } else {
+            (self.ops.clone(), None)
+        };
         Ok(ProcessProgram {
             recipe: recipe.to_string(),
             limits: self.limits.clone(),
@@ -285,6 +297,7 @@ impl Evaluator {
             start: self.start,
             ops,
             ordering,
+            settles: self.settles.clone(),
             machine,
         })
     }

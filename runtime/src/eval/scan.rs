@@ -47,6 +47,19 @@ struct ScanSet {
     mode: Option<(Firing, Span)>,
     inset: f64,
     cross: bool,
+    settle: SettleSet,
+}
+
+/// Row-start settling as the recipe wrote it (`settle`, `settle_*`), in mm and s.
+#[derive(Default)]
+struct SettleSet {
+    /// Where settling was turned on (`settle`, else the first `settle_*`).
+    on: Option<Span>,
+    window: Option<((f64, f64), Span)>,
+    across: Option<(f64, Span)>,
+    step: Option<(f64, Span)>,
+    max_steps: Option<u32>,
+    timeout: Option<(f64, Span)>,
 }
 
 impl Evaluator {
@@ -428,6 +441,9 @@ impl Evaluator {
                 passes,
             },
         );
+        let settle = self.settle_template(&set.settle)?;
+        let rows_per_pass = rows.max(1) as u32;
+        let mut row_starts = 0u32;
         let z = self.pos[2];
         let hatch_laser = laser.clone();
         let mut dot_laser: Option<(f64, Laser)> = None;
@@ -477,6 +493,18 @@ impl Evaluator {
                         span,
                     );
                 }
+                Step::RowStart { dir } => {
+                    if let Some(t) = &settle {
+                        self.settles.push(Settle {
+                            op: self.ops.len().saturating_sub(1),
+                            dir: [dir.x, dir.y],
+                            pass: row_starts / rows_per_pass,
+                            row: row_starts % rows_per_pass,
+                            ..t.clone()
+                        });
+                    }
+                    row_starts += 1;
+                }
                 Step::Fire(_) => self.push(
                     OpKind::Fire {
                         count: pulses,
@@ -504,6 +532,101 @@ impl Evaluator {
             return;
         }
         self.push(kind, span);
+    }
+
+    /// The settle parameters every row start of this scan shares (`None`: settling off),
+    /// with the seed's defaults (`schema::SETTLE_*`). A window narrower than one step could
+    /// never be reached: the loop would step across it forever.
+    fn settle_template(&self, s: &SettleSet) -> R<Option<Settle>> {
+        use lase_lang::schema::*;
+        let Some(on) = s.on else { return Ok(None) };
+        let um = 1e-3;
+        let window = s
+            .window
+            .map_or((SETTLE_WINDOW_UM.0 * um, SETTLE_WINDOW_UM.1 * um), |w| w.0);
+        let step = s.step.map_or(SETTLE_STEP_UM * um, |x| x.0);
+        let across = s.across.map_or(SETTLE_ACROSS_UM * um, |x| x.0);
+        if window.1 - window.0 + 1e-12 < step {
+            let sp = s.step.or(s.window.map(|w| (0.0, w.1))).map_or(on, |x| x.1);
+            return Err(bad(
+                Kind::Conflict,
+                sp,
+                &format!(
+                    "a settle window {} wide is narrower than the {} step",
+                    format_quantity(window.1 - window.0, Dim::LENGTH),
+                    format_quantity(step, Dim::LENGTH)
+                ),
+                "can never settle",
+                Some(
+                    "the loop steps across a window narrower than one step: widen `settle_window` or take a smaller `settle_step`",
+                ),
+            ));
+        }
+        if 2.0 * across + 1e-12 < step {
+            let sp = s.across.map_or(on, |x| x.1);
+            return Err(bad(
+                Kind::Conflict,
+                sp,
+                &format!(
+                    "a settle window of ±{} across the row is narrower than the {} step",
+                    format_quantity(across, Dim::LENGTH),
+                    format_quantity(step, Dim::LENGTH)
+                ),
+                "can never settle",
+                Some("`settle_across` must be at least half a `settle_step`"),
+            ));
+        }
+        Ok(Some(Settle {
+            op: 0,
+            dir: [1.0, 0.0],
+            window_mm: window,
+            across_mm: across,
+            step_mm: step,
+            max_steps: s.max_steps.unwrap_or(SETTLE_MAX_STEPS),
+            timeout_s: s.timeout.map_or(SETTLE_TIMEOUT_S, |t| t.0),
+            pass: 0,
+            row: 0,
+            span: on,
+        }))
+    }
+
+    /// `settle_window [low, high]`: two lengths, low ≤ 0 ≤ high, each within ±1 mm.
+    fn settle_window(&self, v: &Value, span: Span) -> R<(f64, f64)> {
+        let ctx = "`settle_window`";
+        let help = Some(
+            "write the accepted error along the row as `[low, high]`, e.g. `[-0.5 um, 1.5 um]`",
+        );
+        let Value::List(items) = v else {
+            return Err(type_err("a list of two lengths", v, span, ctx));
+        };
+        if items.len() != 2 {
+            return Err(bad(
+                Kind::OutOfRange,
+                span,
+                &format!(
+                    "{ctx} needs two lengths, [low, high]; this list has {}",
+                    items.len()
+                ),
+                "not [low, high]",
+                help,
+            ));
+        }
+        let lo = self.as_dim(&items[0], Dim::LENGTH, span, ctx)?;
+        let hi = self.as_dim(&items[1], Dim::LENGTH, span, ctx)?;
+        if !(lo <= 0.0 && hi >= 0.0 && lo >= -1.0 && hi <= 1.0) {
+            return Err(bad(
+                Kind::OutOfRange,
+                span,
+                &format!(
+                    "{ctx} must contain zero and lie within ±1 mm (it is {} … {})",
+                    format_quantity(lo, Dim::LENGTH),
+                    format_quantity(hi, Dim::LENGTH)
+                ),
+                "out of range",
+                help,
+            ));
+        }
+        Ok((lo, hi))
     }
 
     fn rows_fit(&self, rows: f64, span: Span) -> R<()> {
@@ -587,6 +710,13 @@ impl Evaluator {
                 set.cross = true;
                 continue;
             }
+            if key == "settle" {
+                set.settle.on = Some(s.key.span);
+                continue;
+            }
+            if key.starts_with("settle_") {
+                set.settle.on.get_or_insert(s.key.span);
+            }
             let Some(e) = &s.value else { continue };
             let word = match &e.kind {
                 ExprKind::Var(w) => Some(w.as_str()),
@@ -649,6 +779,66 @@ impl Evaluator {
                                 ));
                             }
                             set.inset = x;
+                        }
+                        "settle_window" => {
+                            set.settle.window = Some((self.settle_window(&v, e.span)?, e.span))
+                        }
+                        "settle_across" | "settle_step" => {
+                            let x = self.as_dim(&v, Dim::LENGTH, e.span, &ctx)?;
+                            let ok = if key == "settle_step" {
+                                x > 0.0
+                            } else {
+                                x >= 0.0
+                            };
+                            if !(ok && x <= 1.0) {
+                                return Err(bad(
+                                    Kind::OutOfRange,
+                                    e.span,
+                                    &format!(
+                                        "{ctx} must be {} and at most 1 mm",
+                                        if key == "settle_step" {
+                                            "greater than zero"
+                                        } else {
+                                            "zero or more"
+                                        }
+                                    ),
+                                    "out of range",
+                                    Some(
+                                        "settling corrects micrometres: e.g. `0.5 um` (the seed's servo increment)",
+                                    ),
+                                ));
+                            }
+                            if key == "settle_step" {
+                                set.settle.step = Some((x, e.span));
+                            } else {
+                                set.settle.across = Some((x, e.span));
+                            }
+                        }
+                        "settle_steps" => {
+                            let n = self.as_count(&v, e.span, &ctx)?;
+                            if !(1..=10_000).contains(&n) {
+                                return Err(bad(
+                                    Kind::OutOfRange,
+                                    e.span,
+                                    &format!("{ctx} must be 1 … 10000"),
+                                    "out of range",
+                                    None,
+                                ));
+                            }
+                            set.settle.max_steps = Some(n as u32);
+                        }
+                        "settle_timeout" => {
+                            let t = self.as_dim(&v, Dim::TIME, e.span, &ctx)?;
+                            if !(t > 0.0 && t <= 3600.0) {
+                                return Err(bad(
+                                    Kind::OutOfRange,
+                                    e.span,
+                                    &format!("{ctx} must be greater than zero and at most 1 h"),
+                                    "out of range",
+                                    None,
+                                ));
+                            }
+                            set.settle.timeout = Some((t, e.span));
                         }
                         "origin" => {
                             let (p, _) = self.as_point(&v, e.span, &ctx)?;

@@ -79,6 +79,8 @@ fn options(locate: &(dyn Fn(Span) -> String + Sync)) -> EmitOptions<'_> {
     EmitOptions {
         locate: Some(locate),
         comments: true,
+        // The lines go to a controller: `link::settle` settles row starts itself.
+        live: true,
     }
 }
 
@@ -479,6 +481,8 @@ pub fn preflight(
                     .into(),
         }));
     }
+    // Row-start settling needs X and Y the part's (checked before anything is sent).
+    super::settle::settle_points(job.job, job.runs(), job.len())?;
     // A resumed job first waits for the controller to finish what it had received (`$$` is
     // refused while it moves) and finds where the job stands.
     let (from, resumed_start) = match origin {
@@ -604,6 +608,9 @@ impl Started {
         job: &JobLines<'_>,
         observer: &mut dyn FnMut(&Progress, Option<&Event>) -> Option<Control>,
     ) -> Report {
+        // Checked by the preflight.
+        let settles =
+            super::settle::settle_points(job.job, job.runs(), job.len()).unwrap_or_default();
         let letters = job.letters();
         job.with_lines(|lines| {
             stream::stream(
@@ -615,6 +622,7 @@ impl Started {
                     restored: self.restored.clone(),
                     guards: &self.guards,
                     letters: &letters,
+                    settles: &settles,
                 },
                 self.journal.as_mut(),
                 &StreamOptions::default(),

@@ -33,6 +33,7 @@ pub mod linuxcnc;
 pub mod modal;
 pub(crate) mod requirements;
 pub(crate) mod resume;
+pub mod settle;
 pub mod sim;
 pub mod stream;
 pub mod transport;
@@ -390,6 +391,13 @@ pub trait Link: Send {
     /// How to send `line` after a re-approach that restored `state`: a GRBL controller cannot
     /// be put in G2/G3 without an arc, so the first modal arc line needs its motion word.
     fn continue_line(&self, state: &ModalState, line: &str) -> Continue;
+    /// A jog of `dx`, `dy` mm relative to where the machine stands, at `feed` mm/min, that
+    /// leaves the program's modal state alone (row-start settling); `None` when the
+    /// controller has no such command.
+    fn jog_line(&self, dx: f64, dy: f64, feed: f64) -> Option<String> {
+        let _ = (dx, dy, feed);
+        None
+    }
 }
 
 /// How a line after a re-approach relates to the restored state (see [`Link::continue_line`]).
@@ -465,6 +473,16 @@ pub enum LinkError {
         reason: String,
         #[label("this statement produced the line")]
         span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("{message}")]
+    #[diagnostic(code(lase::link::unsettled))]
+    Unsettled {
+        message: String,
+        #[label("row-start settling asked here")]
+        span: lase_lang::Span,
         #[help]
         help: String,
     },

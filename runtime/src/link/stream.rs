@@ -11,6 +11,7 @@
 //! job can be continued with [`super::resume`].
 
 use super::journal::Journal;
+use super::settle::{SettlePoint, Settled};
 use super::{Continue, Event, Link, LinkError, MachineState, ModalState, Realtime, Status};
 use std::time::{Duration, Instant};
 
@@ -48,6 +49,8 @@ pub struct Progress {
     pub total: usize,
     pub status: Option<Status>,
     pub held: bool,
+    /// Row starts settled so far, of how many (`scan … { settle }`).
+    pub settled: (usize, usize),
 }
 
 /// How streaming ended.
@@ -86,6 +89,8 @@ pub struct Report {
     pub elapsed: Duration,
     /// What the stop sequence did, when it ran.
     pub stop_note: Option<String>,
+    /// How each row start settled, in order.
+    pub settled: Vec<Settled>,
 }
 
 /// Lines made on demand, in order: a program that is never held in memory as a whole (a
@@ -152,6 +157,8 @@ pub struct StreamJob<'a> {
     /// The machine's axis letters, which a stop's report shows (`Idle | X12 Z0 B0` on the
     /// notcher, never a `Y` it does not have); empty: every axis the controller reports.
     pub letters: &'a [char],
+    /// Row starts to settle before the line after each is sent ([`super::settle`]).
+    pub settles: &'a [SettlePoint],
 }
 
 impl<'a> StreamJob<'a> {
@@ -172,6 +179,7 @@ impl<'a> StreamJob<'a> {
             restored: None,
             guards: &[],
             letters: &[],
+            settles: &[],
         }
     }
 }
@@ -201,6 +209,10 @@ pub fn stream(
     // job has finished.
     let mut queried_after_done = false;
     let mut program_bytes = 0u64;
+    // Settle points whose line is before the first one sent are behind a resume already.
+    let mut settle_next = job.settles.partition_point(|p| p.after < next);
+    let mut settled: Vec<Settled> = Vec::new();
+    let mut last_wco: Option<Vec<f64>> = None;
 
     let finish = |journal: &mut Option<&mut Journal>, how: &str| {
         if let Some(j) = journal.as_deref_mut() {
@@ -216,6 +228,7 @@ pub fn stream(
                 program_bytes,
                 elapsed: start.elapsed(),
                 stop_note: $note,
+                settled,
             };
         }};
     }
@@ -231,6 +244,44 @@ pub fn stream(
         }
         // Fill the controller's buffer.
         while next < total && !held && lead_sent == job.lead.len() {
+            // A row start to settle: once everything before it is acknowledged, the table
+            // stops there and the corrective steps go out before the row's first line.
+            if let Some(p) = job.settles.get(settle_next).filter(|p| p.after < next) {
+                if acked < next || link.in_flight() > 0 {
+                    break;
+                }
+                match super::settle::settle(link, p, &mut last_wco) {
+                    Ok(s) => {
+                        settled.push(s);
+                        settle_next += 1;
+                        let progress = Progress {
+                            acked,
+                            sent: next,
+                            total,
+                            status: link.last_status().cloned(),
+                            held,
+                            settled: (settled.len(), job.settles.len()),
+                        };
+                        if observer(&progress, None) == Some(Control::Abort) {
+                            let note = stop_safely(link, job.letters);
+                            finish(&mut journal, "abort");
+                            end!(Outcome::Aborted, Some(note));
+                        }
+                    }
+                    Err(e @ LinkError::Lost { .. }) => {
+                        if let Some(j) = journal.as_deref_mut() {
+                            let _ = j.sync();
+                        }
+                        end!(Outcome::Lost(e), None);
+                    }
+                    Err(e) => {
+                        let note = stop_safely(link, job.letters);
+                        finish(&mut journal, "error settle");
+                        end!(Outcome::Failed(e), Some(note));
+                    }
+                }
+                last_heard = Instant::now();
+            }
             let line = lines.get(next);
             let how = match &continuation {
                 Some(state) => link.continue_line(state, &line),
@@ -409,6 +460,7 @@ pub fn stream(
                                 total,
                                 status: status.clone(),
                                 held,
+                                settled: (settled.len(), job.settles.len()),
                             };
                             observer(&progress, event.as_ref());
                             end!(Outcome::Done, None);
@@ -424,6 +476,7 @@ pub fn stream(
             total,
             status: status.clone(),
             held,
+            settled: (settled.len(), job.settles.len()),
         };
         match observer(&progress, event.as_ref()) {
             Some(Control::Hold) if !held => {

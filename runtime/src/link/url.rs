@@ -35,6 +35,8 @@ pub struct SimUrlOptions {
     pub rx_buffer: usize,
     pub baud: Option<u32>,
     pub error_at_line: Vec<(u64, u32)>,
+    /// The table's positioning error (`position-error=backlash=3um,random=5um`).
+    pub position_error: Option<super::sim::poserr::PositionErrorConfig>,
 }
 
 impl Default for SimUrlOptions {
@@ -44,6 +46,7 @@ impl Default for SimUrlOptions {
             rx_buffer: 128,
             baud: None,
             error_at_line: Vec::new(),
+            position_error: None,
         }
     }
 }
@@ -59,6 +62,7 @@ impl SimUrlOptions {
                 ..Faults::default()
             },
             keep: Some(super::sim::KEEP_LIVE),
+            position_error: self.position_error,
             ..SimOptions::default()
         }
     }
@@ -111,6 +115,9 @@ impl LinkUrl {
                         "error-at-line" => o
                             .error_at_line
                             .push(super::sim::parse_error_at(v).map_err(|e| bad(&e))?),
+                        "position-error" => {
+                            o.position_error = Some(v.parse().map_err(|e: String| bad(&e))?)
+                        }
                         other => return Err(bad(&format!("unknown sim option `{other}`"))),
                     }
                 }
@@ -216,6 +223,9 @@ impl fmt::Display for LinkUrl {
                     }
                     for (line, code) in &o.error_at_line {
                         write!(f, "&error-at-line={line}:{code}")?;
+                    }
+                    if let Some(p) = &o.position_error {
+                        write!(f, "&position-error={p}")?;
                     }
                 }
                 Ok(())

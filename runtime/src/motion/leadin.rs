@@ -95,6 +95,9 @@ pub struct LitSection {
 #[derive(Debug, Clone)]
 pub struct Leads {
     pub ops: Vec<Op>,
+    /// Where each op of the input landed in `ops` (what refers to an op by index, such as a
+    /// row start to settle, follows it).
+    pub index: Vec<u32>,
     pub sections: Vec<LitSection>,
     pub leads: Vec<Lead>,
 }
@@ -135,6 +138,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             .collect();
         return Ok(Leads {
             ops: ops.to_vec(),
+            index: (0..ops.len() as u32).collect(),
             sections,
             leads: Vec::new(),
         });
@@ -338,6 +342,7 @@ fn apply(ops: &[Op], starts: &[P3], runs: &[(usize, usize)], mut ed: Edits) -> L
         .collect();
     Leads {
         ops: out,
+        index: new_index,
         sections,
         leads,
     }

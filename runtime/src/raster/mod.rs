@@ -499,6 +499,9 @@ pub enum Step {
     Lit { to: V2, pitch: Option<f64> },
     /// Stop here and fire (dot mode).
     Fire(V2),
+    /// The move before was the entry to a row (its start, at rest): a row start to settle
+    /// (`scan … { settle }`). `dir` is the row's direction of travel (a unit vector).
+    RowStart { dir: V2 },
 }
 
 /// The steps of `passes` passes over the families, in the documented order.
@@ -549,6 +552,7 @@ fn family_pass(fam: &Family, opts: &PathOptions, out: &mut Vec<Step>) {
             Firing::Dot => Step::Idle(f.to_part(enter, row.y)),
             Firing::Fly => Step::Travel(f.to_part(enter, row.y)),
         });
+        out.push(Step::RowStart { dir: f.u() * d });
         for (j, run) in runs.iter().enumerate() {
             let (a, b) = ends(run);
             match opts.firing {
@@ -600,7 +604,7 @@ pub fn idle_length(start: V2, steps: &[Step]) -> f64 {
                 pos = *p;
             }
             Step::Lit { to, .. } => pos = *to,
-            Step::Fire(_) => {}
+            Step::Fire(_) | Step::RowStart { .. } => {}
         }
     }
     idle

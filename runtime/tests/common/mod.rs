@@ -46,6 +46,7 @@ pub fn program(
         start: [0.0; 3],
         ordering: None,
         ops,
+        settles: Vec::new(),
         machine: m,
     }
 }

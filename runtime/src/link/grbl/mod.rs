@@ -446,6 +446,11 @@ impl GrblLink {
 }
 
 impl Link for GrblLink {
+    /// GRBL 1.1's jog (`$J=`): its own G91 and feed, the parser's modal state untouched.
+    fn jog_line(&self, dx: f64, dy: f64, feed: f64) -> Option<String> {
+        Some(format!("$J=G91 G21 X{dx:.4} Y{dy:.4} F{feed:.0}"))
+    }
+
     fn describe(&self) -> String {
         match &self.banner {
             Some(b) => format!("{} ({})", self.url, b.split(" [").next().unwrap_or(b)),

@@ -117,6 +117,8 @@ fn progress(st: &RunStatus, total: usize, done: usize, held: bool) -> Progress {
         acked: done,
         sent: total,
         total,
+        // LinuxCNC runs the program as a file; lase settles no row starts there.
+        settled: (0, 0),
         status: Some(Status {
             state,
             mpos: Some(st.abs_pos.to_vec()),
@@ -189,6 +191,7 @@ pub fn follow(
         program_bytes: job.lines.iter().map(|l| l.len() as u64 + 1).sum(),
         elapsed: t0.elapsed(),
         stop_note: note,
+        settled: Vec::new(),
     };
     let lost = |e: LinkError| match e {
         LinkError::Lost { .. } | LinkError::Timeout { .. } => Outcome::Lost(e),

@@ -124,6 +124,11 @@ pub struct Controller {
     seq: u64,
     connection: u32,
     rec: Recording,
+    /// The table's positioning error (`ControllerConfig::position_error`).
+    perr: Option<super::poserr::PositionError>,
+    /// The table stood still or ran a rapid since the last lit block: the next lit block
+    /// starts a row.
+    row_pending: bool,
     /// Lines answered so far.
     pub lines_completed: u64,
     reset_after_reply: bool,
@@ -140,6 +145,9 @@ impl Controller {
         // The simulator starts homed at the origin (clamped into the travel).
         let mpos = cfg.home();
         let axes = cfg.firmware.axes();
+        let perr = cfg
+            .position_error
+            .map(|c| super::poserr::PositionError::new(c, mpos));
         Controller {
             cfg,
             settings,
@@ -170,6 +178,8 @@ impl Controller {
             seq: 0,
             connection: 0,
             rec,
+            perr,
+            row_pending: true,
             lines_completed: 0,
             reset_after_reply: false,
         }

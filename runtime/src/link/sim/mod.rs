@@ -18,6 +18,7 @@
 pub mod controller;
 pub mod gcode;
 pub mod motion;
+pub mod poserr;
 
 pub use controller::{
     Controller, ControllerConfig, Effect, ExecutedBlock, Firmware, LaserEvent, LineRecord,
@@ -130,6 +131,8 @@ pub struct SimOptions {
     /// Record only about the latest this-many lines, blocks and laser edges (`lase run`,
     /// `lase sim`: jobs of any length in bounded memory); `None` records all, for tests.
     pub keep: Option<usize>,
+    /// The table's positioning error, reported through `MPos` (`--position-error`).
+    pub position_error: Option<poserr::PositionErrorConfig>,
 }
 
 /// What `lase run` and `lase sim` keep of the recording: enough to look back over the last
@@ -147,6 +150,7 @@ impl Default for SimOptions {
             settings: Vec::new(),
             log: false,
             keep: None,
+            position_error: None,
         }
     }
 }
@@ -212,6 +216,7 @@ impl SimHandle {
 fn controller_for(machine: &Machine, opts: &SimOptions) -> Controller {
     let mut cfg = ControllerConfig::for_machine(machine);
     cfg.settings.extend(opts.settings.iter().copied());
+    cfg.position_error = opts.position_error;
     cfg.rx_buffer = opts.rx_buffer.max(16);
     cfg.planner_blocks = opts.planner_blocks.max(1);
     cfg.error_at_line = opts.faults.error_at_line.clone();

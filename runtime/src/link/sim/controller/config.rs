@@ -72,6 +72,8 @@ pub struct ControllerConfig {
     /// Record only about the latest this-many lines, blocks and laser edges
     /// ([`super::Recording::keep`]); `None` records everything.
     pub keep: Option<usize>,
+    /// The table's positioning error model; `None`: the table is where the controller is.
+    pub position_error: Option<crate::link::sim::poserr::PositionErrorConfig>,
 }
 
 impl ControllerConfig {
@@ -85,6 +87,7 @@ impl ControllerConfig {
             settings: settings_for(machine),
             error_at_line: Vec::new(),
             keep: None,
+            position_error: None,
         }
     }
 

@@ -8,6 +8,7 @@ use super::record::ExecutedBlock;
 use super::{Controller, St};
 use crate::link::AxisPos;
 use crate::link::sim::motion::{Trapezoid, exit_speed};
+use crate::link::sim::poserr::RowStartRecord;
 
 /// The running block's progress.
 #[derive(Debug, Clone, Copy)]
@@ -86,6 +87,27 @@ impl Controller {
             );
             Trapezoid::new(b.len, entry, exit, b.nominal, b.accel)
         };
+        // A row's first pulse: the first lit feed block since the table stood still or ran a
+        // rapid (rows of pulses by distance run up from rest; issue 15's record).
+        if entry <= 1e-9 || b.rapid {
+            self.row_pending = true;
+        }
+        if self.row_pending && !b.rapid && b.laser_s > 0.0 {
+            self.row_pending = false;
+            let commanded = b.from;
+            let actual = match &mut self.perr {
+                Some(m) => {
+                    m.follow(&commanded);
+                    m.actual(self.now)
+                }
+                None => commanded,
+            };
+            self.rec.row_starts.push(RowStartRecord {
+                t: self.now,
+                commanded,
+                actual,
+            });
+        }
         self.exec = Some(Exec {
             profile,
             done: 0.0,
@@ -192,6 +214,9 @@ impl Controller {
         self.exec = None;
         self.v = e.profile.exit;
         self.mpos = done.b.to;
+        if let Some(m) = &mut self.perr {
+            m.block_done(&done.b.from, &done.b.to, e.profile.exit <= 1e-9);
+        }
         self.rest_laser = done.rest_after;
         if self.state == St::Jog {
             self.gc.pos = self.mpos;

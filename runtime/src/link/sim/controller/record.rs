@@ -123,6 +123,9 @@ pub struct Recording {
     pub max_rx_fill: usize,
     pub max_planner_fill: usize,
     pub bytes_received: u64,
+    /// Where the table was when each row's first pulse fired (the first lit feed block since
+    /// the table stood still or ran a rapid), commanded and actual (issue 15).
+    pub row_starts: Vec<crate::link::sim::poserr::RowStartRecord>,
 }
 
 impl Recording {

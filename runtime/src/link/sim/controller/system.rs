@@ -200,7 +200,13 @@ impl Controller {
             St::Jog => "Jog".into(),
             St::Sleep => "Sleep".into(),
         };
-        let p = self.position();
+        // With the error model on, the position is the scale's reading of the table (issue
+        // 15): what a controller with feedback from a linear scale reports.
+        let mut p = self.position();
+        if let Some(m) = &mut self.perr {
+            m.follow(&p);
+            p = m.reading(self.now);
+        }
         let mask = self.setting(10) as u32;
         let n = self.cfg.firmware.axes();
         let pos: Vec<String> = p[..n].iter().map(|v| format!("{v:.3}")).collect();
