@@ -92,7 +92,9 @@ impl Controller {
         if entry <= 1e-9 || b.rapid {
             self.row_pending = true;
         }
-        if self.row_pending && !b.rapid && b.laser_s > 0.0 {
+        // Recorded only with the error model on (what the record is for): a job of millions
+        // of rows would otherwise grow it without bound.
+        if self.row_pending && !b.rapid && b.laser_s > 0.0 && self.perr.is_some() {
             self.row_pending = false;
             let commanded = b.from;
             let actual = match &mut self.perr {
