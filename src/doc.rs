@@ -431,7 +431,7 @@ const EXTENSION_API: &[(&str, &str)] = &[
     ),
     (
         "sandbox",
-        "no files, network, processes, clock, `import` or `eval`; per call at most 1 000 000 operations, 24 nested calls, arrays of 1 000 000 items, maps of 10 000, strings of 16 KiB; a runaway extension is stopped with a diagnostic at the recipe line that called it",
+        "no files, network, processes, clock, `import` or `eval`; per call at most 1 000 000 operations, 24 nested calls, arrays of 100 000 items (nested ones counted), maps of 10 000, strings of 16 KiB; a runaway extension is stopped with a diagnostic at the recipe line that called it",
     ),
 ];
 

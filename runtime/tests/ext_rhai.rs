@@ -96,6 +96,9 @@ fn giant(n) { let a = []; a.pad(50000000, n); a.len() }
 fn long_string(n) { let s = "x"; loop { s += s; } }
 
 /// lase: (n: number) -> number
+fn nested_pushes(n) { let a = []; for i in 0..1000000 { a.push([i, [i]]); } a.len() }
+
+/// lase: (n: number) -> number
 fn reads_file(n) { open_file("/etc/passwd"); n }
 
 /// lase: (n: number) -> number
@@ -481,6 +484,19 @@ fn a_giant_array_or_string_is_stopped_by_the_size_limits() {
     let (e, _) = ext_error("long_string(1)");
     assert!(matches!(e, ExtError::Runaway { .. }), "{e:#?}");
     assert!(e.to_string().contains("string"), "{e}");
+}
+
+/// Rhai checks an array's whole size after every `push`, so growing one is quadratic: with
+/// arrays of up to 1 000 000 items, 20 000 nested pushes took 4.7 s and the operation budget
+/// allowed far more. At `MAX_ARRAY` (100 000) the growth stops at the limit with the sandbox's
+/// diagnostic, after a bounded amount of work.
+#[test]
+fn growing_an_array_push_by_push_stops_at_the_array_limit() {
+    assert_eq!(lase_runtime::ext::MAX_ARRAY, 100_000);
+    let (e, map) = ext_error("nested_pushes(1)");
+    assert!(matches!(e, ExtError::Runaway { .. }), "{e:#?}");
+    assert!(e.to_string().contains("array"), "{e}");
+    assert_points_at_both(&e, &map, "nested_pushes", "");
 }
 
 #[test]

@@ -245,7 +245,7 @@ pub(crate) fn from_rhai(
         ),
         EvalAltResult::ErrorDataTooLarge(what, _) => runaway(
             format!("{} grew beyond the sandbox's limit", what.to_lowercase()),
-            "extensions may build arrays of at most 1 000 000 items, maps of 10 000 and \
+            "extensions may build arrays of at most 100 000 items, maps of 10 000 and \
              strings of 16 KiB",
         ),
         EvalAltResult::ErrorFunctionNotFound(sig, _) => ExtError::Script {
