@@ -198,3 +198,14 @@ fn run_into_a_closed_pipe_does_not_panic() {
     assert!(!err.contains("panicked"), "{err}");
     assert_ne!(out.status.code(), Some(101), "{err}");
 }
+
+/// `lase sim --listen` on an address that is not this machine's said only `lase::io`; it names
+/// the address and the reason, and exits 1.
+#[test]
+fn a_listen_address_that_is_not_ours_is_named_with_the_reason() {
+    let (code, _, err) = lase(&["sim", "--listen", "192.0.2.1:7993", "--allow-remote"]);
+    assert_eq!(code, 1, "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains("cannot listen on 192.0.2.1:7993"), "{err}");
+    assert!(err.contains("os error"), "{err}");
+}
