@@ -340,11 +340,12 @@ fn cmd_plan(
     // What the controller that streams the program will take, by its own planner.
     match lase_runtime::link::sim::motion::controller_time(&job) {
         Some(Ok(c)) => outln!(
-            "  controller      {:.4} s ({}: {} blocks, {} stops)",
+            "  controller      {:.4} s ({}: {} blocks, {} stop{})",
             c.timeline.total_s,
             c.model,
             c.timeline.blocks,
-            c.timeline.syncs
+            c.timeline.syncs,
+            if c.timeline.syncs == 1 { "" } else { "s" }
         ),
         Some(Err(why)) => outln!("  controller      not modelled: {why}"),
         None => {}
