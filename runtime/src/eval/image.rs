@@ -14,7 +14,6 @@
 
 use super::{Cx, EvalError, Evaluator, Kind, R, Value, bad, type_err};
 use crate::geometry::V2;
-use crate::planner;
 use crate::program::*;
 use crate::raster::image::{self as img, Dither, ImageLayout, ImageStep, Mapping, Mode};
 use crate::raster::{Frame, Order};
@@ -230,54 +229,21 @@ impl Evaluator {
 
         // Overscan: the recipe's, else the planner's ramp along the rows, as `scan raster`.
         let frame = Frame::new(set.origin, set.angle);
-        let (v, a, j) = self.row_limits(&frame, speed);
-        if v < speed * (1.0 - 1e-9) {
+        let needed = self.row_run_up(&frame, speed, speed_span)?;
+        if let Some((o, sp)) = set.overscan
+            && !(o >= 0.0 && o.is_finite())
+        {
             return Err(bad(
-                Kind::OutOfRange,
-                speed_span,
-                &format!(
-                    "the scan speed {} is above what the axes allow along the rows ({})",
-                    format_quantity(speed, Dim::SPEED),
-                    format_quantity(v, Dim::SPEED)
-                ),
-                "too fast for the axes",
-                Some("lower `speed`, or turn the rows (`angle`) along a faster axis"),
+                Kind::Negative,
+                sp,
+                "the overscan cannot be negative",
+                "negative",
+                None,
             ));
         }
-        let needed = planner::lead_distance(v, v, a, j);
         let leadin = self.planner_settings_now().leadin;
-        let overscan = match (set.overscan, leadin) {
-            (Some((o, sp)), _) if !(o >= 0.0 && o.is_finite()) => {
-                return Err(bad(
-                    Kind::Negative,
-                    sp,
-                    "the overscan cannot be negative",
-                    "negative",
-                    None,
-                ));
-            }
-            (Some((o, sp)), LeadIn::Auto) if o + 1e-9 < needed => {
-                return Err(bad(
-                    Kind::OutOfRange,
-                    sp,
-                    &format!(
-                        "an overscan of {} is shorter than the {} the table needs to reach {}",
-                        format_quantity(o, Dim::LENGTH),
-                        format_quantity(needed, Dim::LENGTH),
-                        format_quantity(speed, Dim::SPEED)
-                    ),
-                    "too short to reach the speed",
-                    Some(
-                        "leave `overscan` out (lase computes it from the planner's ramps), give \
-                         at least that much, or write `planner { leadin none }` to engrave while \
-                         the speed ramps",
-                    ),
-                ));
-            }
-            (Some((o, _)), _) => Some(o),
-            (None, LeadIn::Auto) => None,
-            (None, LeadIn::Off) => Some(needed),
-        };
+        let overscan =
+            super::scan::overscan(set.overscan, leadin, needed, needed, speed, "engrave")?;
         let steps = img::image_path(
             &rows,
             &ImageLayout {

@@ -362,21 +362,7 @@ impl Evaluator {
         if firing == Firing::Fly {
             let leadin = self.planner_settings_now().leadin;
             for fam in &mut families {
-                let (v, a, j) = self.row_limits(&fam.frame, speed);
-                if v < speed * (1.0 - 1e-9) {
-                    return Err(bad(
-                        Kind::OutOfRange,
-                        speed_span,
-                        &format!(
-                            "the scan speed {} is above what the axes allow along the rows ({})",
-                            format_quantity(speed, Dim::SPEED),
-                            format_quantity(v, Dim::SPEED)
-                        ),
-                        "too fast for the axes",
-                        Some("lower `speed`, or turn the rows (`angle`) along a faster axis"),
-                    ));
-                }
-                let needed = planner::lead_distance(v, v, a, j);
+                let needed = self.row_run_up(&fam.frame, speed, speed_span)?;
                 // Dot rows on the fly run up `PULSE_CRUISE_MARGIN_S` longer than the ramp needs
                 // (the lead-ins do the same), so they are at cruise that long before the first
                 // spot: approach points stand that far back.
@@ -386,31 +372,9 @@ impl Evaluator {
                     0.0
                 };
                 fam.lead = needed + margin;
-                fam.overscan = match (set.overscan, leadin) {
-                    (Some((o, sp)), LeadIn::Auto) if o + 1e-9 < needed => {
-                        return Err(bad(
-                            Kind::OutOfRange,
-                            sp,
-                            &format!(
-                                "an overscan of {} is shorter than the {} the table needs to \
-                                 reach {}",
-                                format_quantity(o, Dim::LENGTH),
-                                format_quantity(needed, Dim::LENGTH),
-                                format_quantity(speed, Dim::SPEED)
-                            ),
-                            "too short to reach the speed",
-                            Some(
-                                "leave `overscan` out (lase computes it from the planner's \
-                                 ramps), give at least that much, or write `planner { leadin \
-                                 none }` to fire while the speed ramps",
-                            ),
-                        ));
-                    }
-                    (Some((o, _)), _) => Some(o),
-                    (None, LeadIn::Auto) => None,
-                    // No lead-ins: the overscan is the run-up, one move from the approach.
-                    (None, LeadIn::Off) => Some(needed + margin),
-                };
+                // No lead-ins: the overscan is the run-up, one move from the approach.
+                fam.overscan =
+                    overscan(set.overscan, leadin, needed, needed + margin, speed, "fire")?;
             }
         }
 
@@ -661,6 +625,26 @@ impl Evaluator {
         }
     }
 
+    /// How far a row of `frame` must run to reach `speed` from rest (the planner's ramp along
+    /// it), refusing a speed the axes cannot hold along the rows.
+    pub(super) fn row_run_up(&self, frame: &Frame, speed: f64, speed_span: Span) -> R<f64> {
+        let (v, a, j) = self.row_limits(frame, speed);
+        if v < speed * (1.0 - 1e-9) {
+            return Err(bad(
+                Kind::OutOfRange,
+                speed_span,
+                &format!(
+                    "the scan speed {} is above what the axes allow along the rows ({})",
+                    format_quantity(speed, Dim::SPEED),
+                    format_quantity(v, Dim::SPEED)
+                ),
+                "too fast for the axes",
+                Some("lower `speed`, or turn the rows (`angle`) along a faster axis"),
+            ));
+        }
+        Ok(planner::lead_distance(v, v, a, j))
+    }
+
     /// Path limits (v, a, j) of a row of `frame` at `speed`, as the planner will derive them
     /// (`planner::move_limits`, the tightest axis along the row).
     pub(super) fn row_limits(&self, frame: &Frame, speed: f64) -> (f64, f64, f64) {
@@ -870,4 +854,40 @@ impl Evaluator {
         }
         Ok(set)
     }
+}
+
+/// A scan's overscan: the recipe's (`given`, at least the `needed` run-up while the lead-ins
+/// are on, since they start from its end), none when the lead-ins make it, or `run_up` when
+/// there are no lead-ins. `verb` says what the rows do while the speed ramps (the help).
+pub(super) fn overscan(
+    given: Option<(f64, Span)>,
+    leadin: LeadIn,
+    needed: f64,
+    run_up: f64,
+    speed: f64,
+    verb: &str,
+) -> R<Option<f64>> {
+    Ok(match (given, leadin) {
+        (Some((o, sp)), LeadIn::Auto) if o + 1e-9 < needed => {
+            return Err(bad(
+                Kind::OutOfRange,
+                sp,
+                &format!(
+                    "an overscan of {} is shorter than the {} the table needs to reach {}",
+                    format_quantity(o, Dim::LENGTH),
+                    format_quantity(needed, Dim::LENGTH),
+                    format_quantity(speed, Dim::SPEED)
+                ),
+                "too short to reach the speed",
+                Some(&format!(
+                    "leave `overscan` out (lase computes it from the planner's ramps), give at \
+                     least that much, or write `planner {{ leadin none }}` to {verb} while the \
+                     speed ramps"
+                )),
+            ));
+        }
+        (Some((o, _)), _) => Some(o),
+        (None, LeadIn::Auto) => None,
+        (None, LeadIn::Off) => Some(run_up),
+    })
 }
