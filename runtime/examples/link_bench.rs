@@ -27,39 +27,8 @@ use std::time::Instant;
 #[global_allocator]
 static ALLOC: cap::Cap<std::alloc::System> = cap::Cap::new(std::alloc::System, usize::MAX);
 
-/// A zigzag hatch over 120 × 180 mm: short modal lines, as a texturing job writes them; line
-/// `i` is computed from `i` alone.
-#[derive(Debug)]
-struct Raster {
-    n: usize,
-}
-
-impl Source for Raster {
-    fn len(&self) -> usize {
-        self.n
-    }
-
-    fn line(&self, i: usize) -> String {
-        match i {
-            0 => "G21 G90 G17 G94".into(),
-            1 => "G0 X-60 Y-90".into(),
-            2 => "M3 S300".into(),
-            3 => "G1 X60 F6000".into(),
-            _ if i + 2 == self.n => "M5".into(),
-            _ if i + 1 == self.n => "M2".into(),
-            _ => {
-                let k = i - 4;
-                let y = -90.0 + (k + 1) as f64 * 180.0 / self.n as f64;
-                let x = if k.is_multiple_of(2) { -60.0 } else { 60.0 };
-                format!(
-                    "X{} Y{}",
-                    lase_runtime::emit::number(x),
-                    lase_runtime::emit::number(y)
-                )
-            }
-        }
-    }
-}
+#[path = "../tests/support/zigzag.rs"]
+mod zigzag;
 
 fn main() {
     let args: Vec<String> = std::env::args().collect();
@@ -77,7 +46,10 @@ fn main() {
         0,
     )
     .expect("machine parses");
-    let lines = Raster { n: n.max(6) };
+    let lines = zigzag::Zigzag {
+        n: n.max(6),
+        feed_mm_min: 6000,
+    };
     let h = sim::serve(
         &machine,
         "127.0.0.1:0".parse().expect("address"),

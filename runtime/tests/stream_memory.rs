@@ -10,7 +10,7 @@
 use cap::Cap;
 use lase_runtime::link::grbl::GrblLink;
 use lase_runtime::link::sim::{self, SimOptions, TimeScale};
-use lase_runtime::link::stream::{self, Outcome, Progress, Source, StreamJob, StreamOptions};
+use lase_runtime::link::stream::{self, Outcome, Progress, StreamJob, StreamOptions};
 use lase_runtime::link::{ConnectOptions, Event};
 use lase_runtime::machine::parse_machine;
 use std::alloc::System;
@@ -18,38 +18,8 @@ use std::alloc::System;
 #[global_allocator]
 static ALLOC: Cap<System> = Cap::new(System, usize::MAX);
 
-/// A zigzag hatch over 120 × 180 mm, line `i` computed from `i` alone (nothing is kept).
-#[derive(Debug)]
-struct Hatch {
-    n: usize,
-}
-
-impl Source for Hatch {
-    fn len(&self) -> usize {
-        self.n
-    }
-
-    fn line(&self, i: usize) -> String {
-        match i {
-            0 => "G21 G90 G17 G94".into(),
-            1 => "G0 X-60 Y-90".into(),
-            2 => "M3 S300".into(),
-            3 => "G1 X60 F60000".into(),
-            _ if i + 2 == self.n => "M5".into(),
-            _ if i + 1 == self.n => "M2".into(),
-            _ => {
-                let k = i - 4;
-                let y = -90.0 + (k + 1) as f64 * 180.0 / self.n as f64;
-                let x = if k.is_multiple_of(2) { -60.0 } else { 60.0 };
-                format!(
-                    "X{} Y{}",
-                    lase_runtime::emit::number(x),
-                    lase_runtime::emit::number(y)
-                )
-            }
-        }
-    }
-}
+#[path = "support/zigzag.rs"]
+mod zigzag;
 
 /// Peak live heap while streaming, above what was live before, bytes.
 const CAP_BYTES: usize = 8 << 20;
@@ -69,7 +39,10 @@ fn a_million_line_stream_through_the_simulator_holds_bounded_memory() {
     .unwrap();
     let mut link = GrblLink::connect(transport, "sim".into(), &ConnectOptions::default()).unwrap();
     let before = ALLOC.allocated();
-    let source = Hatch { n };
+    let source = zigzag::Zigzag {
+        n,
+        feed_mm_min: 60_000,
+    };
     let report = stream::stream(
         &mut link,
         &StreamJob::made(&source),
