@@ -7,7 +7,7 @@
 mod common;
 
 use common::*;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 // ------------------------------------------------------------------ a PNG encoder
 
@@ -111,12 +111,6 @@ fn job(w: u32, h: u32, luma: &[u8], settings: &str) -> Job {
     )
     .unwrap();
     Job { _dir: dir, recipe }
-}
-
-fn emit(recipe: &Path, dialect: &str) -> String {
-    let (code, out, err) = lase(&["emit", recipe.to_str().unwrap(), "--dialect", dialect]);
-    assert_eq!(code, 0, "{err}");
-    out
 }
 
 // ------------------------------------------------------------------ reading the NC back
@@ -229,7 +223,7 @@ fn grayscale_power_per_pixel_is_the_mapped_shade() {
             &format!("width 4 mm, speed 50 mm/s, power 40 W, min_power 10 W, gamma {gamma}"),
         );
         for dialect in ["grbl", "linuxcnc", "iso"] {
-            let nc = emit(&j.recipe, dialect);
+            let nc = emit_ok(&j.recipe, dialect);
             let px = pixels(&blocks(&nc), w, h, 0.1, 0.0);
             let mut lit = 0;
             for (i, &l) in luma.iter().enumerate() {
@@ -262,7 +256,7 @@ fn runs_of_equal_pixels_are_merged_into_one_block() {
         .flat_map(|_| (0..w).map(|c| if (c / 10) % 2 == 0 { 0 } else { 128 }))
         .collect();
     let j = job(w, h, &luma, "width 4 mm, speed 50 mm/s");
-    let nc = emit(&j.recipe, "grbl");
+    let nc = emit_ok(&j.recipe, "grbl");
     let lit: Vec<Block> = blocks(&nc).into_iter().filter(|b| b.pct > 0.0).collect();
     assert_eq!(lit.len(), 4 * h as usize, "{lit:?}");
     for b in &lit {
@@ -282,7 +276,7 @@ fn threshold_and_invert_light_the_pixels_past_the_threshold() {
         &luma,
         "width 4 mm, speed 50 mm/s, mode threshold, threshold 0.3, invert",
     );
-    let px = pixels(&blocks(&emit(&j.recipe, "grbl")), w, h, 0.1, 0.0);
+    let px = pixels(&blocks(&emit_ok(&j.recipe, "grbl")), w, h, 0.1, 0.0);
     for (i, &l) in luma.iter().enumerate() {
         let on = tone(l, 1.0, true) >= 0.3;
         let got = px[i].unwrap_or(0.0);
@@ -304,7 +298,7 @@ fn dithered_dot_density_follows_the_gray_level() {
             &luma,
             &format!("width 13.4 mm, speed 50 mm/s, mode dither, dither {kernel}"),
         );
-        let px = pixels(&blocks(&emit(&j.recipe, "grbl")), w, h, 0.1, 0.0);
+        let px = pixels(&blocks(&emit_ok(&j.recipe, "grbl")), w, h, 0.1, 0.0);
         assert!(px.iter().flatten().all(|&p| p == 0.0 || p == 50.0));
         for pr in 0..2 {
             for pc in 0..8 {
@@ -345,7 +339,7 @@ fn backward_rows_are_shifted_by_the_line_offset_in_the_nc() {
             &luma,
             "width 2 mm, speed 50 mm/s, line_offset 0.035 mm",
         );
-        let lit: Vec<Block> = blocks(&emit(&j.recipe, dialect))
+        let lit: Vec<Block> = blocks(&emit_ok(&j.recipe, dialect))
             .into_iter()
             .filter(|b| b.pct > 0.0)
             .collect();
@@ -375,7 +369,7 @@ fn image_scans_check_plan_emit_and_run_in_every_flat_bed_dialect() {
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("laser on"), "{out}");
     for d in ["linuxcnc", "grbl", "grblhal", "iso"] {
-        let nc = emit(&j.recipe, d);
+        let nc = emit_ok(&j.recipe, d);
         if d.starts_with("grbl") {
             assert_eq!(nc.matches("M4 S0").count(), 1, "{nc}");
             assert!(!nc.contains("M3"), "{nc}");
@@ -396,7 +390,7 @@ fn image_scans_check_plan_emit_and_run_in_every_flat_bed_dialect() {
     }
     let (code, out, err) = lase(&["run", r]);
     assert_eq!(code, 0, "{err}");
-    let lines = emit(&j.recipe, "grbl").lines().count();
+    let lines = emit_ok(&j.recipe, "grbl").lines().count();
     assert!(out.contains(&format!("{lines} lines")), "{out}");
 }
 
@@ -451,7 +445,7 @@ fn a_turned_image_puts_every_pixel_at_its_power_in_the_turned_frame() {
         &luma,
         "width 2.4 mm, speed 50 mm/s, power 40 W, angle 30 deg, origin (5 mm, 5 mm)",
     );
-    let nc = emit(&j.recipe, "grbl");
+    let nc = emit_ok(&j.recipe, "grbl");
     let (sin, cos) = 30f64.to_radians().sin_cos();
     let local = |x: f64, y: f64| {
         let (dx, dy) = (x - 5.0, y - 5.0);

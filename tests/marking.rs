@@ -9,38 +9,12 @@ use common::*;
 use std::path::Path;
 
 /// The lit feed moves of a GRBL-family program: (from, to) in mm, S > 0.
+/// The lit feed moves of a GRBL program, (from, to).
 fn lit_moves(nc: &str) -> Vec<([f64; 2], [f64; 2])> {
-    let (mut x, mut y, mut s, mut g) = (0.0, 0.0, 0.0, 0.0);
-    let mut out = Vec::new();
-    for line in nc.lines() {
-        let (x0, y0) = (x, y);
-        let mut moved = false;
-        for (c, v) in nc_words(line) {
-            match c {
-                'G' if v == 0.0 || v == 1.0 => g = v,
-                'X' => (x, moved) = (v, true),
-                'Y' => (y, moved) = (v, true),
-                'S' => s = v,
-                _ => {}
-            }
-        }
-        if moved && g == 1.0 && s > 0.0 {
-            out.push(([x0, y0], [x, y]));
-        }
-    }
-    out
-}
-
-fn emit(recipe: &Path, dialect: &str) -> String {
-    let (code, out, err) = lase(&["emit", "--dialect", dialect, recipe.to_str().unwrap()]);
-    assert_eq!(code, 0, "{err}");
-    out
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
+    lit_moves_with_power(nc)
+        .into_iter()
+        .map(|(a, b, _, _)| (a, b))
+        .collect()
 }
 
 const HEADER: &str = "machine xy_table\nlimits { x: v 200 mm/s, a 2 m/s^2; y: v 200 mm/s, a 2 m/s^2 }\nlaser { power 10 W, spot 50 um }\n";
@@ -48,7 +22,7 @@ const HEADER: &str = "machine xy_table\nlimits { x: v 200 mm/s, a 2 m/s^2; y: v 
 #[test]
 fn the_qr_code_of_the_example_decodes_from_the_emitted_grbl_program() {
     for dialect in ["grbl", "grblhal"] {
-        let nc = emit(&root().join("examples/codes.lase"), dialect);
+        let nc = emit_ok(&root().join("examples/codes.lase"), dialect);
         // Paint every lit hatch line of the QR (left of x = 14 mm) as a band one hatch pitch
         // (0.1 mm) wide into a 0.05 mm bitmap with a white margin, as a camera would see it.
         let px = 0.05;
@@ -130,14 +104,14 @@ fn the_data_matrix_of_the_example_decodes_from_the_pulse_list() {
 fn single_stroke_text_is_the_hershey_glyph_scaled_to_its_cap_height() {
     let dir = tempfile::tempdir().unwrap();
     // 21 mm capitals: one Hershey unit is one millimetre.
-    let r = write(
+    let r = write_file(
         dir.path(),
         "h.lase",
         &format!(
             "{HEADER}for s in profile text(\"H\", height: 21 mm, origin: (5 mm, 2 mm)) {{ follow s at 20 mm/s }}\n"
         ),
     );
-    let lit = lit_moves(&emit(&r, "grbl"));
+    let lit = lit_moves(&emit_ok(&r, "grbl"));
     // Hershey Simplex 'H': left edge -11; strokes (-7,-12)-(-7,9), (7,-12)-(7,9),
     // (-7,-2)-(7,-2) with y down and the baseline at 9.
     let want = [
@@ -226,7 +200,7 @@ fn outline_text_fills_the_fonts_own_glyph() {
             .map(|c| c.iter().map(|p| [p[0] * k, p[1] * k]).collect())
             .collect();
     let dir = tempfile::tempdir().unwrap();
-    let r = write(
+    let r = write_file(
         dir.path(),
         "b.lase",
         &format!(
@@ -234,7 +208,7 @@ fn outline_text_fills_the_fonts_own_glyph() {
             font.display()
         ),
     );
-    let lit = lit_moves(&emit(&r, "grbl"));
+    let lit = lit_moves(&emit_ok(&r, "grbl"));
     assert!(
         lit.len() > 90,
         "about 100 hatch rows over a 10 mm capital: {}",
@@ -280,7 +254,7 @@ fn outline_text_fills_the_fonts_own_glyph() {
 #[test]
 fn string_parts_and_format_run_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
-    let r = write(
+    let r = write_file(
         dir.path(),
         "s.lase",
         &format!(
@@ -337,7 +311,7 @@ fn lit_moves_with_power(nc: &str) -> Vec<([f64; 2], [f64; 2], f64, f64)> {
 fn the_material_test_grid_steps_power_by_row_and_speed_by_column() {
     // The preset's numbers: 4..20 W over 5 rows, 20..100 mm/s over 5 columns, 5 mm cells
     // 2 mm apart after a 6 mm label margin, hatched every 0.2 mm; labels at 6 W.
-    let nc = emit(&root().join("examples/material_test.lase"), "grbl");
+    let nc = emit_ok(&root().join("examples/material_test.lase"), "grbl");
     let lit = lit_moves_with_power(&nc);
     let (cell, step, margin, hatch) = (5.0, 7.0, 6.0, 0.2);
     let mut s_of_row = Vec::new();
@@ -406,7 +380,7 @@ fn the_material_test_labels_read_the_grids_numbers() {
     ]);
     assert_eq!(code, 0, "{out}{err}");
     let dir = tempfile::tempdir().unwrap();
-    let r = write(
+    let r = write_file(
         dir.path(),
         "l.lase",
         &format!(

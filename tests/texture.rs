@@ -56,12 +56,6 @@ fn summary_of(recipe: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap()
 }
 
-fn write_recipe(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
 /// The lattice spot (row, col) nearest to a pulse, and the distance to it, mm.
 fn nearest(p: &Pulse, pitch: f64) -> ((i64, i64), f64) {
     let (r, c) = ((p.y / pitch).round() as i64, (p.x / pitch).round() as i64);
@@ -145,7 +139,7 @@ fn unidirectional_rows_all_run_forward() {
 #[test]
 fn an_odd_row_count_ends_each_pass_on_the_far_side() {
     let dir = tempfile::tempdir().unwrap();
-    let recipe = write_recipe(
+    let recipe = write_file(
         dir.path(),
         "odd.lase",
         "machine xy_table\nlaser { power 20 W, spot 40 um }\n\
@@ -298,7 +292,7 @@ fn serpentine_idle_travel_is_a_fraction_of_the_unidirectional_one() {
 #[test]
 fn dot_mode_fires_n_pulses_at_rest_on_each_spot() {
     let dir = tempfile::tempdir().unwrap();
-    let recipe = write_recipe(
+    let recipe = write_file(
         dir.path(),
         "dots.lase",
         "machine xy_table\nlaser { power 20 W, spot 40 um }\npulse { rate 5 kHz }\n\
@@ -329,7 +323,7 @@ fn dot_mode_fires_n_pulses_at_rest_on_each_spot() {
 #[test]
 fn regions_hatches_and_explicit_spots_emit_valid_linuxcnc() {
     let dir = tempfile::tempdir().unwrap();
-    let recipe = write_recipe(
+    let recipe = write_file(
         dir.path(),
         "ring.lase",
         "machine xy_table\nlaser { power 20 W, spot 40 um }\n\
@@ -377,7 +371,7 @@ fn regions_hatches_and_explicit_spots_emit_valid_linuxcnc() {
 #[test]
 fn a_pulse_rate_above_the_laser_says_the_fastest_speed() {
     let dir = tempfile::tempdir().unwrap();
-    let recipe = write_recipe(
+    let recipe = write_file(
         dir.path(),
         "fast.lase",
         "machine xy_table\nlaser { power 20 W }\n\
@@ -431,7 +425,7 @@ fn bad_scans_get_diagnostics_not_panics() {
             "serpentine",
         ),
     ] {
-        let recipe = write_recipe(
+        let recipe = write_file(
             dir.path(),
             "bad.lase",
             &format!("machine xy_table\nlaser {{ power 20 W }}\n{body}\n"),
@@ -452,7 +446,7 @@ fn a_pso_post_configures_distance_firing_once_per_pitch() {
         "pso = [\"M68 E1 Q{pitch}\"]\npulse_on = [\"M62 P1\"]",
     );
     std::fs::write(dir.path().join("pso.toml"), toml).unwrap();
-    let recipe = write_recipe(
+    let recipe = write_file(
         dir.path(),
         "pso.lase",
         "machine \"pso.toml\"\nlaser { power 20 W, spot 40 um }\n\

@@ -62,6 +62,20 @@ pub fn lase(args: &[&str]) -> (i32, String, String) {
 
 /// The `.lase` files of a folder, sorted.
 /// A path below the repository root, relative to it (as `lase` is run from the root).
+/// `lase emit RECIPE --dialect DIALECT`, which must succeed: the NC text.
+pub fn emit_ok(recipe: &Path, dialect: &str) -> String {
+    let (code, out, err) = lase(&["emit", recipe.to_str().unwrap(), "--dialect", dialect]);
+    assert_eq!(code, 0, "{err}");
+    out
+}
+
+/// Writes `text` to `dir/name` and returns the path (recipes and data files for a test).
+pub fn write_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
 pub fn relative(p: &Path) -> String {
     p.strip_prefix(root())
         .unwrap_or(p)
