@@ -2,8 +2,8 @@
 //! with an injected error of ±5 µm per positioning move and 3 µm of backlash: without
 //! `settle` the simulator's own record of where each row's first pulse fired shows rows off
 //! by more than the seed's −0.5 … +1.5 µm; with it every row start of every pass settles
-//! within the window by the scale's reading. (That the first pulse then fires there too is
-//! not reached yet: see the last assertion.)
+//! within the window by the scale's reading, and the row, written relative to its settled
+//! start (`G91`), fires its first pulse there.
 
 mod link_support;
 
@@ -30,9 +30,11 @@ fn run(settle: bool) -> (Vec<f64>, Vec<f64>, String) {
     let sim = sim_for(
         &c.job,
         SimOptions {
-            // Fast, but in step with the wall clock: at `max` a row could starve between
-            // the settle and its first lines and stop (a new rest, a new random error).
-            time_scale: TimeScale::Factor(10.0),
+            // In step with the wall clock, as a controller is: faster, a row's lead-in
+            // (about 40 ms) could run out before the lines after it arrive over the test's
+            // loaded link, stop at the first spot (a new rest, a new random error) and fire
+            // there — the link's latency, not the settling, would be measured.
+            time_scale: TimeScale::Real,
             position_error: Some(ERROR.parse().unwrap()),
             // The seed's servo step is 0.5 µm: 2000 steps/mm on X and Y (the stock 250 would
             // round a 0.5 µm jog to no step at all).
@@ -42,20 +44,23 @@ fn run(settle: bool) -> (Vec<f64>, Vec<f64>, String) {
     );
     let (code, out, err) = lase(&["run", path.to_str().unwrap(), "--link", &url(&sim)]);
     assert_eq!(code, 0, "{err}");
+
     assert!(sim.wait_quiet(Duration::from_secs(5)));
     let rec = sim.stop();
     // A row whose run starved the planner would start from rest again mid-row: the first
     // record of each row (its y) is its first pulse.
     let mut firsts = rec.row_starts.clone();
     firsts.dedup_by(|b, a| (b.commanded[1] - a.commanded[1]).abs() < 1e-6);
-    // Errors from the programmed spot (the lattice, y = row · pitch), not from the
-    // controller's commanded position, which the settling jogs moved.
+
+    // Errors from the programmed spot (the lattice: a row in +x starts at x = 0, one in −x
+    // at x = 2 mm; y = row · pitch), not from the controller's commanded position, which the
+    // settling jogs moved (and the relative row keeps moved).
     let along = firsts
         .iter()
         .enumerate()
         .map(|(k, r)| {
-            let d = if k % 2 == 0 { 1.0 } else { -1.0 };
-            (r.actual[0] - r.commanded[0]) * d * 1e3
+            let (d, x0) = if k % 2 == 0 { (1.0, 0.0) } else { (-1.0, 2.0) };
+            (r.actual[0] - x0) * d * 1e3
         })
         .collect();
     let across = firsts
@@ -63,6 +68,13 @@ fn run(settle: bool) -> (Vec<f64>, Vec<f64>, String) {
         .enumerate()
         .map(|(k, r)| (r.actual[1] - 0.2 * (k % 6) as f64) * 1e3)
         .collect();
+    if !settle {
+        // Open loop, the controller's command is the programmed spot itself.
+        for (k, r) in firsts.iter().enumerate() {
+            let x0 = if k % 2 == 0 { 0.0 } else { 2.0 };
+            assert!((r.commanded[0] - x0).abs() < 1e-6, "{k}: {r:?}");
+        }
+    }
     (along, across, out)
 }
 
@@ -112,12 +124,12 @@ fn every_row_start_of_every_pass_settles_within_the_seeds_window() {
         "{line}"
     );
     assert!(num("before settling: worst ") > 1.5, "{line}");
-    // Not yet: the first pulse of a settled row is not where it settled. The row's lines are
-    // absolute moves to the programmed spots, which take back the correction on a controller
-    // that counts steps (the table's error stays with it). Rows written relative to their
-    // settled start would keep it (issue 15, left for later); this pins today's state.
-    assert!(
-        a_worst > 1.5,
-        "settled rows now fire where they settled: tighten this test"
-    );
+    // The first pulse of every settled row fires where the row settled: the row's lines are
+    // increments from the settled start. A 1 µm scale reads −0.5 … +1.5 µm as 0 or 1 µm, so
+    // the table is within the window; across, a reading within ±1 µm is within ±1.5 µm.
+    assert_eq!(a_out, 0, "{c_along:?}");
+    assert!(a_worst <= 1.5 + 1e-9, "{c_along:?}");
+    assert!(worst_across(&c_across) < 1.5 + 1e-9, "{c_across:?}");
+    // Without settling the rows are off by more, along and across.
+    assert!(o_worst > a_worst + 1.0, "{open:?}");
 }

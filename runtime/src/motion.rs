@@ -252,6 +252,12 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     program.ops = led.ops;
     for s in &mut program.settles {
         s.op = led.index[s.op] as usize;
+        // The row's end follows the op after it (a lead inserted before that op, the next
+        // row's lead-in, then runs relative too: the next row settles again anyway).
+        s.end = led
+            .index
+            .get(s.end)
+            .map_or(program.ops.len(), |&i| i as usize);
     }
     // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
     let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;

@@ -601,6 +601,11 @@ impl ProcessProgram {
 pub struct Settle {
     /// The op that brings the table to the row start.
     pub op: usize,
+    /// The first op after the row's moves (exclusive end): the ops `op + 1 .. end` are the
+    /// row, which a live link writes relative to its settled start (`emit`'s `G91` rows), so
+    /// the row fires where the scale said it started.
+    #[serde(default)]
+    pub end: usize,
     /// The row's direction of travel, a unit vector in part x, y: "along" is measured on it,
     /// "across" on it turned +90°.
     pub dir: [f64; 2],

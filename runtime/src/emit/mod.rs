@@ -21,6 +21,7 @@
 mod format;
 pub mod modal;
 pub mod reapproach;
+mod relative;
 mod validate;
 mod writer;
 
@@ -316,7 +317,17 @@ pub fn emit(
         validate::check_settles(&job.program, dialect)?;
     }
     let checked = validate::validate(job, dialect)?;
-    let mut stats = writer::write(job, dialect, options, &checked, sink)?;
+    // Settled rows go out relative to their settled start (`relative`), whether a live link
+    // or the control settles them.
+    let rows = relative::row_ranges(&job.program);
+    let mut stats = if rows.is_empty() {
+        writer::write(job, dialect, options, &checked, sink)?
+    } else {
+        let mut r = relative::Rows::new(&job.program, rows, sink);
+        let mut stats = writer::write(job, dialect, options, &checked, &mut |l: &NcLine| r.put(l))?;
+        r.finish(&mut stats);
+        stats
+    };
     stats.warnings = checked.warnings;
     Ok(stats)
 }

@@ -411,7 +411,20 @@ impl Evaluator {
         let z = self.pos[2];
         let hatch_laser = laser.clone();
         let mut dot_laser: Option<(f64, Laser)> = None;
-        for st in steps {
+        // A row ends where the scan leaves it: at a travel, or at the entry move of the next
+        // row (the move just before its `RowStart`); its settle then learns its end op.
+        let close_row = |settles: &mut Vec<Settle>, open: &mut Option<usize>, end: usize| {
+            if let Some(k) = open.take() {
+                settles[k].end = end;
+            }
+        };
+        let mut open_row: Option<usize> = None;
+        for (i, &st) in steps.iter().enumerate() {
+            if matches!(st, Step::Travel(_))
+                || matches!(steps.get(i + 1), Some(Step::RowStart { .. }))
+            {
+                close_row(&mut self.settles, &mut open_row, self.ops.len());
+            }
             let at = |p: V2| [p.x, p.y, z];
             match st {
                 Step::Travel(p) => self.push_motion(
@@ -459,8 +472,10 @@ impl Evaluator {
                 }
                 Step::RowStart { dir } => {
                     if let Some(t) = &settle {
+                        open_row = Some(self.settles.len());
                         self.settles.push(Settle {
                             op: self.ops.len().saturating_sub(1),
+                            end: self.ops.len(),
                             dir: [dir.x, dir.y],
                             pass: row_starts / rows_per_pass,
                             row: row_starts % rows_per_pass,
@@ -483,6 +498,7 @@ impl Evaluator {
                 ),
             }
         }
+        close_row(&mut self.settles, &mut open_row, self.ops.len());
         Ok(())
     }
 
@@ -542,6 +558,7 @@ impl Evaluator {
         }
         Ok(Some(Settle {
             op: 0,
+            end: 0,
             dir: [1.0, 0.0],
             window_mm: window,
             across_mm: across,

@@ -27,6 +27,10 @@ pub const STEP_FEED_MM_MIN: f64 = 60.0;
 /// play (backlash up to this much) is taken up the way the row will run, mm.
 pub const PRELOAD_MM: f64 = 0.005;
 
+/// The resolution of a reported position, mm: GRBL and grblHAL report millimetres to three
+/// decimals (`$13=0`, which the preflight requires), so a 1 µm scale's count.
+pub const REPORT_RESOLUTION_MM: f64 = 0.001;
+
 /// The pause before each status report while settling.
 const POLL: Duration = Duration::from_millis(10);
 
@@ -110,6 +114,7 @@ pub fn settle(
     last_wco: &mut Option<Vec<f64>>,
 ) -> Result<Settled, LinkError> {
     let s = &p.settle;
+    let read_window = read_window(s);
     let start = Instant::now();
     let timeout = Duration::from_secs_f64(s.timeout_s);
     let fail = |message: String, help: &str| LinkError::Unsettled {
@@ -166,7 +171,7 @@ pub fn settle(
         let at = at_rest.unwrap_or_else(Instant::now);
         let (along, across) = error_of(&st, p, last_wco.as_deref())?;
         let first = *first.get_or_insert((along, across));
-        if s.correction(along, across).is_none() {
+        if read_window.correction(along, across).is_none() {
             return Ok(Settled {
                 pass: s.pass,
                 row: s.row,
@@ -197,11 +202,11 @@ pub fn settle(
         } else {
             0.0
         };
-        if along > s.window_mm.1 {
+        if along > read_window.window_mm.1 {
             jog(link, s, -(s.step_mm + PRELOAD_MM), c)?;
             jog(link, s, PRELOAD_MM, 0.0)?;
         } else {
-            let a = if along < s.window_mm.0 {
+            let a = if along < read_window.window_mm.0 {
                 s.step_mm
             } else {
                 0.0
@@ -209,6 +214,26 @@ pub fn settle(
             jog(link, s, a, c)?;
         }
         steps += 1;
+    }
+}
+
+/// The window along the row the reported position must be in: the recipe's, narrowed by half
+/// the report's resolution at each end. A reading of a 1 µm scale stands for every position within
+/// ±0.5 µm of it, and a row start off the scale's grid (a lead-in start at −535.535 µm) would
+/// otherwise be accepted at a reading whose table may be up to 0.5 µm past the window —
+/// where its first pulse then fires. Where that leaves less than a step, the recipe's own
+/// window (the steps could not find the narrower one). Across, the recipe's window is the
+/// reading's: the seed states none, and a row's error across does not move its spots along.
+fn read_window(s: &Settle) -> Settle {
+    let h = 0.5 * REPORT_RESOLUTION_MM;
+    let narrowed = Settle {
+        window_mm: (s.window_mm.0 + h, s.window_mm.1 - h),
+        ..s.clone()
+    };
+    if narrowed.window_mm.1 - narrowed.window_mm.0 + 1e-12 >= s.step_mm {
+        narrowed
+    } else {
+        s.clone()
     }
 }
 

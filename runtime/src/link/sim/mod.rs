@@ -425,6 +425,15 @@ impl Server {
             let now = Instant::now();
             let mut cut = false;
             let mut ctl = lock(&self.ctl);
+            let dt = now.saturating_duration_since(self.last_tick);
+            self.last_tick = now;
+            if self.opts.time_scale != TimeScale::Max {
+                // The time that passed while the read waited runs before the bytes it brought:
+                // run after them, it would run their first block alone for that long (an idle
+                // controller's wait is 10 ms, a row's whole lead-in at `time-scale=10`) and
+                // stop it at its end before the next line could join it (issue 15's rows).
+                ctl.run(self.opts.time_scale.sim_dt(dt));
+            }
             while let Some(&(due, b)) = self.wire_in.front() {
                 if due > now {
                     break;
@@ -443,9 +452,11 @@ impl Server {
                     }
                 }
             }
-            let dt = now.saturating_duration_since(self.last_tick);
-            self.last_tick = now;
-            if self.opts.time_scale == TimeScale::Max {
+            if self.opts.time_scale != TimeScale::Max {
+                // What just arrived is read at once (lines parsed, a status answered) without
+                // moving time on.
+                ctl.run(0.0);
+            } else {
                 // Still modelled: time runs only while the controller waits for its planner,
                 // until the client has been quiet a moment; then everything left executes. A
                 // status query does not hurry it, so a report asked for while lines are still
@@ -457,8 +468,6 @@ impl Server {
                 } else {
                     ctl.run_while_blocked();
                 }
-            } else {
-                ctl.run(self.opts.time_scale.sim_dt(dt));
             }
             let mut out = ctl.take_output();
             if self
