@@ -748,7 +748,7 @@ const SCAN_SETTLE: [SettingSpec; 6] = [
     set(
         "settle",
         PTy::Flag,
-        "Row-start settling (PROCESS.md §3, seed 3): before each row of each pass fires, the table stops at the row's start, its position is read from the controller (the scale), and corrective steps of `settle_step` are sent until the error is within `settle_window` along the row and `settle_across` across it. Needs the live link (`lase run`, the REPL) or LinuxCNC's NC program; a flag: write `settle`. Any other `settle_*` setting turns it on too.",
+        "Row-start settling (PROCESS.md §3, seed 3): before each row of each pass fires, the table stops at the row's start, its position is read from the controller (the scale), and corrective steps of `settle_step` are sent until the error is within `settle_window` along the row and `settle_across` across it. Needs the live link (`lase run`, the REPL), or for an NC file a machine whose `[settle]` names LinuxCNC's scale inputs or an ISO macro; the row then runs relative to its settled start. A flag: write `settle`. Any other `settle_*` setting turns it on too.",
     ),
     set(
         "settle_window",

@@ -192,6 +192,23 @@ pub struct Machine {
     pub events: BTreeMap<String, EventPost>,
     #[serde(default)]
     pub outputs: BTreeMap<String, OutputPost>,
+    /// How an NC program settles a row start on this machine (`[settle]`).
+    #[serde(default)]
+    pub settle: SettlePost,
+}
+
+/// Row-start settling written into an NC program (`scan … { settle }`, issue 15): where a
+/// control reads the table's scales, or which of its own macros settles. A live link needs
+/// none of this (it reads the status report); a dialect without an entry refuses `settle`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SettlePost {
+    /// LinuxCNC: the HAL analog inputs (`motion.analog-in-NN`, read with `M66 E<n> L0`) that
+    /// carry the X and Y scales' readings in mm, work coordinates.
+    pub linuxcnc_inputs: Option<[u32; 2]>,
+    /// ISO: the block that calls the control's settling macro, a template with `{x}` `{y}`
+    /// (target, mm), `{ux}` `{uy}` (row direction), `{low}` `{high}` (window along, mm),
+    /// `{across}` `{step}` (mm) and `{steps}` (most steps).
+    pub iso_call: Option<String>,
 }
 
 impl Machine {
@@ -222,6 +239,29 @@ struct FileMachine {
     events: BTreeMap<String, FileEvent>,
     #[serde(default)]
     outputs: BTreeMap<String, FileOutput>,
+    #[serde(default)]
+    settle: FileSettle,
+}
+
+/// `[settle]`: `linuxcnc = { x_input = 0, y_input = 1 }`, `iso = { call = "G65 P9100 …" }`.
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct FileSettle {
+    linuxcnc: Option<FileSettleLinuxCnc>,
+    iso: Option<FileSettleIso>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileSettleLinuxCnc {
+    x_input: u32,
+    y_input: u32,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileSettleIso {
+    call: String,
 }
 
 #[derive(Debug, Deserialize)]
@@ -746,5 +786,9 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         post,
         events,
         outputs,
+        settle: SettlePost {
+            linuxcnc_inputs: file.settle.linuxcnc.map(|l| [l.x_input, l.y_input]),
+            iso_call: file.settle.iso.map(|i| i.call),
+        },
     })
 }

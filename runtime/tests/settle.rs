@@ -63,6 +63,75 @@ fn every_row_start_of_every_pass_gets_the_seeds_window() {
     }
     // Ops are in order, strictly.
     assert!(s.windows(2).all(|w| w[0].op < w[1].op));
+    // Each row runs from its settle op to its end: its spots, and no positioning; the next
+    // row's entry (its settle op) is after it.
+    for (k, st) in s.iter().enumerate() {
+        let row = &j.program.ops[st.op + 1..st.end];
+        assert!(row.iter().any(|o| o.laser().is_some()), "{k}");
+        assert!(
+            row.iter().all(|o| !matches!(o.kind, OpKind::Rapid { .. })),
+            "{k}"
+        );
+        if let Some(next) = s.get(k + 1) {
+            assert!(st.end <= next.op, "{k}");
+        }
+    }
+}
+
+/// The motion lines of `src` as a live link streams them, replayed through the link's modal
+/// tracker: the absolute position after each one.
+fn live_positions(src: &str) -> (Vec<[f64; 2]>, Vec<String>) {
+    use lase_runtime::emit::{Dialect, EmitOptions, emit_lines};
+    use lase_runtime::link::modal::{LineKind, Tracker};
+    let j = job(src);
+    let options = EmitOptions {
+        live: true,
+        ..EmitOptions::default()
+    };
+    let (lines, _) = emit_lines(&j, Dialect::Grbl, &options).unwrap();
+    let mut t = Tracker::new([0.0; 6]);
+    let mut out = Vec::new();
+    for l in &lines {
+        if let LineKind::Motion { .. } = t.apply(&l.text).unwrap() {
+            out.push([t.pos[0], t.pos[1]]);
+        }
+    }
+    (out, lines.into_iter().map(|l| l.text).collect())
+}
+
+#[test]
+fn a_live_link_gets_each_settled_row_relative_to_its_start_and_the_same_positions() {
+    let (open, open_text) = live_positions(&array("order serpentine"));
+    let (settled, text) = live_positions(&array("order serpentine, settle"));
+    // One G91 per row start of every pass, each closed by a G90 before anything else.
+    assert_eq!(text.iter().filter(|l| *l == "G91").count(), 18);
+    assert_eq!(text.iter().filter(|l| *l == "G90").count(), 18);
+    assert!(!open_text.iter().any(|l| l == "G91"));
+    let mut inside = false;
+    for l in &text {
+        match l.as_str() {
+            "G91" => {
+                assert!(!inside);
+                inside = true;
+            }
+            "G90" => {
+                assert!(inside);
+                inside = false;
+            }
+            l if inside => assert!(!l.starts_with("G0"), "a rapid in a row: {l}"),
+            _ => {}
+        }
+    }
+    assert!(!inside);
+    // The increments add up to the very positions the absolute program names: the emitter's
+    // 4-decimal words, differenced exactly.
+    assert_eq!(open.len(), settled.len());
+    for (k, (a, b)) in open.iter().zip(&settled).enumerate() {
+        assert!(
+            (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9,
+            "line {k}: {a:?} {b:?}"
+        );
+    }
 }
 
 #[test]
@@ -120,15 +189,29 @@ fn windows_that_cannot_be_reached_are_refused_at_the_setting() {
 }
 
 #[test]
-fn no_nc_program_claims_to_settle_until_its_dialect_can() {
+fn nc_programs_settle_only_where_the_machine_file_says_how() {
     use lase_runtime::emit::{Dialect, EmitOptions, emit_lines};
     let j = job(&array("settle"));
-    for d in [Dialect::LinuxCnc, Dialect::Grbl, Dialect::GrblHal] {
+    // GRBL can neither loop nor read a scale: settling needs the live link.
+    for d in [Dialect::Grbl, Dialect::GrblHal] {
         let e = emit_lines(&j, d, &EmitOptions::default()).unwrap_err();
-        let text = e.to_string();
-        assert!(text.contains("settl"), "{d}: {text}");
+        let text = format!("{e:?}");
+        assert!(text.contains("lase run"), "{d}: {text}");
     }
-    // The same array without `settle` emits.
+    // xy_table names its scale inputs and its ISO macro; xyz names neither.
+    for d in [Dialect::LinuxCnc, Dialect::Iso] {
+        assert!(emit_lines(&j, d, &EmitOptions::default()).is_ok(), "{d}");
+        let xyz = job(&array("settle")
+            .replace("machine xy_table", "machine xyz")
+            .replace("(0, 0) {", "(20 mm, 20 mm) {"));
+        let e = emit_lines(&xyz, d, &EmitOptions::default()).unwrap_err();
+        let text = format!("{e:?}");
+        assert!(
+            text.contains("[settle]") && text.contains("xyz"),
+            "{d}: {text}"
+        );
+    }
+    // The same array without `settle` emits everywhere.
     assert!(
         emit_lines(
             &job(&array("order serpentine")),
@@ -136,6 +219,100 @@ fn no_nc_program_claims_to_settle_until_its_dialect_can() {
             &EmitOptions::default()
         )
         .is_ok()
+    );
+}
+
+#[path = "../../tests/common/rs274.rs"]
+mod rs274;
+
+/// Two rows of 11 dots (the first row starts at the origin, the second at x = 2 mm, y =
+/// 0.2 mm, running in −x), settling with at most three steps.
+fn two_rows() -> lase_runtime::motion::Job {
+    job(&array("settle, mode dot, settle_steps 3")
+        .replace("rows 6", "rows 2")
+        .replace("passes 3", "passes 1"))
+}
+
+#[test]
+fn the_iso_program_calls_the_machines_macro_with_each_row_start() {
+    use lase_runtime::emit::{Dialect, emit_to_string};
+    let nc = emit_to_string(&two_rows(), Dialect::Iso).unwrap();
+    let calls: Vec<&str> = nc.lines().filter(|l| l.contains("G65 P9100")).collect();
+    assert_eq!(calls.len(), 2, "{nc}");
+    assert!(
+        calls[1].ends_with("G65 P9100 X2 Y0.2 I-1 J0 A-0.0005 B0.0015 C0.001 D0.0005 E3"),
+        "{}",
+        calls[1]
+    );
+    // Each row after its call runs relative to where the macro left the table.
+    assert_eq!(nc.lines().filter(|l| *l == "G91").count(), 2, "{nc}");
+}
+
+/// LinuxCNC's interpreter runs the settling loop. `rs274` reads every analog input as 0, so
+/// its scales say the table stands at the origin: the first row start (the origin) settles
+/// without a step and its row runs to the programmed spots from there; the second (2 mm
+/// away) steps toward its start three times and the program aborts with the row's message.
+#[test]
+fn linuxcncs_interpreter_settles_steps_and_aborts_as_the_loop_says() {
+    use lase_runtime::emit::{Dialect, emit_to_string};
+    if std::process::Command::new("rs274")
+        .arg("-h")
+        .output()
+        .is_err()
+    {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "rs274 must be installed in CI"
+        );
+        eprintln!("rs274 not installed: skipped");
+        return;
+    }
+    let nc = emit_to_string(&two_rows(), Dialect::LinuxCnc).unwrap();
+    assert!(
+        nc.contains("o<lase_settle> sub") && nc.contains("M66 E0 L0"),
+        "{nc}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("settle.ngc");
+    std::fs::write(&file, &nc).unwrap();
+    let out = rs274::rs274_g(&file).unwrap();
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let feeds: Vec<(f64, f64)> = text
+        .lines()
+        .filter_map(|l| l.split("STRAIGHT_FEED(").nth(1))
+        .map(|a| {
+            let v: Vec<f64> = a
+                .split([',', ')'])
+                .take(2)
+                .map(|x| x.trim().parse().unwrap())
+                .collect();
+            (v[0], v[1])
+        })
+        .collect();
+    // The first row's spots, at y = 0, from x = 0 to 2 mm, each reached by a feed move.
+    for k in 1..=10 {
+        let x = 0.2 * f64::from(k);
+        assert!(
+            feeds
+                .iter()
+                .any(|&(fx, fy)| (fx - x).abs() < 1e-9 && fy.abs() < 1e-9),
+            "spot {x}: {feeds:?}"
+        );
+    }
+    // The second row start: three steps of 0.5 µm back along the −x row (+x) and across
+    // (+y), toward the scales' reading, then the abort.
+    let last = *feeds.last().unwrap();
+    assert!(
+        (last.0 - 2.0015).abs() < 1e-9 && (last.1 - 0.2015).abs() < 1e-9,
+        "{last:?}\n{text}"
+    );
+    assert!(
+        text.contains("lase: row 2.000000 of pass 1.000000 did not settle in 3.000000 steps"),
+        "{text}"
     );
 }
 

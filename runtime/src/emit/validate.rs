@@ -612,8 +612,10 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
 }
 
 /// Row-start settling (`scan … { settle }`) reads the machine's position and loops until it
-/// is within the window: no NC program lase writes does that yet, and writing one that fires
-/// without settling would pass off an open loop as the closed one the recipe asked for.
+/// is within the window. An NC program does that only where the machine file says how
+/// (`[settle]`: LinuxCNC's scale inputs, an ISO control's macro; `emit::writer::settle`), on
+/// a table whose X and Y are the part's x and y; anywhere else, writing one that fires without
+/// settling would pass off an open loop as the closed one the recipe asked for.
 pub(super) fn check_settles(
     program: &crate::program::ProcessProgram,
     dialect: Dialect,
@@ -621,24 +623,47 @@ pub(super) fn check_settles(
     let Some(s) = program.settles.first() else {
         return Ok(());
     };
+    let machine = &program.machine;
+    let cartesian = machine.kinematics == crate::machine::KinematicsKind::Cartesian
+        && machine.axis_index("X").is_some()
+        && machine.axis_index("Y").is_some();
+    let known = match dialect {
+        Dialect::LinuxCnc => machine.settle.linuxcnc_inputs.is_some(),
+        Dialect::Iso => machine.settle.iso_call.is_some(),
+        Dialect::Grbl | Dialect::GrblHal => false,
+    };
+    if known && cartesian {
+        return Ok(());
+    }
+    let name = &machine.name;
     let (message, help) = match dialect {
         Dialect::Grbl | Dialect::GrblHal => (
             format!(
                 "{dialect} cannot settle a row start in an NC program: it can neither loop nor read its position"
             ),
             "stream it with `lase run`, which reads the position between rows and settles \
-             each row start; or leave `settle` out to write the open-loop program",
+             each row start; or leave `settle` out to write the open-loop program"
+                .to_string(),
+        ),
+        _ if !cartesian => (
+            format!(
+                "row-start settling needs a table whose X and Y are the part's x and y; `{name}` is not one"
+            ),
+            "leave `settle` out on this machine".to_string(),
         ),
         Dialect::LinuxCnc => (
-            "lase cannot yet write LinuxCNC's settling loop (an O-word loop reading the position)"
-                .to_string(),
-            "leave `settle` out to write the open-loop program",
-        ),
-        _ => (
             format!(
-                "lase cannot yet write {dialect}'s settling (a call of the machine's own macro)"
+                "machine `{name}` does not say where LinuxCNC reads its scales, so lase cannot write the settling loop"
             ),
-            "leave `settle` out to write the open-loop program",
+            "name the HAL analog inputs of the X and Y scales in the machine file: \
+             `[settle] linuxcnc = { x_input = 0, y_input = 1 }`; or leave `settle` out"
+                .to_string(),
+        ),
+        Dialect::Iso => (
+            format!("machine `{name}` names no settling macro for ISO controls"),
+            "name the call in the machine file, e.g. `[settle] iso = { call = \"G65 P9100 X{x} Y{y} …\" }` \
+             (stdlib/machines/README.md); or leave `settle` out"
+                .to_string(),
         ),
     };
     Err(EmitError::Dialect {
@@ -646,6 +671,6 @@ pub(super) fn check_settles(
         dialect,
         span: s.span,
         label: "row-start settling asked here".into(),
-        help: help.into(),
+        help,
     })
 }

@@ -25,6 +25,7 @@ use std::io;
 
 mod pulse;
 mod row;
+mod settle;
 
 /// ISO block numbers step by 10 (room to insert blocks by hand, as in the paper's program)
 /// and wrap before six digits, since many Fanuc controls read at most N99999.
@@ -192,6 +193,12 @@ pub(super) fn write(
         // Path blending within the junction deviation the planner assumed.
         let p = format::number(program.planner.junction_deviation_mm);
         out.put(&format!("G64 P{p}"), None)?;
+        if let (Some(inputs), false) = (machine.settle.linuxcnc_inputs, program.settles.is_empty())
+        {
+            for l in settle::linuxcnc_sub(inputs) {
+                out.put(&l, None)?;
+            }
+        }
     }
 
     // GRBL family: the beam flies on S words where the post allows (`motion::beam`); the
@@ -243,8 +250,29 @@ pub(super) fn write(
         words: &words,
     };
     let ops = &program.ops;
+    // Row starts settled on the control (validated: this dialect can), each called once the
+    // op that brings the table there is written.
+    let settle_axes = (machine.axis_index("X"), machine.axis_index("Y"));
+    // A live link settles them itself (`link::settle`).
+    let nc_settles: &[crate::program::Settle] = if options.live { &[] } else { &program.settles };
+    let mut settles = nc_settles.iter().peekable();
+    let mut settle_upto = |i: usize, out: &mut Out<'_>, m: &mut Modal| -> io::Result<()> {
+        while let Some(s) = settles.next_if(|s| s.op < i) {
+            let (Some(x), Some(y)) = settle_axes else {
+                continue;
+            };
+            let q = &job.op_axes[s.op];
+            let line = settle::call(dialect, machine, s, [q[x], q[y]]);
+            out.put(&line, Some(s.op as u32))?;
+            // The call leaves the motion mode and (ISO's macro) the feed unknown.
+            m.motion = None;
+            m.feed.unset();
+        }
+        Ok(())
+    };
     for (i, op) in ops.iter().enumerate() {
         let tag = Some(i as u32);
+        settle_upto(i, &mut out, &mut m)?;
         if options.comments
             && let Some(locate) = options.locate
         {
@@ -418,6 +446,7 @@ pub(super) fn write(
         }
     }
 
+    settle_upto(ops.len(), &mut out, &mut m)?;
     if m.inverse_time {
         // Back to units-per-minute feeds, the mode any program after this one expects.
         out.put("G94", None)?;
