@@ -238,6 +238,15 @@ pub fn documented_feedback(kind: &str) -> bool {
     KINDS.contains(&kind) || coordinates
 }
 
+/// A `$#` coordinate line's values, `12.000,-3.500,0.000` (what follows `[G55:`).
+pub fn parse_offset(body: &str) -> Result<Vec<f64>, String> {
+    let v: Option<Vec<f64>> = body.split(',').map(number).collect();
+    match v {
+        Some(v) if !v.is_empty() && v.len() <= 6 => Ok(v),
+        _ => Err("expected 1 to 6 comma-separated numbers".into()),
+    }
+}
+
 fn code(s: &str) -> Option<u32> {
     if s.is_empty() || s.len() > 4 || !s.bytes().all(|b| b.is_ascii_digit()) {
         return None;
