@@ -42,6 +42,11 @@ fn xy_words(nc: &str) -> Vec<(Option<f64>, Option<f64>)> {
             .find_map(|w| w.strip_prefix(c).and_then(|v| v.parse::<f64>().ok()))
     };
     nc.lines()
+        // ISO numbers its blocks (`N120 G1 X5`).
+        .map(|l| {
+            l.trim_start_matches(|c: char| c == 'N' || c.is_ascii_digit())
+                .trim()
+        })
         .filter(|l| l.starts_with('G') || l.starts_with('X') || l.starts_with('Y'))
         .map(|l| (word(l, 'X'), word(l, 'Y')))
         .filter(|(x, y)| x.is_some() || y.is_some())

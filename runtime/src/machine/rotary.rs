@@ -83,6 +83,10 @@ impl FileRotary {
     }
 }
 
+/// Reads a length from the machine file (the parser's own quantity rule, with its spans).
+pub(super) type LengthOf<'a> =
+    &'a dyn Fn(&toml::Spanned<String>, &str) -> Result<f64, MachineError>;
+
 /// Reads `[rotary]` against the machine's axes: the turning axis exists, the other axes are
 /// linear and move part x or z (part y is the surface around the object, the turning axis's).
 pub(super) fn parse(
@@ -90,7 +94,7 @@ pub(super) fn parse(
     axes: &[Axis],
     kinematics_span: Span,
     at: &dyn Fn(Range<usize>) -> Span,
-    length: &dyn Fn(&toml::Spanned<String>, &str) -> Result<f64, MachineError>,
+    length: LengthOf<'_>,
 ) -> Result<Rotary, MachineError> {
     let invalid = |message: String, span: Span, label: &str, help: &str| MachineError::Invalid {
         message,

@@ -430,6 +430,20 @@ mod tests {
     use proptest::prelude::*;
 
     #[test]
+    fn a_coordinate_line_of_the_parameters_report_parses() {
+        // report.c `report_ngc_parameters`: `[G55:100.000,50.000,0.000]`.
+        let r = parse(b"[G55:100.000,-50.500,0.000]");
+        let Ok(Response::Feedback { kind, body }) = r else {
+            panic!("{r:?}");
+        };
+        assert_eq!(kind, "G55");
+        assert_eq!(parse_offset(&body), Ok(vec![100.0, -50.5, 0.0]));
+        assert!(parse_offset("1,x").is_err());
+        assert!(parse_offset("").is_err());
+        assert!(parse_offset("1,2,3,4,5,6,7").is_err());
+    }
+
+    #[test]
     fn parses_every_message_kind() {
         assert_eq!(parse(b"ok"), Ok(Response::Ok));
         assert_eq!(parse(b"error:22"), Ok(Response::Error(22)));

@@ -713,6 +713,26 @@ mod tests {
     }
 
     #[test]
+    fn a_work_offset_moves_absolute_coordinates_as_gc_c_does() {
+        let mut gc = Gc::new([0.0; 6], 3);
+        gc.offsets[1] = [100.0, 50.0, 0.0, 0.0, 0.0, 0.0];
+        // G55 in the block applies to the block's own coordinates; it stays in force.
+        let b = execute(b"G55G0X5Y5", &gc, true).unwrap();
+        assert_eq!(b.next.pos, [105.0, 55.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(b.next.coord, 1);
+        assert!(b.next.report().contains(" G55 "), "{}", b.next.report());
+        let b = execute(b"G1X35F600", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 135.0);
+        // Incremental moves and G53 ignore it; G54 (zero here) takes it away.
+        let b = execute(b"G91G1X1", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 136.0);
+        let b = execute(b"G90G53G0X7", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 7.0);
+        let b = execute(b"G54G0X7", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 7.0);
+    }
+
+    #[test]
     fn the_feed_is_undefined_after_inverse_time_as_in_grbl() {
         let gc = run(&["G94G1X1F600", "G93", "G1X2F30"]).unwrap();
         assert_eq!(gc.modal.feed, 30.0);
