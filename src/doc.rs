@@ -30,6 +30,11 @@ const SETTING_GROUPS: &[(&str, &[SettingSpec], &str)] = &[
         "`planner { ramp scurve, corner 0.01 mm, tolerance 2 um }`: how motion is planned.",
     ),
     (
+        "rotary",
+        schema::ROTARY_SETTINGS,
+        "`rotary { diameter 60 mm }`: the object on a rotary attachment; the recipe's y is its unrolled surface.",
+    ),
+    (
         "limits",
         schema::LIMIT_SETTINGS,
         "`limits { x: v 200 mm/s, a 2 m/s^2; path: v 50 mm/s }`: tighten axis (or path) limits, never above the machine's.",
@@ -529,6 +534,7 @@ fn setting_topic(key: &str) -> Option<String> {
         ("pulse".into(), schema::PULSE_SETTINGS),
         ("planner".into(), schema::PLANNER_SETTINGS),
         ("limits".into(), schema::LIMIT_SETTINGS),
+        ("rotary".into(), schema::ROTARY_SETTINGS),
     ];
     for k in schema::SCAN_KINDS {
         tables.push((format!("scan {}", k.name), k.settings));

@@ -60,7 +60,8 @@ pub struct RunArgs {
     /// Where the recipe's zero is: absolute (the controller's coordinates) or current (the
     /// spot's position when the job starts, read from the controller's status; the job is
     /// refused if it would leave the travel from there); default: the recipe's
-    /// `planner { origin ... }`, else absolute.
+    /// `planner { origin ... }`, else absolute. g54 … g59: the controller's work offset,
+    /// read with `$#` and the travel checked at machine positions before anything is sent.
     #[arg(long, value_enum)]
     pub origin: Option<JobOrigin>,
     /// Send-response flow control (one line in flight) instead of character counting.
@@ -178,8 +179,10 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
     // A sign of life until the progress bar takes over: a texturing job takes seconds to
     // compile and to write once before it streams.
     let busy = crate::output::Busy::start(&format!("compiling {}", file.display()));
-    let (recipe, program) = driver::program(&file)?;
-    let (recipe, job, placed_link) = match origin::chosen(args.origin, &program) {
+    let (recipe, mut program) = driver::program(&file)?;
+    let chosen = origin::chosen(args.origin, &program);
+    program.planner.origin = chosen.into();
+    let (recipe, job, placed_link) = match chosen {
         JobOrigin::Absolute => match lase_runtime::compile::plan(program) {
             Ok(job) => (recipe, job, None),
             Err(f) => return Err((recipe.map, f)),
@@ -192,6 +195,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
             ));
         }
         JobOrigin::Current => placed_at_current(recipe, program, &url, &options)?,
+        named => origin::run_at_offset(recipe, program, named, &url, &options, &resumed)?,
     };
     let dialect = run_dialect(&args, resumed.as_ref(), &job, &url)?;
     let map = recipe.map.clone();
@@ -249,7 +253,7 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
 
 /// A recipe, its job and, when `--origin current` read the controller's position, the link
 /// it read it over (the job goes out on the same connection).
-type Placed = (
+pub(crate) type Placed = (
     driver::Recipe,
     lase_runtime::motion::Job,
     Option<Box<dyn Link>>,
@@ -957,6 +961,7 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
         settings,
         log: true,
         keep: Some(sim::KEEP_LIVE),
+        work_offsets: Default::default(),
         position_error: args
             .position_error
             .as_deref()

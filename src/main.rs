@@ -46,9 +46,19 @@ enum Command {
         /// Where the recipe's zero is: absolute (machine coordinates) or current (the
         /// program is written in a work frame the operator sets by jogging to the job's zero:
         /// its header sets G54 there with G10 L20 P1); default: the recipe's
-        /// `planner { origin ... }`, else absolute.
+        /// `planner { origin ... }`, else absolute. g54 … g59: the controller's work offset,
+        /// selected by the program and never written (see --work-offset, --set-origin).
         #[arg(long, value_enum)]
         origin: Option<origin::JobOrigin>,
+        /// With --origin g54 … g59: the offset as set on the controller, e.g. "X100 Y50" (mm,
+        /// deg for rotary axes), so the travel is checked at machine positions; default: the
+        /// machine file's `[work_offsets]`.
+        #[arg(long, value_name = "WORDS")]
+        work_offset: Option<String>,
+        /// With --origin g54 … g59: set that offset where the spot stands (`G10 L20 P2` for
+        /// G55) before the job, as --origin current does for G54.
+        #[arg(long)]
+        set_origin: bool,
     },
     /// Plan the motion: cycle time, peaks and where the time goes; optionally a JSON summary
     /// (`-o`), a CSV trace (`--trace`) and every pulse (`--pulses`).
@@ -132,7 +142,15 @@ fn main() -> ExitCode {
             output,
             dialect,
             origin,
-        } => cmd_emit(&file, output.as_deref(), &dialect, origin),
+            work_offset,
+            set_origin,
+        } => cmd_emit(
+            &file,
+            output.as_deref(),
+            &dialect,
+            origin,
+            (work_offset.as_deref(), set_origin),
+        ),
         Command::Plan {
             file,
             output: summary,
@@ -192,6 +210,7 @@ fn cmd_emit(
     output: Option<&Path>,
     dialect: &str,
     origin: Option<origin::JobOrigin>,
+    (work_offset, set_origin): (Option<&str>, bool),
 ) -> CmdResult {
     let dialect = parse_dialect(dialect)?;
     // No spinner over NC text printed on the terminal itself.
@@ -200,12 +219,27 @@ fn cmd_emit(
     } else {
         output::Busy::start(&format!("compiling {}", file.display()))
     };
-    let (recipe, program) = driver::program(file)?;
-    let planned = match origin::chosen(origin, &program) {
-        origin::JobOrigin::Absolute => {
-            lase_runtime::compile::plan(program).map(|job| (job, Vec::new()))
-        }
-        origin::JobOrigin::Current => origin::work_frame(program, dialect),
+    let (recipe, mut program) = driver::program(file)?;
+    let chosen = origin::chosen(origin, &program);
+    program.planner.origin = chosen.into();
+    if set_origin && chosen.work().is_none() {
+        let e = origin::OriginError::SetOrigin(format!("{chosen:?}").to_lowercase());
+        return Err((recipe.map, Failure::one(e)));
+    }
+    let given = match work_offset.map(|t| origin::parse_offset(t, &program.machine)) {
+        Some(Err(e)) => return Err(io_fail(format!("--work-offset: {e}"))),
+        Some(Ok(v)) => Some(v),
+        None => None,
+    };
+    let planned = match (chosen, chosen.work()) {
+        (_, Some(g)) => origin::named(program, dialect, g, given, set_origin).map(|(job, s, w)| {
+            if let Some(w) = w {
+                eprintln!("warning: {w}");
+            }
+            (job, s)
+        }),
+        (origin::JobOrigin::Current, _) => origin::work_frame(program, dialect),
+        _ => lase_runtime::compile::plan(program).map(|job| (job, Vec::new())),
     };
     let (job, setup) = match planned {
         Ok(p) => p,
@@ -230,7 +264,11 @@ fn cmd_emit(
                 .and_then(|()| w.write_all(b"\n"))
                 .inspect_err(|e| io_err = Some(e.to_string()))?;
             // The work frame is set right after the header's units and distance mode.
-            if l.text.starts_with("G21 G90") {
+            // (ISO numbers its blocks: `N30 G21 G90 …`.)
+            let body = l
+                .text
+                .trim_start_matches(|c: char| c == 'N' || c.is_ascii_digit());
+            if body.trim_start().starts_with("G21 G90") {
                 for line in setup.by_ref() {
                     w.write_all(line.as_bytes())
                         .and_then(|()| w.write_all(b"\n"))

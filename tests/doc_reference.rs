@@ -73,8 +73,11 @@ fn every_lase_snippet_in_the_docs_checks_clean() {
         for (i, snippet) in inline_statements(&text).into_iter().enumerate() {
             // `swing_right` is an event of the notcher's machine file; the scan rows name a
             // region `pad` and fire with the pulse settings in force.
+            // `rotary` sets the object on a rotary attachment: the stock one's.
             let machine = if snippet.starts_with("event ") {
                 "notcher"
+            } else if snippet.starts_with("rotary ") {
+                "xy_rotary"
             } else {
                 "xy_table"
             };
@@ -118,7 +121,7 @@ fn fenced_lase_blocks(text: &str) -> Vec<(Option<String>, String)> {
 fn inline_statements(text: &str) -> Vec<String> {
     const STATEMENTS: &[&str] = &[
         "machine", "limits", "planner", "laser", "pulse", "follow", "move", "dwell", "mcode",
-        "event", "use", "scan", "output",
+        "event", "use", "scan", "output", "rotary",
     ];
     let mut out: Vec<String> = Vec::new();
     for line in text.lines() {

@@ -121,6 +121,8 @@ pub enum StmtKind {
     Laser(LaserStmt),
     Pulse(PulseStmt),
     Planner(Vec<Setting>),
+    /// `rotary { diameter 60 mm }`: the object on a rotary attachment (issue 20).
+    Rotary(Vec<Setting>),
     Move {
         kind: MoveKind,
         target: Expr,

@@ -365,6 +365,7 @@ impl Builder {
                 _ => StmtKind::Pulse(PulseStmt::Off),
             },
             Rule::planner_stmt => StmtKind::Planner(self.settings(next())),
+            Rule::rotary_stmt => StmtKind::Rotary(self.settings(next())),
             Rule::move_stmt => {
                 let kind = match next().as_str() {
                     "by" => MoveKind::By,
@@ -769,6 +770,7 @@ fn is_keyword(r: Rule) -> bool {
             | Rule::kw_laser
             | Rule::kw_pulse
             | Rule::kw_planner
+            | Rule::kw_rotary
             | Rule::kw_move
             | Rule::kw_rapid
             | Rule::kw_at
@@ -831,6 +833,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         | Rule::kw_laser
         | Rule::kw_pulse
         | Rule::kw_planner
+        | Rule::kw_rotary
         | Rule::kw_move
         | Rule::kw_follow
         | Rule::kw_dwell
@@ -851,6 +854,7 @@ fn rule_name(r: Rule) -> Option<&'static str> {
         | Rule::laser_stmt
         | Rule::pulse_stmt
         | Rule::planner_stmt
+        | Rule::rotary_stmt
         | Rule::move_stmt
         | Rule::follow_stmt
         | Rule::dwell_stmt
@@ -967,7 +971,7 @@ fn misspelt_statement(word: &str, expected: &[&str]) -> Option<&'static str> {
     }
     const STATEMENT_KEYWORDS: &[&str] = &[
         "machine", "limits", "let", "fn", "import", "use", "if", "for", "return", "laser", "pulse",
-        "planner", "move", "follow", "dwell", "mcode", "event", "scan",
+        "planner", "rotary", "move", "follow", "dwell", "mcode", "event", "scan",
     ];
     crate::units::suggest(word, STATEMENT_KEYWORDS.iter().copied())
 }

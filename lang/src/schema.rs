@@ -649,7 +649,10 @@ pub const PLANNER_SETTINGS: &[SettingSpec] = &[
         "Where the recipe's zero is on the machine: `absolute` (default), the controller's \
          coordinates; `current`, the spot's position when the job starts (`lase run` reads it \
          from the controller and refuses a job that would leave the travel from there; `lase \
-         emit` writes a work frame its header sets with `G10 L20 P1`). `--origin` overrides it.",
+         emit` writes a work frame its header sets with `G10 L20 P1`); `g54` … `g59`, the \
+         controller's work offset, selected and never written (the travel is checked at \
+         machine positions: `lase run` reads the offset, `lase emit` takes `--work-offset` or \
+         the machine file's `[work_offsets]`). `--origin` overrides it.",
     ),
 ];
 
@@ -658,8 +661,9 @@ pub const LEADINS: &[&str] = &["auto", "none"];
 /// Cut orders of `planner { order ... }` (issue 20).
 pub const CUT_ORDERS: &[&str] = &["source", "nearest", "inner_first"];
 
-/// Job origins of `planner { origin ... }` (issue 20).
-pub const JOB_ORIGINS: &[&str] = &["absolute", "current"];
+// Issue 20's job-setup words: `planner { origin }` and the `rotary` statement.
+mod job_setup;
+pub use job_setup::{JOB_ORIGINS, ROTARY_SETTINGS};
 
 pub const LIMIT_SETTINGS: &[SettingSpec] = &[
     set(
@@ -987,7 +991,7 @@ pub const TYPE_NAMES: &[&str] = &[
 /// Statement keywords, for completion and docs.
 pub const KEYWORDS: &[&str] = &[
     "machine", "limits", "let", "fn", "import", "use", "if", "else", "for", "in", "return",
-    "laser", "pulse", "planner", "move", "to", "by", "rapid", "at", "follow", "dwell", "mcode",
-    "event", "output", "scan", "profile", "true", "false", "and", "or", "not", "closed", "cw",
-    "ccw", "on", "off", "interval",
+    "laser", "pulse", "planner", "rotary", "move", "to", "by", "rapid", "at", "follow", "dwell",
+    "mcode", "event", "output", "scan", "profile", "true", "false", "and", "or", "not", "closed",
+    "cw", "ccw", "on", "off", "interval",
 ];

@@ -10,6 +10,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::ops::Range;
 
+mod rotary;
+pub use rotary::{Drive, Rotary};
+
 /// What is wrong with a machine file. Spans are global offsets (the file is part of the
 /// recipe's source map).
 #[derive(Debug, Clone, thiserror::Error, miette::Diagnostic, PartialEq)]
@@ -55,6 +58,9 @@ pub enum KinematicsKind {
     /// PROCESS.md §2: a slide along the joint axes, then the planar arm's joints A, B, C.
     /// Axes in that order.
     Arm3r,
+    /// A rotary attachment on a flat bed (issue 20): the recipe's y is the surface around the
+    /// object, which the turning axis of `[rotary]` moves; the other axes move x and z.
+    Rotary,
 }
 
 /// Link lengths and offsets of oriented machines, mm (internal units).
@@ -192,6 +198,15 @@ pub struct Machine {
     pub events: BTreeMap<String, EventPost>,
     #[serde(default)]
     pub outputs: BTreeMap<String, OutputPost>,
+    /// The rotary attachment (`kinematics = "rotary"`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotary: Option<Rotary>,
+    /// Work offsets the operator has set on the controller, `[work_offsets] g55 = { X = "100
+    /// mm", ... }`: by G number (54–59), one value per machine axis in internal units (an
+    /// axis not given is 0). `lase emit --origin g55` checks the travel at machine positions
+    /// with it; without it the check cannot be done there (issue 20).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub work_offsets: BTreeMap<u8, Vec<f64>>,
     /// How an NC program settles a row start on this machine (`[settle]`).
     #[serde(default)]
     pub settle: SettlePost,
@@ -239,6 +254,9 @@ struct FileMachine {
     events: BTreeMap<String, FileEvent>,
     #[serde(default)]
     outputs: BTreeMap<String, FileOutput>,
+    rotary: Option<rotary::FileRotary>,
+    #[serde(default)]
+    work_offsets: BTreeMap<String, BTreeMap<String, toml::Spanned<String>>>,
     #[serde(default)]
     settle: FileSettle,
 }
@@ -490,12 +508,13 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         "cartesian" => KinematicsKind::Cartesian,
         "cam_xwb" => KinematicsKind::CamXwb,
         "arm_3r" => KinematicsKind::Arm3r,
+        "rotary" => KinematicsKind::Rotary,
         other => {
             return Err(MachineError::Invalid {
                 message: format!("unknown kinematics `{other}`"),
                 span: at(file.kinematics.span()),
                 label: "not a kinematics model".into(),
-                help: Some("available: cartesian, cam_xwb, arm_3r".into()),
+                help: Some("available: cartesian, cam_xwb, arm_3r, rotary".into()),
             });
         }
     };
@@ -613,8 +632,19 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         }
     };
     let mut geometry = Geometry::default();
+    let mut rotary = None;
     match kinematics {
         KinematicsKind::Cartesian => {}
+        KinematicsKind::Rotary => {
+            let length = |s: &toml::Spanned<String>, what: &str| qty(s, &[Dim::LENGTH], what);
+            rotary = Some(rotary::parse(
+                file.rotary.as_ref(),
+                &axes,
+                kinematics_span,
+                &at,
+                &length,
+            )?);
+        }
         KinematicsKind::CamXwb => {
             roles(
                 &[AxisKind::Linear, AxisKind::Rotary, AxisKind::Rotary],
@@ -773,6 +803,53 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         }
         outputs.insert(k, OutputPost { posts, doc: o.doc });
     }
+    if let (Some(r), false) = (&file.rotary, kinematics == KinematicsKind::Rotary) {
+        return Err(MachineError::Invalid {
+            message: "`[rotary]` belongs to the rotary kinematics".into(),
+            span: at(r.span()),
+            label: "not used".into(),
+            help: Some("write `kinematics = \"rotary\"`, or remove `[rotary]`".into()),
+        });
+    }
+    let mut work_offsets = BTreeMap::new();
+    for (key, values) in &file.work_offsets {
+        let n = key
+            .to_ascii_lowercase()
+            .strip_prefix('g')
+            .and_then(|n| n.parse::<u8>().ok())
+            .filter(|n| (54..=59).contains(n));
+        let Some(n) = n else {
+            return Err(MachineError::Invalid {
+                message: format!("`{key}` is not a work offset"),
+                span: values
+                    .values()
+                    .next()
+                    .map(|v| at(v.span()))
+                    .unwrap_or(kinematics_span),
+                label: "not g54 … g59".into(),
+                help: Some("name the offset by its G number: g54, g55, … g59".into()),
+            });
+        };
+        let mut v = vec![0.0; axes.len()];
+        for (letter, value) in values {
+            let Some(i) = axes
+                .iter()
+                .position(|a| a.name.eq_ignore_ascii_case(letter))
+            else {
+                return Err(MachineError::Invalid {
+                    message: format!("work offset g{n}: the machine has no axis `{letter}`"),
+                    span: at(value.span()),
+                    label: "no such axis".into(),
+                    help: Some("give values for the machine's own axis letters".into()),
+                });
+            };
+            v[i] = match axes[i].kind {
+                AxisKind::Linear => qty(value, &[Dim::LENGTH], "work offset")?,
+                AxisKind::Rotary => qty(value, &[Dim::ANGLE], "work offset")?,
+            };
+        }
+        work_offsets.insert(n, v);
+    }
     Ok(Machine {
         name: file.name,
         description: file.description,
@@ -786,6 +863,8 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         post,
         events,
         outputs,
+        rotary,
+        work_offsets,
         settle: SettlePost {
             linuxcnc_inputs: file.settle.linuxcnc.map(|l| [l.x_input, l.y_input]),
             iso_call: file.settle.iso.map(|i| i.call),

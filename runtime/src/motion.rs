@@ -200,6 +200,9 @@ pub(crate) fn tool_pose(p: P3, orient: Option<Orient>) -> ToolPose {
 pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     let kin: Arc<dyn Kinematics> = Arc::from(kinematics::for_machine(&program.machine));
     let n_axes = kin.axis_count();
+    if !kin.circular_arcs() {
+        arcs_as_chords(&mut program);
+    }
     let start_span = program.ops.first().map(|o| o.span).unwrap_or_default();
     // A machine that orients the beam starts from its axis zero (its home); a flat bed from
     // the spot position the program starts at.
@@ -359,6 +362,58 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         sections: led.sections,
         leads: led.leads,
     })
+}
+
+/// Every arc replaced by its chords within the chord tolerance (the points [`arc_points`]
+/// gives the planner anyway), as lit or dark as the arc: on a machine whose axes do not turn
+/// a part-space circle into a circle (a rotary attachment), G2/G3 cannot write it, and the
+/// emitted blocks must be the moves planned. Settles keep pointing at their ops.
+fn arcs_as_chords(program: &mut ProcessProgram) {
+    if !program
+        .ops
+        .iter()
+        .any(|o| matches!(o.kind, OpKind::Arc { .. }))
+    {
+        return;
+    }
+    let tol = program.planner.arc_tolerance_mm;
+    let mut ops = Vec::with_capacity(program.ops.len());
+    let mut index = Vec::with_capacity(program.ops.len());
+    let mut pos = program.start;
+    for op in std::mem::take(&mut program.ops) {
+        if let OpKind::Arc {
+            to,
+            center,
+            ccw,
+            feed_mm_s,
+            laser,
+        } = &op.kind
+        {
+            for p in arc_points(pos, *to, *center, *ccw, tol) {
+                ops.push(Op {
+                    kind: OpKind::Line {
+                        to: p,
+                        feed_mm_s: *feed_mm_s,
+                        laser: laser.clone(),
+                        orient: None,
+                        row: None,
+                    },
+                    span: op.span,
+                });
+            }
+            pos = *to;
+        } else {
+            if let Some(t) = op.target() {
+                pos = t;
+            }
+            ops.push(op);
+        }
+        index.push(ops.len().saturating_sub(1));
+    }
+    for s in &mut program.settles {
+        s.op = index[s.op];
+    }
+    program.ops = ops;
 }
 
 fn planner_error_move(e: &planner::PlanError) -> Option<usize> {

@@ -363,6 +363,8 @@ pub enum JobOrigin {
     #[default]
     Absolute,
     Current,
+    /// A named work offset, G54 … G59 by its G number (issue 20).
+    Work(u8),
 }
 
 impl JobOrigin {

@@ -41,6 +41,8 @@ const WORST: &[(&str, &str, f64, f64, f64)] = &[
     ("rhai_cam", "X", 1.0, 26.94, 1347.0),
     ("rhai_cam", "C", 0.08489, 2.723, 135.1),
     ("rhai_cam", "B", 0.02482, 0.1632, 8.156),
+    ("rotary_engrave", "X", 0.9799, 6.208, 247.3),
+    ("rotary_engrave", "A", 1.0, 6.160, 306.9),
     ("serial_number", "X", 0.7727, 5.835, 233.4),
     ("serial_number", "Y", 1.0, 5.746, 230.0),
     ("surface_hardening_arm", "X", 0.4073, 12.58, 628.0),

@@ -41,6 +41,16 @@ pub(super) fn run(
         ));
     }
     let (recipe, job) = driver::compile(file)?;
+    let origin = crate::origin::chosen(args.origin, &job.program);
+    if origin != crate::origin::JobOrigin::Absolute {
+        // The travel check at machine positions needs the controller's position or offset,
+        // which this link does not read yet: refused rather than run unchecked.
+        let name = format!("{origin:?}").to_lowercase();
+        return Err(io_fail(format!(
+            "--origin {name} over a LinuxCNC link is not built yet: run with --origin absolute, \
+             or write the program with `lase emit --origin ...` and run it on the controller"
+        )));
+    }
     if let Some(s) = job.program.settles.first() {
         // The program runs from a file on LinuxCNC: lase cannot step between its lines.
         return Err((

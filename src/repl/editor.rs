@@ -74,6 +74,7 @@ fn settings_context(text: &str) -> Option<&'static [schema::SettingSpec]> {
                     "laser" => Some(schema::LASER_SETTINGS),
                     "pulse" => Some(schema::PULSE_SETTINGS),
                     "planner" => Some(schema::PLANNER_SETTINGS),
+                    "rotary" => Some(schema::ROTARY_SETTINGS),
                     _ if words.contains(&"follow") => Some(schema::FOLLOW_SETTINGS),
                     _ => None,
                 };

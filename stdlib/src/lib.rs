@@ -6,6 +6,7 @@
 /// The stock machines: name and TOML text.
 pub const MACHINES: &[(&str, &str)] = &[
     ("xy_table", include_str!("../machines/xy_table.toml")),
+    ("xy_rotary", include_str!("../machines/xy_rotary.toml")),
     ("xyz", include_str!("../machines/xyz.toml")),
     ("notcher", include_str!("../machines/notcher.toml")),
     ("cam_xwb", include_str!("../machines/cam_xwb.toml")),

@@ -188,6 +188,7 @@ impl Checker {
             }
             StmtKind::Pulse(PulseStmt::Off) => {}
             StmtKind::Planner(set) => self.settings("planner", set, schema::PLANNER_SETTINGS),
+            StmtKind::Rotary(set) => self.settings("rotary", set, schema::ROTARY_SETTINGS),
             StmtKind::Move { target, speed, .. } => {
                 let t = self.expr(target);
                 self.expect_ty(&t, &Ty::Point, target, "the target of `move`");

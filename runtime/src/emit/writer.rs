@@ -189,6 +189,11 @@ pub(super) fn write(
         out.put(&format::comment(&c, COMMENT_MAX), None)?;
     }
     out.put("G21 G90 G17 G94", None)?;
+    if let crate::program::JobOrigin::Work(g) = program.planner.origin {
+        // A named work offset (issue 20): the operator's own, selected and never written
+        // over (no G10 here), so the program runs where that offset puts it.
+        out.put(&format!("G{g}"), None)?;
+    }
     if dialect == Dialect::LinuxCnc {
         // Path blending within the junction deviation the planner assumed.
         let p = format::number(program.planner.junction_deviation_mm);
@@ -237,7 +242,7 @@ pub(super) fn write(
         location: String::new(),
         inverse_time: false,
     };
-    let oriented = job.kin.oriented();
+    let inverse_time = job.kin.inverse_time();
     let arc_axes = validate::arc_axes(machine);
     let mut train = pulse::Train::default();
     // What pulse lowering needs of this program (the same for every op).
@@ -375,8 +380,8 @@ pub(super) fn write(
                         }
                     }
                     // By machine, not dialect: every dialect that can drive an oriented machine's
-                    // axes writes its feed moves in inverse time.
-                    if oriented && !m.inverse_time && matches!(op.kind, OpKind::Line { .. }) {
+                    // (or a rotary attachment's) axes writes its feed moves in inverse time.
+                    if inverse_time && !m.inverse_time && matches!(op.kind, OpKind::Line { .. }) {
                         out.put("G93", tag)?;
                         m.inverse_time = true;
                     }

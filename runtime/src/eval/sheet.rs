@@ -384,6 +384,47 @@ impl Evaluator {
         Ok(())
     }
 
+    /// `rotary { diameter D }` (issue 20): the object's diameter on a rotary attachment,
+    /// written into the program's machine, whose kinematics maps the surface with it. Before
+    /// any move: the moves already made were mapped with the diameter they were made under.
+    pub(super) fn rotary_settings(&mut self, set: &[Setting], span: Span, cx: &mut Cx) -> R<()> {
+        let machine = self.need_machine(span)?;
+        if machine.rotary.is_none() {
+            let help = format!(
+                "machine `{}` has no rotary attachment; use one whose kinematics is `rotary` \
+                 (the stock `xy_rotary`)",
+                machine.name
+            );
+            return Err(bad(
+                Kind::Conflict,
+                span,
+                "`rotary` sets the object on a rotary attachment",
+                "no rotary attachment",
+                Some(help.as_str()),
+            ));
+        }
+        if !self.ops.is_empty() {
+            return Err(bad(
+                Kind::Conflict,
+                span,
+                "the object's diameter cannot change once the recipe has moved",
+                "after a move",
+                Some("set `rotary { diameter ... }` before the first move"),
+            ));
+        }
+        for s in set {
+            let Some(e) = &s.value else { continue };
+            if s.key.name == "diameter" {
+                let v = self.expr(e, cx)?;
+                let d = self.positive_length(&v, e.span, "`diameter`")?;
+                if let Some(r) = self.machine.as_mut().and_then(|m| m.rotary.as_mut()) {
+                    r.diameter_mm = d;
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub(super) fn planner_settings(&mut self, set: &[Setting], span: Span, cx: &mut Cx) -> R<()> {
         self.need_machine(span)?;
         let mut p = self.planner_settings_now();
@@ -410,6 +451,11 @@ impl Evaluator {
                 "origin" => {
                     p.origin = match &e.kind {
                         ExprKind::Var(w) if w == "current" => JobOrigin::Current,
+                        ExprKind::Var(w) => w
+                            .strip_prefix('g')
+                            .and_then(|n| n.parse::<u8>().ok())
+                            .filter(|n| (54..=59).contains(n))
+                            .map_or(JobOrigin::Absolute, JobOrigin::Work),
                         _ => JobOrigin::Absolute,
                     }
                 }

@@ -183,6 +183,7 @@ impl Evaluator {
             StmtKind::Pulse(PulseStmt::Off) => self.pulse = None,
             StmtKind::Pulse(PulseStmt::Settings(set)) => self.pulse_settings(set, cx)?,
             StmtKind::Planner(set) => self.planner_settings(set, s.span, cx)?,
+            StmtKind::Rotary(set) => self.rotary_settings(set, s.span, cx)?,
             StmtKind::Move {
                 kind,
                 target,

@@ -6,14 +6,18 @@
 //! anything is emitted; the planned `motion::Job` carries the model ([`for_machine`], the one
 //! constructor) and every op's axis values, so later stages never run the inverse again.
 //! Axis values are [`Axes`] (machine order, mm and rad), from the neutral `axes` module.
+//! Models: `cartesian`, `cam_xwb` (PROCESS.md §1), `arm_3r` (§2) and `rotary` (a rotary
+//! attachment on a flat bed, issue 20).
 
 mod arm_3r;
 mod cam_xwb;
 mod cartesian;
+mod rotary;
 
 pub use arm_3r::Arm3r;
 pub use cam_xwb::CamXwb;
 pub use cartesian::Cartesian;
+pub use rotary::RotaryAttachment;
 
 use crate::axes::{Axes, MAX_AXES};
 use crate::machine::{KinematicsKind, Machine};
@@ -96,6 +100,17 @@ pub trait Kinematics: std::fmt::Debug + Send + Sync {
     fn oriented(&self) -> bool {
         false
     }
+    /// Whether the controller must be given feed moves in inverse time (G93) to hold the
+    /// spot's speed: its F is measured over axis units, which are not the part's millimetres
+    /// when a move turns a rotary axis (oriented machines, a rotary attachment).
+    fn inverse_time(&self) -> bool {
+        self.oriented()
+    }
+    /// Whether a part-space arc in the xy plane is a circle in the axes, so G2/G3 can write
+    /// it. A rotary attachment maps y to an angle: its arcs are written as chords.
+    fn circular_arcs(&self) -> bool {
+        true
+    }
     /// Checks axis positions against travel.
     fn check(&self, q: &Axes) -> Result<(), KinError>;
 }
@@ -107,6 +122,7 @@ pub fn for_machine(m: &Machine) -> Box<dyn Kinematics> {
         KinematicsKind::Cartesian => Box::new(Cartesian::new(m)),
         KinematicsKind::CamXwb => Box::new(CamXwb::new(m)),
         KinematicsKind::Arm3r => Box::new(Arm3r::new(m)),
+        KinematicsKind::Rotary => Box::new(RotaryAttachment::new(m)),
     }
 }
 

@@ -398,6 +398,13 @@ pub trait Link: Send {
         let _ = (dx, dy, feed);
         None
     }
+    /// The work offset G`g` (54–59) as the controller holds it, X Y Z A B C as it reports
+    /// them (mm, deg): machine = work + offset. `None` when the controller cannot say (GRBL
+    /// answers `$#`; issue 20's named origins check the travel with it).
+    fn work_offset(&mut self, g: u8) -> Result<Option<Vec<f64>>, LinkError> {
+        let _ = g;
+        Ok(None)
+    }
 }
 
 /// How a line after a re-approach relates to the restored state (see [`Link::continue_line`]).

@@ -604,6 +604,26 @@ impl Link for GrblLink {
         }
     }
 
+    /// `$#` (report.c `report_ngc_parameters`): one `[G54:x,y,z]` … `[G59:…]` line per
+    /// coordinate system, then G28, G30, G92, TLO and PRB; grblHAL adds its axes' values.
+    fn work_offset(&mut self, g: u8) -> Result<Option<Vec<f64>>, LinkError> {
+        let (reply, got) = self.command_collect("$#", Duration::from_secs(5))?;
+        super::reply_error("$#", reply)?;
+        let kind = format!("G{g}");
+        let Some(body) = got.iter().find_map(|r| match r {
+            Response::Feedback { kind: k, body } if *k == kind => Some(body.clone()),
+            _ => None,
+        }) else {
+            return Ok(None);
+        };
+        response::parse_offset(&body)
+            .map(Some)
+            .map_err(|reason| LinkError::Protocol {
+                text: format!("[{kind}:{body}]"),
+                reason,
+            })
+    }
+
     fn modal_state(&mut self) -> Result<ModalState, LinkError> {
         let (reply, got) = self.command_collect("$G", Duration::from_secs(5))?;
         super::reply_error("$G", reply)?;

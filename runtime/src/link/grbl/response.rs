@@ -238,6 +238,15 @@ pub fn documented_feedback(kind: &str) -> bool {
     KINDS.contains(&kind) || coordinates
 }
 
+/// A `$#` coordinate line's values, `12.000,-3.500,0.000` (what follows `[G55:`).
+pub fn parse_offset(body: &str) -> Result<Vec<f64>, String> {
+    let v: Option<Vec<f64>> = body.split(',').map(number).collect();
+    match v {
+        Some(v) if !v.is_empty() && v.len() <= 6 => Ok(v),
+        _ => Err("expected 1 to 6 comma-separated numbers".into()),
+    }
+}
+
 fn code(s: &str) -> Option<u32> {
     if s.is_empty() || s.len() > 4 || !s.bytes().all(|b| b.is_ascii_digit()) {
         return None;
@@ -419,6 +428,20 @@ pub fn parse_parser_state(body: &str) -> Result<ModalState, String> {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn a_coordinate_line_of_the_parameters_report_parses() {
+        // report.c `report_ngc_parameters`: `[G55:100.000,50.000,0.000]`.
+        let r = parse(b"[G55:100.000,-50.500,0.000]");
+        let Ok(Response::Feedback { kind, body }) = r else {
+            panic!("{r:?}");
+        };
+        assert_eq!(kind, "G55");
+        assert_eq!(parse_offset(&body), Ok(vec![100.0, -50.5, 0.0]));
+        assert!(parse_offset("1,x").is_err());
+        assert!(parse_offset("").is_err());
+        assert!(parse_offset("1,2,3,4,5,6,7").is_err());
+    }
 
     #[test]
     fn parses_every_message_kind() {

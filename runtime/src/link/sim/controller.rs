@@ -145,6 +145,7 @@ impl Controller {
         // The simulator starts homed at the origin (clamped into the travel).
         let mpos = cfg.home();
         let axes = cfg.firmware.axes();
+        let offsets = cfg.work_offsets;
         let perr = cfg
             .position_error
             .map(|c| super::poserr::PositionError::new(c, mpos));
@@ -160,7 +161,10 @@ impl Controller {
             in_semicolon: false,
             overflow: false,
             pending: None,
-            gc: Gc::new(mpos, axes),
+            gc: Gc {
+                offsets,
+                ..Gc::new(mpos, axes)
+            },
             planner: VecDeque::new(),
             pl: Planner::new(limits, mpos),
             exec: None,
@@ -350,7 +354,10 @@ impl Controller {
         self.in_semicolon = false;
         self.overflow = false;
         self.pending = None;
-        self.gc = Gc::new(self.mpos, self.cfg.firmware.axes());
+        self.gc = Gc {
+            offsets: self.cfg.work_offsets,
+            ..Gc::new(self.mpos, self.cfg.firmware.axes())
+        };
         self.rest_laser = 0.0;
         self.overrides = [100, 100, 100];
         self.status_request = false;

@@ -4,7 +4,7 @@
 //! and the physical steps it asks for, in GRBL's order of execution.
 //!
 //! Supported: G0–G3 (offset and radius arcs in all three planes), G4, G17–G19, G20/G21, G40,
-//! G43.1/G49, G53, G54–G59, G61, G80, G90/G91, G91.1, G93/G94; M0–M2, M30, M3–M5, M8, M9;
+//! G43.1/G49, G53, G54–G59 (with the offsets the simulator was started with), G61, G80, G90/G91, G91.1, G93/G94; M0–M2, M30, M3–M5, M8, M9;
 //! F, S, T, N. G10, G28, G30, G38.x and G92 are refused with error 20 (not simulated).
 //! Axis words are X, Y, Z and, on a grblHAL build with more axes, A, B, C (degrees when
 //! rotary); a letter for an axis the build lacks is error 20, as in GRBL.
@@ -19,9 +19,13 @@ const MAX_TOOL: f64 = 255.0;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Gc {
     pub modal: ModalState,
-    /// mm (degrees for rotary axes), machine coordinates (the simulator's work offsets are
-    /// zero).
+    /// mm (degrees for rotary axes), machine coordinates.
     pub pos: AxisPos,
+    /// The coordinate system in force, 0 for G54 … 5 for G59.
+    pub coord: usize,
+    /// The work offsets G54 … G59 (machine = work + offset), as `$#` reports them; GRBL keeps
+    /// them in EEPROM, so a reset leaves them (the controller sets them again).
+    pub offsets: [AxisPos; 6],
     pub tool: u32,
     /// Axes of the build: 3 (X Y Z) to 6 (X Y Z A B C).
     pub axes: usize,
@@ -32,6 +36,8 @@ impl Gc {
         Gc {
             modal: ModalState::default(),
             pos,
+            coord: 0,
+            offsets: [[0.0; 6]; 6],
             tool: 0,
             axes: axes.clamp(3, AXIS_LETTERS.len()),
         }
@@ -42,8 +48,9 @@ impl Gc {
         let m = &self.modal;
         let k = if m.inches { 25.4 } else { 1.0 };
         format!(
-            "[GC:{} G54 {} {} {} {} {} {} T{} F{} S{}]",
+            "[GC:{} G{} {} {} {} {} {} {} T{} F{} S{}]",
             m.motion.word(),
+            54 + self.coord,
             m.plane.word(),
             if m.inches { "G20" } else { "G21" },
             if m.incremental { "G91" } else { "G90" },
@@ -175,6 +182,7 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
     let mut distance = None;
     let mut feed_mode = None;
     let mut non_modal: Option<u32> = None; // 4 dwell, 53 machine coordinates
+    let mut coord: Option<usize> = None;
     let mut spindle = None;
     let mut coolant: Option<(bool, bool)> = None;
     let mut flow: Option<u32> = None;
@@ -243,7 +251,10 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
                     }
                     (40, 0) => group(7)?,
                     (43, 10) | (49, 0) => group(8)?,
-                    (54..=59, 0) => group(12)?,
+                    (54..=59, 0) => {
+                        group(12)?;
+                        coord = Some((g - 54) as usize);
+                    }
                     (61, 0) => group(13)?,
                     (10 | 28 | 30 | 38 | 92, _) => return Err(20),
                     (_, m)
@@ -366,6 +377,9 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
     if let Some(t) = v(b'T') {
         next.tool = t as u32;
     }
+    if let Some(c) = coord {
+        next.coord = c;
+    }
     if non_modal == Some(4) && v(b'P').is_none() {
         return Err(28);
     }
@@ -385,10 +399,14 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
         if let Some(x) = v(c) {
             // Inches scale the linear axes; rotary A, B, C stay in degrees.
             let x = if a < 3 { x * k } else { x };
-            target[a] = if m.incremental && non_modal != Some(53) {
+            // gc.c: absolute coordinates are work coordinates (the block's own coordinate
+            // system, offset added), G53's are machine coordinates.
+            target[a] = if non_modal == Some(53) {
+                x
+            } else if m.incremental {
                 gc.pos[a] + x
             } else {
-                x
+                x + next.offsets[next.coord][a]
             };
         }
     }
@@ -692,6 +710,26 @@ mod tests {
         // A rotary word with an arc moves linearly along it (a helix): unused offsets still
         // count, A is used.
         assert!(execute(b"G2X1Y1I1J0A30F100", &four, true).is_ok());
+    }
+
+    #[test]
+    fn a_work_offset_moves_absolute_coordinates_as_gc_c_does() {
+        let mut gc = Gc::new([0.0; 6], 3);
+        gc.offsets[1] = [100.0, 50.0, 0.0, 0.0, 0.0, 0.0];
+        // G55 in the block applies to the block's own coordinates; it stays in force.
+        let b = execute(b"G55G0X5Y5", &gc, true).unwrap();
+        assert_eq!(b.next.pos, [105.0, 55.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(b.next.coord, 1);
+        assert!(b.next.report().contains(" G55 "), "{}", b.next.report());
+        let b = execute(b"G1X35F600", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 135.0);
+        // Incremental moves and G53 ignore it; G54 (zero here) takes it away.
+        let b = execute(b"G91G1X1", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 136.0);
+        let b = execute(b"G90G53G0X7", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 7.0);
+        let b = execute(b"G54G0X7", &b.next, true).unwrap();
+        assert_eq!(b.next.pos[0], 7.0);
     }
 
     #[test]

@@ -133,6 +133,8 @@ pub struct SimOptions {
     pub keep: Option<usize>,
     /// The table's positioning error, reported through `MPos` (`--position-error`).
     pub position_error: Option<poserr::PositionErrorConfig>,
+    /// The work offsets G54 … G59 the controller holds (X Y Z A B C, mm and deg).
+    pub work_offsets: [crate::link::AxisPos; 6],
 }
 
 /// What `lase run` and `lase sim` keep of the recording: enough to look back over the last
@@ -151,6 +153,7 @@ impl Default for SimOptions {
             log: false,
             keep: None,
             position_error: None,
+            work_offsets: [[0.0; 6]; 6],
         }
     }
 }
@@ -217,6 +220,7 @@ fn controller_for(machine: &Machine, opts: &SimOptions) -> Controller {
     let mut cfg = ControllerConfig::for_machine(machine);
     cfg.settings.extend(opts.settings.iter().copied());
     cfg.position_error = opts.position_error;
+    cfg.work_offsets = opts.work_offsets;
     cfg.rx_buffer = opts.rx_buffer.max(16);
     cfg.planner_blocks = opts.planner_blocks.max(1);
     cfg.error_at_line = opts.faults.error_at_line.clone();

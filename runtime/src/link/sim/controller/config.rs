@@ -74,6 +74,8 @@ pub struct ControllerConfig {
     pub keep: Option<usize>,
     /// The table's positioning error model; `None`: the table is where the controller is.
     pub position_error: Option<crate::link::sim::poserr::PositionErrorConfig>,
+    /// The work offsets G54 … G59 (X Y Z A B C; machine = work + offset), `$#`'s answer.
+    pub work_offsets: [crate::link::AxisPos; 6],
 }
 
 impl ControllerConfig {
@@ -88,6 +90,7 @@ impl ControllerConfig {
             error_at_line: Vec::new(),
             keep: None,
             position_error: None,
+            work_offsets: [[0.0; 6]; 6],
         }
     }
 

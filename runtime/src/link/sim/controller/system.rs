@@ -37,10 +37,19 @@ impl Controller {
                 self.say(&r);
             }
             "#" => {
-                let zeros = vec!["0.000"; self.cfg.firmware.axes()].join(",");
-                for name in [
-                    "G54", "G55", "G56", "G57", "G58", "G59", "G28", "G30", "G92",
-                ] {
+                // report.c `report_ngc_parameters`: G54…G59, then G28, G30, G92.
+                let n = self.cfg.firmware.axes();
+                let zeros = vec!["0.000"; n].join(",");
+                let systems: Vec<String> = (self.cfg.work_offsets.iter().enumerate())
+                    .map(|(k, o)| {
+                        let v: Vec<String> = o[..n].iter().map(|v| format!("{v:.3}")).collect();
+                        format!("[G{}:{}]", 54 + k, v.join(","))
+                    })
+                    .collect();
+                for l in systems {
+                    self.say(&l);
+                }
+                for name in ["G28", "G30", "G92"] {
                     self.say(&format!("[{name}:{zeros}]"));
                 }
                 self.say("[TLO:0.000]");
@@ -209,7 +218,13 @@ impl Controller {
         }
         let mask = self.setting(10) as u32;
         let n = self.cfg.firmware.axes();
-        let pos: Vec<String> = p[..n].iter().map(|v| format!("{v:.3}")).collect();
+        // WPos = MPos − WCO, the offset of the coordinate system in force.
+        let wco = self.gc.offsets[self.gc.coord];
+        let pos: Vec<String> = p[..n]
+            .iter()
+            .zip(wco)
+            .map(|(v, o)| format!("{:.3}", if mask & 1 == 1 { *v } else { v - o }))
+            .collect();
         let mut s = format!(
             "<{state}|{}:{}",
             if mask & 1 == 1 { "MPos" } else { "WPos" },
@@ -232,7 +247,8 @@ impl Controller {
         s.push_str(&format!("|FS:{:.0},{:.0}", feed, spindle));
         if self.reports.is_multiple_of(10) {
             s.push_str("|WCO:");
-            s.push_str(&vec!["0.000"; n].join(","));
+            let wco: Vec<String> = wco[..n].iter().map(|v| format!("{v:.3}")).collect();
+            s.push_str(&wco.join(","));
         } else if self.reports % 10 == 1 {
             let [f, r, sp] = self.overrides;
             s.push_str(&format!("|Ov:{f},{r},{sp}"));

@@ -1,0 +1,286 @@
+//! A rotary attachment on a flat bed (issue 20), measured from the NC programs lase writes for
+//! `examples/rotary_engrave.lase` (a 60 mm tube in a chuck on A): every block's axes, read back
+//! from the text and mapped onto the surface by the attachment's own formula (written here,
+//! not lase's), land on the programmed points; and every feed block's surface length over its
+//! time (G93: 60 / F seconds) is the programmed surface speed within 0.1 %. The drive formulas
+//! (chuck, roller, a Y-substituted axis) are checked against hand-computed numbers.
+
+use lase_runtime::compile::{self, FsFiles};
+use lase_runtime::emit::{self, Dialect, EmitOptions, NcLine};
+use lase_runtime::kinematics::{self, ToolPose};
+use lase_runtime::machine::parse_machine;
+use lase_runtime::motion::Job;
+use lase_runtime::program::OpKind;
+use std::f64::consts::PI;
+use std::path::Path;
+
+/// The example's object: radius 30 mm.
+const R: f64 = 30.0;
+
+fn example() -> Job {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rotary_engrave.lase");
+    let (_, job) = compile::compile(&mut FsFiles, path.to_str().unwrap())
+        .unwrap_or_else(|(_, f)| panic!("{f}"));
+    job
+}
+
+fn lines(job: &Job, dialect: Dialect) -> Vec<NcLine> {
+    emit::emit_lines(job, dialect, &EmitOptions::default())
+        .unwrap()
+        .0
+}
+
+/// One motion block as the controller reads it: where it ends (X mm, A deg), its motion word
+/// and F, the inverse-time mode in force, and the op lase wrote it for.
+#[derive(Debug, Clone)]
+struct Block {
+    g: u32,
+    x: f64,
+    a: f64,
+    f: Option<f64>,
+    g93: bool,
+    op: Option<u32>,
+}
+
+fn word(text: &str, letter: char) -> Option<f64> {
+    text.split_whitespace()
+        .find_map(|w| w.strip_prefix(letter).and_then(|v| v.parse().ok()))
+}
+
+/// The modal walk over the NC text: G0/G1 and G93/G94 stay in force, X and A keep their last
+/// value (the machine starts at X0 A0, the example's start).
+fn blocks(lines: &[NcLine]) -> Vec<Block> {
+    let (mut g, mut x, mut a, mut g93) = (0, 0.0, 0.0, false);
+    let mut out = Vec::new();
+    for l in lines {
+        let t = l
+            .text
+            .trim_start_matches(|c: char| c == 'N' || c.is_ascii_digit())
+            .trim();
+        if t.starts_with('(') {
+            continue;
+        }
+        for w in t.split_whitespace() {
+            match w {
+                "G93" => g93 = true,
+                "G94" => g93 = false,
+                "G0" | "G00" => g = 0,
+                "G1" | "G01" => g = 1,
+                _ => {}
+            }
+        }
+        let (nx, na) = (word(t, 'X'), word(t, 'A'));
+        if nx.is_none() && na.is_none() {
+            continue;
+        }
+        assert!(
+            !t.contains("G2") && !t.contains("G3"),
+            "no arc on a rotary: {t}"
+        );
+        x = nx.unwrap_or(x);
+        a = na.unwrap_or(a);
+        out.push(Block {
+            g,
+            x,
+            a,
+            f: word(t, 'F'),
+            g93,
+            op: l.op,
+        });
+    }
+    out
+}
+
+/// The chuck's map from axes to the surface, from the machine's geometry alone: y = A · r.
+fn surface(b: &Block) -> [f64; 2] {
+    [b.x, b.a.to_radians() * R]
+}
+
+#[test]
+fn every_block_lands_on_the_programmed_surface_point() {
+    let job = example();
+    for dialect in [Dialect::LinuxCnc, Dialect::GrblHal, Dialect::Iso] {
+        let bs = blocks(&lines(&job, dialect));
+        assert!(bs.len() > 50, "{dialect}: {} blocks", bs.len());
+        let mut checked = 0;
+        for (k, b) in bs.iter().enumerate() {
+            // The last block an op writes ends at the op's target.
+            let last = bs.get(k + 1).is_none_or(|n| n.op != b.op);
+            let Some(op) = b.op.map(|i| &job.program.ops[i as usize]) else {
+                continue;
+            };
+            let (Some(to), true) = (op.target(), last) else {
+                continue;
+            };
+            let p = surface(b);
+            let err = ((p[0] - to[0]).powi(2) + (p[1] - to[1]).powi(2)).sqrt();
+            // X is written to 1 µm, A to 1e-6° (0.5 nm of surface at r = 30 mm).
+            assert!(err < 1e-3, "{dialect}: block {k} at {p:?}, op wants {to:?}");
+            checked += 1;
+        }
+        assert!(checked > 50, "{dialect}: {checked} blocks checked");
+        // The rings: the tube turned once, a lit line of pi * 60 mm ending at A360 (its
+        // lead-out runs on past it).
+        assert!(
+            bs.iter().any(|b| (b.a - 360.0).abs() < 1e-4 && b.g == 1),
+            "{dialect}: no block ends at A360"
+        );
+    }
+}
+
+#[test]
+fn surface_speed_from_the_nc_is_the_programmed_one_within_a_tenth_of_a_percent() {
+    let job = example();
+    for dialect in [Dialect::LinuxCnc, Dialect::GrblHal, Dialect::Iso] {
+        let bs = blocks(&lines(&job, dialect));
+        let mut worst: f64 = 0.0;
+        let mut n = 0;
+        for w in bs.windows(2) {
+            let (from, b) = (&w[0], &w[1]);
+            if b.g != 1 {
+                continue;
+            }
+            let op = &job.program.ops[b.op.expect("a feed block has its op") as usize];
+            let OpKind::Line { feed_mm_s, .. } = op.kind else {
+                panic!("{dialect}: feed block of a {:?}", op.kind);
+            };
+            assert!(
+                b.g93,
+                "{dialect}: feed moves on a rotary are in inverse time"
+            );
+            let (p, q) = (surface(from), surface(b));
+            let len = ((q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)).sqrt();
+            if len < 0.05 {
+                // A block shorter than 50 µm: its F (7 digits) and X (1 µm) round by more.
+                continue;
+            }
+            let f = b.f.expect("G93 blocks carry F");
+            let seconds = 60.0 / f;
+            let v = len / seconds;
+            worst = worst.max((v / feed_mm_s - 1.0).abs());
+            n += 1;
+        }
+        assert!(n > 50, "{dialect}: {n} feed blocks");
+        assert!(
+            worst < 1e-3,
+            "{dialect}: worst surface-speed error {worst:.2e}"
+        );
+        eprintln!("{dialect}: {n} feed blocks, worst surface-speed error {worst:.2e}");
+    }
+}
+
+#[test]
+fn grbl_refuses_the_a_axis_and_the_circle_is_chords_on_its_radius() {
+    let job = example();
+    assert!(emit::emit_lines(&job, Dialect::Grbl, &EmitOptions::default()).is_err());
+    // The circle (center (0, 120), radius 10) became chords whose ends lie on it.
+    let bs = blocks(&lines(&job, Dialect::LinuxCnc));
+    let on_circle: Vec<f64> = bs
+        .iter()
+        .filter(|b| b.g == 1)
+        .map(|b| {
+            let p = surface(b);
+            (p[0].powi(2) + (p[1] - 120.0).powi(2)).sqrt()
+        })
+        .filter(|d| (d - 10.0).abs() < 0.01)
+        .collect();
+    assert!(on_circle.len() > 100, "{} chord ends", on_circle.len());
+    for d in on_circle {
+        assert!((d - 10.0).abs() < 2e-3, "chord end {d} mm from the centre");
+    }
+}
+
+/// A machine file with the given `[rotary]` table and turning axis.
+fn machine(rotary: &str, turning: &str) -> lase_runtime::machine::Machine {
+    let text = format!(
+        "name = \"r\"\nkinematics = \"rotary\"\n[rotary]\n{rotary}\n\
+         [[axes]]\nname = \"X\"\nkind = \"linear\"\npart_axis = \"x\"\n\
+         travel = [\"-100 mm\", \"100 mm\"]\nv_max = \"100 mm/s\"\na_max = \"1 m/s^2\"\nj_max = \"10 m/s^3\"\n\
+         [[axes]]\n{turning}\ntravel = [\"-36000 deg\", \"36000 deg\"]\nv_max = \"100 mm/s\"\na_max = \"1 m/s^2\"\nj_max = \"10 m/s^3\"\n\
+         [laser]\nmax_power = \"10 W\"\nmax_pulse_rate = \"1 kHz\"\n[post.linuxcnc]\nlaser_on = [\"M3\"]\nlaser_off = [\"M5\"]\n"
+    );
+    let text = if turning.contains("linear") {
+        text.replace(
+            "[\"-36000 deg\", \"36000 deg\"]",
+            "[\"-9000 mm\", \"9000 mm\"]",
+        )
+    } else {
+        text.replace(
+            "v_max = \"100 mm/s\"\na_max = \"1 m/s^2\"\nj_max = \"10 m/s^3\"\n[laser]",
+            "v_max = \"360 deg/s\"\na_max = \"3600 deg/s^2\"\nj_max = \"36000 deg/s^3\"\n[laser]",
+        )
+    };
+    parse_machine(&text, 0).unwrap_or_else(|e| panic!("{e:?}\n{text}"))
+}
+
+/// The turning axis's value for a point `y` mm around the surface.
+fn turn(m: &lase_runtime::machine::Machine, y: f64) -> f64 {
+    let k = kinematics::for_machine(m);
+    let q = k.inverse(&ToolPose::down([5.0, y, 0.0]), None).unwrap();
+    assert_eq!(q[0], 5.0, "X is the surface's x");
+    let back = k.forward(&q).spot;
+    assert!((back.y - y).abs() < 1e-9, "forward undoes inverse");
+    q[1]
+}
+
+#[test]
+fn chuck_roller_and_y_substitution_turn_by_their_own_diameters() {
+    let rotary_a = "name = \"A\"\nkind = \"rotary\"";
+    // Chuck, 60 mm object: one circumference (pi * 60) is one turn.
+    let chuck = machine(
+        "drive = \"chuck\"\naxis = \"A\"\ndiameter = \"60 mm\"",
+        rotary_a,
+    );
+    assert!((turn(&chuck, PI * 60.0) - 2.0 * PI).abs() < 1e-12);
+    // Roller of 30 mm under an object of 80 mm: the surface moves as far as the roller's, so
+    // pi * 30 mm of surface is one roller turn, whatever the object.
+    let roller = machine(
+        "drive = \"roller\"\naxis = \"A\"\ndiameter = \"80 mm\"\nroller_diameter = \"30 mm\"",
+        rotary_a,
+    );
+    assert!((turn(&roller, PI * 30.0) - 2.0 * PI).abs() < 1e-12);
+    // A chuck on the Y driver, 40 mm of "Y" per chuck turn, 60 mm object: Y = y · 40 / (pi·60).
+    let on_y = machine(
+        "drive = \"chuck\"\naxis = \"Y\"\ndiameter = \"60 mm\"\nmm_per_rev = \"40 mm\"",
+        "name = \"Y\"\nkind = \"linear\"",
+    );
+    assert!((turn(&on_y, PI * 60.0) - 40.0).abs() < 1e-12);
+    assert!((turn(&on_y, 10.0) - 10.0 * 40.0 / (PI * 60.0)).abs() < 1e-12);
+}
+
+#[test]
+fn a_rotary_table_that_does_not_fit_is_refused_with_its_span() {
+    for (rotary, want) in [
+        (
+            "drive = \"belt\"\naxis = \"A\"\ndiameter = \"60 mm\"",
+            "unknown rotary drive",
+        ),
+        (
+            "drive = \"chuck\"\naxis = \"B\"\ndiameter = \"60 mm\"",
+            "not one of the machine's axes",
+        ),
+        (
+            "drive = \"roller\"\naxis = \"A\"\ndiameter = \"60 mm\"",
+            "needs `roller_diameter`",
+        ),
+        (
+            "drive = \"chuck\"\naxis = \"A\"\ndiameter = \"0 mm\"",
+            "greater than zero",
+        ),
+    ] {
+        let text = format!(
+            "name = \"r\"\nkinematics = \"rotary\"\n[rotary]\n{rotary}\n\
+             [[axes]]\nname = \"A\"\nkind = \"rotary\"\ntravel = [\"-1 deg\", \"1 deg\"]\n\
+             v_max = \"1 deg/s\"\na_max = \"1 deg/s^2\"\nj_max = \"1 deg/s^3\"\n\
+             [laser]\nmax_power = \"10 W\"\nmax_pulse_rate = \"1 kHz\"\n[post.linuxcnc]\nlaser_on = [\"M3\"]\nlaser_off = [\"M5\"]\n"
+        );
+        let e = parse_machine(&text, 0).unwrap_err();
+        let shown = format!("{e}");
+        assert!(shown.contains(want), "{rotary}: {shown}");
+        let span = e.span();
+        assert!(
+            span.end > span.start && (span.end as usize) <= text.len(),
+            "{e:?}"
+        );
+    }
+}
