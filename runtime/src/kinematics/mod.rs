@@ -10,6 +10,7 @@
 mod arm_3r;
 mod cam_xwb;
 mod cartesian;
+pub mod chords;
 
 pub use arm_3r::Arm3r;
 pub use cam_xwb::CamXwb;
