@@ -93,17 +93,12 @@ pub enum MotionError {
         help: String,
     },
 
-    #[error(
-        "the plan cannot hold {feed} here: between {from} and {to} along this lit path it runs \
-         at {held} at most{more}"
-    )]
+    #[error("the plan cannot hold {feed} here: {stretch}")]
     #[diagnostic(code(lase::plan::speed_not_held))]
     SpeedNotHeld {
         feed: String,
-        held: String,
-        from: String,
-        to: String,
-        more: String,
+        /// Where along the lit path and how fast the plan runs there.
+        stretch: String,
         #[label("the beam would harden this path below {feed} there")]
         span: Span,
         #[help]

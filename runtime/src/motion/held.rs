@@ -52,14 +52,17 @@ pub fn check_held(job: &Job) -> Result<(), MotionError> {
             let speed = |x: f64| format_quantity(x, Dim::SPEED);
             return Err(MotionError::SpeedNotHeld {
                 feed: speed(short.feed_mm_s),
-                held: speed(floor3(short.held_mm_s)),
-                from: len(short.from_mm),
-                to: len(short.to_mm),
-                more: if short.more == 0 {
-                    String::new()
-                } else {
-                    format!(" (and {} more stretches further on)", short.more)
-                },
+                stretch: format!(
+                    "between {} and {} along this lit path it runs at {} at most{}",
+                    len(short.from_mm),
+                    len(short.to_mm),
+                    speed(floor3(short.held_mm_s)),
+                    if short.more == 0 {
+                        String::new()
+                    } else {
+                        format!(" (and {} more stretches further on)", short.more)
+                    }
+                ),
                 span,
                 help: format!(
                     "follow at {} or slower, or make the path smoother there (a cam law whose \
