@@ -576,7 +576,9 @@ pub const FOLLOW_SETTINGS: &[SettingSpec] = &[
         L,
         "Scan step on machines that orient the beam: the path is resampled at this constant \
          arc length (shortened until the chord error is within the planner's `tolerance`), \
-         one pose per point (default: the planner's `step`, else 1 mm).",
+         one pose per point (default: the planner's `step`, else 1 mm). A step is halved \
+         where the controller's straight joint motion between two poses would take the spot \
+         off the surface by more than the `tolerance` or change its speed by more than 0.1 %.",
     ),
 ];
 
@@ -616,7 +618,9 @@ pub const PLANNER_SETTINGS: &[SettingSpec] = &[
     set(
         "tolerance",
         L,
-        "Chord tolerance used when arcs and curves are split into straight moves.",
+        "Chord tolerance used when arcs and curves are split into straight moves, and how \
+         far the spot may leave the surface between two poses on machines that orient the \
+         beam.",
     ),
     set(
         "lookahead",

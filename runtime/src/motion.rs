@@ -13,8 +13,11 @@
 //! §4's transition points), so the beam is only on at the programmed speed; [`power`] computes
 //! the per-block power of a lit move whose power follows the speed (PROCESS.md §1, eq. 1).
 //! [`beam`] says which beam switches stop the machine, for this planner and the emitter alike.
+//! After planning, [`held`] refuses a lit section of an oriented machine that the plan runs
+//! below its programmed surface speed.
 
 pub mod beam;
+pub mod held;
 pub mod leadin;
 pub mod power;
 
@@ -85,6 +88,18 @@ pub enum MotionError {
         feed: String,
         limit: String,
         #[label("the beam would be on below the programmed speed")]
+        span: Span,
+        #[help]
+        help: String,
+    },
+
+    #[error("the plan cannot hold {feed} here: {stretch}")]
+    #[diagnostic(code(lase::plan::speed_not_held))]
+    SpeedNotHeld {
+        feed: String,
+        /// Where along the lit path and how fast the plan runs there.
+        stretch: String,
+        #[label("the beam would harden this path below {feed} there")]
         span: Span,
         #[help]
         help: String,
@@ -351,7 +366,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
             .unwrap_or(start_span);
         MotionError::Planner(PlannerFailure { error: e, span })
     })?;
-    Ok(Job {
+    let job = Job {
         program,
         kin,
         start,
@@ -361,7 +376,9 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         plan,
         sections: led.sections,
         leads: led.leads,
-    })
+    };
+    held::check_held(&job)?;
+    Ok(job)
 }
 
 /// Every arc replaced by its chords within the chord tolerance (the points [`arc_points`]

@@ -187,6 +187,54 @@ impl Evaluator {
         Ok(())
     }
 
+    /// The stations with steps shortened where the controller's joint-linear block between
+    /// two poses would take the spot off the surface by more than the tolerance or ripple its
+    /// speed by more than 0.1 % (`kinematics::chords`, issue 13 item 4). New stations are
+    /// exact: spot on the profile, beam along its normal.
+    fn chord_true(
+        &self,
+        profile: &Profile,
+        stations: Vec<Station>,
+        z: f64,
+        standoff: f64,
+        head_on_left: bool,
+        tol: f64,
+    ) -> Vec<Station> {
+        use crate::kinematics::chords::{ChordBudget, Surface, refine};
+        let Some(machine) = self.machine.as_ref() else {
+            return stations;
+        };
+        let kin = crate::kinematics::for_machine(machine);
+        let surface = Surface {
+            profile,
+            z,
+            standoff,
+            head_on_left,
+        };
+        let s: Vec<f64> = stations.iter().map(|st| st.s).collect();
+        let room = super::MAX_OPS.saturating_sub(self.ops.len()) + 1;
+        let refined = refine(&*kin, &surface, &s, ChordBudget::for_tolerance(tol), room);
+        if refined.len() == s.len() {
+            return stations;
+        }
+        // The caller's stations are kept as they were (a closed path's last repeats its first
+        // exactly); only the new ones come from the profile's frames.
+        let mut old = stations.into_iter().peekable();
+        refined
+            .into_iter()
+            .map(|si| {
+                old.next_if(|st| st.s == si).unwrap_or_else(|| {
+                    let (pose, _) = surface.pose(si);
+                    Station {
+                        s: si,
+                        point: crate::geometry::V2::new(pose.spot.x, pose.spot.y),
+                        beam: crate::geometry::V2::new(pose.beam.x, pose.beam.y),
+                    }
+                })
+            })
+            .collect()
+    }
+
     /// `follow` on a machine that orients the beam (PROCESS.md §1 and §2): the profile becomes
     /// an oriented toolpath (`geometry::toolpath`: equal arc-length steps, the beam back along
     /// the exact normal on the head's side, or seed 1's chord normals with `normals chord`, and
@@ -272,6 +320,19 @@ impl Evaluator {
                     },
                 })?;
         let z = self.pos[2];
+        let stations = if normals == Normals::Exact {
+            self.chord_true(profile, stations, z, standoff, side.on_left(profile), tol)
+        } else {
+            // Seed 1's chord normals stay as the paper steps them: they are kept to be
+            // compared with, not to be run true.
+            stations
+        };
+        self.room_for_ops(
+            stations.len() as f64,
+            "this path at the steps its tolerance needs",
+            "use a coarser `planner { tolerance }`",
+            span,
+        )?;
         let pose = |st: &Station| {
             (
                 [st.point.x, st.point.y, z],

@@ -4,9 +4,14 @@
 //!
 //! Convention: the profile point at polar angle θ (counter-clockwise from +X, about the cam
 //! center at the origin) has radius `r_base + lift(θ)`, θ being the cam angle of the table or
-//! the motion program; the profile runs counter-clockwise. The contour is the closed cubic
-//! B-spline (PROCESS.md §2 step 1, cyclic system) through densely sampled `r(θ)` points, so
-//! its normals and curvature are exact and continuous.
+//! the motion program; the profile runs counter-clockwise. A cam from a motion program is
+//! built from the law itself: cubic Hermite spans between dense knots placed also at every
+//! segment boundary, each span exact in point and slope at its ends, and the exact one-sided
+//! curvature kept at every knot — a law whose acceleration jumps (harmonic) keeps its
+//! curvature jump where it is instead of having it smoothed over neighbouring samples, and
+//! the fold-over rule reads the law's own radius (`cam_curvature`). A cam from a lift table
+//! has no law: it is the closed cubic B-spline (PROCESS.md §2 step 1, cyclic system) through
+//! the table's rows.
 //!
 //! Motion laws are given dimensionless on u ∈ [0, 1]: s(0) = 0, s(1) = 1, with velocity s'(u)
 //! and acceleration s''(u) in closed form.
@@ -213,6 +218,50 @@ pub fn program_lift(segments: &[CamSegment], theta_deg: f64) -> (f64, f64, f64) 
     (0.0, 0.0, 0.0)
 }
 
+/// [`program_lift`] on one side of `theta_deg`: at a segment boundary, `before` takes the
+/// segment that ends there (its u = 1), otherwise the one that starts there; elsewhere both
+/// sides agree. The lift and its slope are continuous for every law; the second derivative
+/// jumps where the law's acceleration does (the harmonic law at both ends of a rise).
+pub fn program_lift_sided(
+    segments: &[CamSegment],
+    theta_deg: f64,
+    before: bool,
+) -> (f64, f64, f64) {
+    if before {
+        let th = theta_deg.rem_euclid(360.0);
+        let th = if th == 0.0 { 360.0 } else { th };
+        let mut start = 0.0;
+        let mut base = 0.0;
+        for seg in segments {
+            let end = start + seg.duration_deg;
+            let sign = match seg.kind {
+                CamSegmentKind::Rise => 1.0,
+                CamSegmentKind::Return => -1.0,
+                CamSegmentKind::Dwell => 0.0,
+            };
+            if th <= end {
+                let beta = seg.duration_deg.to_radians();
+                let (s, v, a) = seg.law.eval((th - start) / seg.duration_deg);
+                let h = sign * seg.lift_mm;
+                return (base + h * s, h * v / beta, h * a / (beta * beta));
+            }
+            base += sign * seg.lift_mm;
+            start = end;
+        }
+    }
+    program_lift(segments, theta_deg)
+}
+
+/// The exact signed curvature (1/mm, positive where the counter-clockwise contour turns left)
+/// of the cam `r(θ) = base + lift(θ)` at `theta_deg`, on the side `before` says (see
+/// [`program_lift_sided`]): κ = (r² + 2r′² − r·r″) / (r² + r′²)^{3/2}, the polar curve's
+/// curvature with r′, r″ per radian. Negative κ is a concave stretch; 1/|κ| its radius.
+pub fn cam_curvature(base: f64, segments: &[CamSegment], theta_deg: f64, before: bool) -> f64 {
+    let (lift, d1, d2) = program_lift_sided(segments, theta_deg, before);
+    let r = base + lift;
+    (r * r + 2.0 * d1 * d1 - r * d2) / (r * r + d1 * d1).powf(1.5)
+}
+
 /// Closed spline through `(r(θ) cos θ, r(θ) sin θ)` for the given (θ rad, r mm) pairs.
 fn polar_profile(points: &[(f64, f64)]) -> Result<Profile, GeomError> {
     if let Some((th, r)) = points.iter().find(|(_, r)| !(*r > 0.0 && r.is_finite())) {
@@ -229,8 +278,9 @@ fn polar_profile(points: &[(f64, f64)]) -> Result<Profile, GeomError> {
 }
 
 impl Profile {
-    /// A disc cam from a motion program: `samples` points of r(θ) = r_base + lift(θ), equally
-    /// spaced in θ, joined by a closed cubic B-spline.
+    /// A disc cam from a motion program: r(θ) = r_base + lift(θ) through knots every
+    /// 360°/`samples` and at every segment boundary, exact there in point, slope and (one-sided)
+    /// curvature, joined by cubic Hermite spans.
     pub fn cam(
         base_radius: f64,
         segments: &[CamSegment],
@@ -247,16 +297,49 @@ impl Profile {
             )));
         }
         check_program(segments)?;
-        let pts: Vec<(f64, f64)> = (0..samples)
-            .map(|i| {
-                let deg = 360.0 * i as f64 / samples as f64;
-                (
-                    deg.to_radians(),
-                    base_radius + program_lift(segments, deg).0,
-                )
-            })
+        // Knots every 360°/samples and at every segment boundary, where the law's acceleration
+        // may jump (issue 13 item 5): each Hermite span takes exact points, slopes and
+        // curvatures at its two ends only, so nothing is smoothed across a jump, and the span
+        // between two knots a quarter degree apart follows the law to well under a nanometre.
+        let mut knots: Vec<f64> = (0..samples)
+            .map(|i| 360.0 * i as f64 / samples as f64)
             .collect();
-        polar_profile(&pts)
+        let mut at = 0.0;
+        for seg in segments {
+            knots.push(at);
+            at += seg.duration_deg;
+        }
+        knots.sort_by(f64::total_cmp);
+        knots.dedup_by(|b, a| (*b - *a).abs() < 1e-9);
+        knots.push(360.0);
+        let mut points = Vec::with_capacity(knots.len());
+        let mut slopes = Vec::with_capacity(knots.len());
+        let mut kappa = Vec::with_capacity(knots.len());
+        for &deg in &knots {
+            let (lift, d1, _) = program_lift(segments, deg);
+            let th = deg.to_radians();
+            let r = base_radius + lift;
+            if !(r > 0.0 && r.is_finite()) {
+                return Err(GeomError::Degenerate(format!(
+                    "the cam radius at {deg}° is {r} mm; it must be positive"
+                )));
+            }
+            let (radial, across) = (V2::new(th.cos(), th.sin()), V2::new(-th.sin(), th.cos()));
+            points.push(radial * r);
+            slopes.push(radial * d1 + across * r);
+            kappa.push([
+                cam_curvature(base_radius, segments, deg, true),
+                cam_curvature(base_radius, segments, deg, false),
+            ]);
+        }
+        // The closing knot is the first one: the same point, exactly.
+        let last = points.len() - 1;
+        points[last] = points[0];
+        slopes[last] = slopes[0];
+        let rad: Vec<f64> = knots.iter().map(|d| d.to_radians()).collect();
+        Ok(Profile::from_spline(Spline::hermite(
+            &rad, &points, &slopes, &kappa, true,
+        )?))
     }
 
     /// A disc cam through a lift table: (cam angle °, lift mm) pairs, angles increasing within

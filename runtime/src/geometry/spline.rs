@@ -69,6 +69,12 @@ pub struct Spline {
     spans: Vec<[V2; 4]>,
     /// Arc length at the start of each span, plus the total at the end.
     cum: Vec<f64>,
+    /// For a curve built from exact data ([`Spline::hermite`], a cam from its motion law): the
+    /// exact signed curvature just before and just after each point in `through` (they differ
+    /// where the law's acceleration jumps). Empty for an interpolating B-spline, whose spans
+    /// are the curve itself.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    knot_curvature: Vec<[f64; 2]>,
 }
 
 /// Solves the (1, 4, 1) tridiagonal system `x_{j−1} + 4 x_j + x_{j+1} = rhs_j` (Thomas).
@@ -217,9 +223,80 @@ impl Spline {
             ctrl,
             spans,
             cum: Vec::new(),
+            knot_curvature: Vec::new(),
         };
         s.rebuild_lengths()?;
         Ok(s)
+    }
+
+    /// A C¹ curve from exact data (issue 13 item 5): `points[j]` at parameter `knots[j]`
+    /// (increasing), with the derivative `slopes[j]` = dP/dknot there and the exact one-sided
+    /// signed curvature `curvature[j]` = [before, after]; one cubic Hermite span between
+    /// neighbours. Each span depends on its own two ends only, so nothing is smoothed across a
+    /// knot where the curvature jumps: put a knot at every such place. Closed: the last point
+    /// repeats the first (one span per point).
+    pub fn hermite(
+        knots: &[f64],
+        points: &[V2],
+        slopes: &[V2],
+        curvature: &[[f64; 2]],
+        closed: bool,
+    ) -> Result<Spline, GeomError> {
+        let n = points.len();
+        if n < 2 || knots.len() != n || slopes.len() != n || curvature.len() != n {
+            return Err(GeomError::TooFewPoints(n));
+        }
+        let finite = |v: &V2| v.x.is_finite() && v.y.is_finite();
+        if !(points.iter().all(finite) && slopes.iter().all(finite))
+            || knots.windows(2).any(|w| !(w[1] > w[0]))
+        {
+            return Err(GeomError::Degenerate(
+                "a Hermite curve needs finite points and increasing knots".into(),
+            ));
+        }
+        let spans = (0..n - 1)
+            .map(|j| {
+                let h = knots[j + 1] - knots[j];
+                let (p0, p1) = (points[j], points[j + 1]);
+                let (d0, d1) = (slopes[j] * h, slopes[j + 1] * h);
+                [
+                    p0,
+                    d0,
+                    (p1 - p0) * 3.0 - d0 * 2.0 - d1,
+                    (p0 - p1) * 2.0 + d0 + d1,
+                ]
+            })
+            .collect();
+        let keep = if closed { n - 1 } else { n };
+        let mut kc = curvature[..keep].to_vec();
+        if closed {
+            // The seam: arriving at the last point is arriving at the first.
+            kc[0][0] = curvature[n - 1][0];
+        }
+        let mut s = Spline {
+            closed,
+            through: points[..keep].to_vec(),
+            ctrl: Vec::new(),
+            spans,
+            cum: Vec::new(),
+            knot_curvature: kc,
+        };
+        s.rebuild_lengths()?;
+        Ok(s)
+    }
+
+    /// The exact curvature at the knots, when the curve was built from exact data: for each
+    /// point in `through_points`, its arc length and signed curvature [before, after].
+    pub fn exact_knots(&self) -> Option<impl Iterator<Item = (f64, [f64; 2])> + '_> {
+        if self.knot_curvature.is_empty() {
+            return None;
+        }
+        Some(
+            self.knot_curvature
+                .iter()
+                .enumerate()
+                .map(|(j, k)| (self.cum[j], *k)),
+        )
     }
 
     fn rebuild_lengths(&mut self) -> Result<(), GeomError> {
@@ -373,6 +450,9 @@ impl Spline {
 
     /// The same curve traversed backwards (closed: starting at the same point).
     pub fn reversed(&self) -> Spline {
+        if !self.knot_curvature.is_empty() {
+            return self.reversed_spans();
+        }
         if self.closed {
             let mut through: Vec<V2> = self.through.iter().rev().copied().collect();
             through.rotate_right(1);
@@ -390,9 +470,57 @@ impl Spline {
         }
     }
 
+    /// A Hermite curve backwards: each span's polynomial in 1 − t, in reverse order (closed:
+    /// the span that ends at the first point comes first); curvatures change sign and side.
+    fn reversed_spans(&self) -> Spline {
+        let spans = self
+            .spans
+            .iter()
+            .rev()
+            .map(|&[a, b, c, d]| [a + b + c + d, -(b + c * 2.0 + d * 3.0), c + d * 3.0, -d])
+            .collect();
+        let flip = |k: &[f64; 2]| [-k[1], -k[0]];
+        let (mut through, mut kc): (Vec<V2>, Vec<[f64; 2]>) = (
+            self.through.iter().rev().copied().collect(),
+            self.knot_curvature.iter().rev().map(flip).collect(),
+        );
+        if self.closed {
+            through.rotate_right(1);
+            kc.rotate_right(1);
+        }
+        let mut s = Spline {
+            closed: self.closed,
+            through,
+            ctrl: Vec::new(),
+            spans,
+            cum: Vec::new(),
+            knot_curvature: kc,
+        };
+        // The source was finite, and a reversal keeps it so.
+        let _ = s.rebuild_lengths();
+        s
+    }
+
     /// The spline under a rigid motion (rotation by `angle` about the origin, then `shift`).
     pub fn transformed(&self, angle: f64, shift: V2) -> Spline {
         let rot = nalgebra::Rotation2::new(angle);
+        if !self.knot_curvature.is_empty() {
+            let mut s = Spline {
+                closed: self.closed,
+                through: self.through.iter().map(|p| rot * p + shift).collect(),
+                ctrl: Vec::new(),
+                spans: self
+                    .spans
+                    .iter()
+                    .map(|&[a, b, c, d]| [rot * a + shift, rot * b, rot * c, rot * d])
+                    .collect(),
+                cum: Vec::new(),
+                knot_curvature: self.knot_curvature.clone(),
+            };
+            // A rigid motion keeps lengths and curvatures.
+            let _ = s.rebuild_lengths();
+            return s;
+        }
         Spline::from_ctrl(
             self.closed,
             self.through.iter().map(|p| rot * p + shift).collect(),
@@ -424,6 +552,7 @@ impl Spline {
             ctrl,
             spans,
             cum: Vec::new(),
+            knot_curvature: Vec::new(),
         };
         // The source was finite, and a rigid motion or reversal keeps it so.
         let _ = s.rebuild_lengths();

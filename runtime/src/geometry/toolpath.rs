@@ -95,19 +95,29 @@ pub fn oriented_stations(
     // The normals cross at the centre of curvature: concave toward the head (curvature signed
     // toward the head) with radius ≤ standoff, i.e. κ·standoff ≥ 1.
     let toward_head = if head_on_left { 1.0 } else { -1.0 };
-    let mut folds = rs
-        .samples
+    // Where the curve was built from exact data (a cam from its law) its knots carry the exact
+    // curvature on both sides, the jumps included: the rule reads those, so the radius it
+    // reports is the law's, not a sample's. Elsewhere the samples' curvature is the curve's.
+    let probes: Vec<(f64, f64)> = match profile.as_spline().and_then(|sp| sp.exact_knots()) {
+        Some(knots) => knots.flat_map(|(s, [a, b])| [(s, a), (s, b)]).collect(),
+        None => rs
+            .samples
+            .iter()
+            .map(|smp| (smp.s, smp.curvature))
+            .collect(),
+    };
+    let mut folds = probes
         .iter()
-        .filter(|smp| smp.curvature * toward_head * standoff >= 1.0 - 1e-9);
-    if let Some(first) = folds.next() {
-        let (mut r_min, mut s_end) = (1.0 / first.curvature.abs(), first.s);
-        for smp in folds {
-            r_min = r_min.min(1.0 / smp.curvature.abs());
-            s_end = smp.s;
+        .filter(|(_, k)| k * toward_head * standoff >= 1.0 - 1e-9);
+    if let Some(&(s_start, k0)) = folds.next() {
+        let (mut r_min, mut s_end) = (1.0 / k0.abs(), s_start);
+        for &(s, k) in folds {
+            r_min = r_min.min(1.0 / k.abs());
+            s_end = s;
         }
         return Err(ToolpathError::FoldOver {
             r_min,
-            s_start: first.s,
+            s_start,
             s_end,
         });
     }

@@ -12,6 +12,7 @@
 mod arm_3r;
 mod cam_xwb;
 mod cartesian;
+pub mod chords;
 mod rotary;
 
 pub use arm_3r::Arm3r;
