@@ -78,9 +78,9 @@ fn small_arcs_in_blending_mode_run_as_their_chords() {
     // A 0.25 mm arc on r = 33 mm strays 0.24 µm from its chord: under G64 P0.02 it is a
     // line (its junctions are chord corners), under G61 an arc.
     let l = table();
-    let nc = |mode: &str| format!("{mode}\nG0 X33\nG1 X33 Y0 F1500\nG3 X32.999 Y0.25 I-33 J0\n");
-    let blended = run_program(&nc("G64 P0.02"), &l).unwrap();
-    let exact = run_program(&nc("G61"), &l).unwrap();
+    let nc = |mode: &str| format!("{mode}G0 X33\nG1 X33 Y0 F1500\nG3 X32.999 Y0.25 I-33 J0\n");
+    let blended = run_program(&nc("G64 P0.02\n"), &l).unwrap();
+    let exact = run_program(&nc("G61\n"), &l).unwrap();
     // The chord ramps at the line's acceleration, the arc at half of it.
     assert!(blended.total_s < exact.total_s, "{blended:?} {exact:?}");
 }
