@@ -388,6 +388,21 @@ fn cmd_plan(
         Some(Err(why)) => outln!("  controller      not modelled: {why}"),
         None => {}
     }
+    // What a LinuxCNC 2.9 machine takes for the file lase writes for it, by its own
+    // trajectory planner (trapezoids, its corner rules), and how long its beam is on.
+    match lase_runtime::link::linuxcnc::tp::controller_time(&job) {
+        Some(Ok(t)) => outln!(
+            "  controller      {:.4} s, beam on {:.4} s ({}: {} segments, {} stop{})",
+            t.total_s,
+            t.beam_on_s,
+            lase_runtime::link::linuxcnc::tp::MODEL,
+            t.segments,
+            t.stops,
+            if t.stops == 1 { "" } else { "s" }
+        ),
+        Some(Err(why)) => outln!("  controller      LinuxCNC not modelled: {why}"),
+        None => {}
+    }
     outln!(
         "  path length     {:.4} mm ({:.4} mm rapid)",
         s.path_length_mm,

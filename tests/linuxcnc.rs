@@ -1,8 +1,10 @@
 //! Every flat-bed and cam example run on a real, headless LinuxCNC 2.9 (`common::linuxcnc`),
 //! measured from its HAL samples (1 ms): executed cycle time against `lase plan`, the beam's
 //! edges (motion.digital-out-00) at the planned places and speeds, pulse counts
-//! (motion.digital-out-01 rising edges) against the plan, and how far the lit path strays from
-//! the planned one. Each test prints its table; skips (saying so) without LinuxCNC.
+//! (motion.digital-out-01 rising edges) against the plan, how far the lit path strays from
+//! the planned one, and the cycle and beam-on times against `lase plan`'s LinuxCNC 2.9
+//! trajectory planner model (`link::linuxcnc::tp`, within 1 %). Each test prints its table;
+//! skips (saying so) without LinuxCNC.
 //!
 //! Run one machine's examples: `LASE_LINUXCNC_TESTS=1 cargo test --test linuxcnc flat_bed --
 //! --nocapture`.
@@ -33,6 +35,9 @@ struct Measured {
     pulses_executed: u64,
     /// Largest distance of a lit sample from the planned lit path, axis space (mm, deg).
     deviation: f64,
+    /// What `lase plan`'s LinuxCNC 2.9 trajectory planner model predicts (`link::linuxcnc::tp`).
+    model_s: f64,
+    beam_on_model_s: f64,
 }
 
 /// Axis positions (external units) and beam of the plan every `dt` from the first move.
@@ -182,7 +187,18 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
     } else {
         0
     };
+    // The model from where this run started (the previous program's end), on the program
+    // LinuxCNC ran.
+    let limits = lase_runtime::link::linuxcnc::tp::TpLimits::for_machine(
+        &job.program.machine,
+        lase_runtime::link::linuxcnc::config::ConfigOptions::default().servo_period_ns as f64
+            * 1e-9,
+    );
+    let model = lase_runtime::link::linuxcnc::tp::run_program_from(&nc, &limits, &run[0].joints)
+        .unwrap_or_else(|e| panic!("{example}: {e}"));
     Measured {
+        model_s: model.total_s,
+        beam_on_model_s: model.beam_on_s,
         name: example.to_string(),
         planned_s: job.plan.duration(),
         executed_s,
@@ -200,12 +216,15 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
 
 fn report(ms: &[Measured]) {
     eprintln!(
-        "{:<30} {:>9} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8}",
+        "{:<30} {:>9} {:>9} {:>7} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8}",
         "example",
         "plan s",
         "LinuxCNC",
         "ratio",
         "beam",
+        "model s",
+        "/model",
+        "beam/m",
         "edges",
         "edge Δ",
         "edge Δv",
@@ -214,12 +233,15 @@ fn report(ms: &[Measured]) {
     );
     for m in ms {
         eprintln!(
-            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
+            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>7.4} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
             m.name,
             m.planned_s,
             m.executed_s,
             m.executed_s / m.planned_s,
             m.beam_on_executed_s / m.beam_on_planned_s.max(1e-9),
+            m.model_s,
+            m.executed_s / m.model_s,
+            m.beam_on_executed_s / m.beam_on_model_s.max(1e-9),
             m.edges_executed,
             m.edges_planned,
             m.edge_place,
@@ -256,6 +278,17 @@ fn assert_close(m: &Measured, place: f64, dv: f64, fastest: f64) {
     assert!(m.deviation <= place, "{m:?}");
     let ratio = m.executed_s / m.planned_s;
     assert!((fastest..=1.01).contains(&ratio), "{m:?}");
+    // `lase plan`'s LinuxCNC model: the cycle and the beam-on time within 1 % (issue 13).
+    let vs_model = m.executed_s / m.model_s;
+    assert!(
+        (vs_model - 1.0).abs() <= 0.01,
+        "cycle vs model {vs_model}: {m:?}"
+    );
+    let beam_vs_model = m.beam_on_executed_s / m.beam_on_model_s;
+    assert!(
+        (beam_vs_model - 1.0).abs() <= 0.01,
+        "beam-on vs model {beam_vs_model}: {m:?}"
+    );
 }
 
 #[test]

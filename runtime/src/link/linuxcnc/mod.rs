@@ -22,6 +22,7 @@
 
 pub mod config;
 pub mod job;
+pub mod tp;
 
 use super::LinkError;
 use super::transport::{TcpTransport, Transport};

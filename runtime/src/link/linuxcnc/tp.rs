@@ -1,0 +1,895 @@
+//! LinuxCNC 2.9's trajectory planner as a time model: how long a LinuxCNC machine takes to run
+//! the program lase writes for it, and how long its beam is on. `lase plan` prints it next to
+//! lase's own plan, because the controller that runs the file plans its own motion: trapezoids
+//! without a jerk limit, its own corner rules and its own look-ahead.
+//!
+//! It reads the NC text (the `linuxcnc` dialect emit writes: `G0`–`G3` in `G17`, `G93`/`G94`,
+//! `F`, `G4`, `G61`/`G64 P Q`, `M62`–`M68`, `M2`) and the machine's limits exactly as
+//! [`super::config`] writes them into the INI, then follows what LinuxCNC 2.9 does with them
+//! (`src/emc/task/emccanon.cc`, `src/emc/tp/tp.c`, `tc.c`, `blendmath.c`):
+//! - **Segment limits** (canon's `getStraightVelocity`/`getStraightAcceleration`): a line's
+//!   length is its X Y Z length, or its rotary length when X Y Z do not move; its speed and
+//!   acceleration are the largest that keep every axis within its INI `MAX_VELOCITY` and
+//!   `MAX_ACCELERATION` along it; `G0` runs at that speed, a feed at `F` (`G93`: the block's
+//!   length over `60/F` s), both capped by `[TRAJ] MAX_LINEAR_VELOCITY` when X Y Z move and by
+//!   the length over one servo period (`tcClampVelocityByLength`). An arc runs at the smaller
+//!   of its plane's axis limits, at most `sqrt(0.866·a·r)` (`pmCircleActualMaxVel`), and ramps
+//!   with half the acceleration (`BLEND_ACC_RATIO_TANGENTIAL`). In blending mode an arc whose
+//!   chord strays less than the naive CAM tolerance (`G64 Q`, else `P`) from it runs as that
+//!   chord (measured: dial_marks' 0.25 mm arcs turn at their chord ends).
+//! - **Term conditions** (`tpAddLine`/`tpAddCircle` → `tpCheckCanonType`, `tpHandleBlendArc`),
+//!   parabolic by default under `G64`:
+//!   - *stop* between a rapid and a feed (`tpCheckCanonType`), at a reversal sharper than 178°
+//!     (`tpSetupTangent`'s `SHARP_CORNER_DEG`) and under `G61`;
+//!   - *tangent* when the direction change needs less than `ARC_BLEND_KINK_RATIO` (0.1) of an
+//!     axis's acceleration at full speed over one servo period (circles count double): the
+//!     speed carries through and both segments lose that share of their acceleration
+//!     (`tpAdjustAccelForTangent`);
+//!   - otherwise, without rotary motion, a *blend arc* (`blendComputeParameters`) that takes
+//!     from each side at most half the segment's programmed length (all of the previous one
+//!     when it can be consumed: a line without synced outputs, `tcCanConsume`) and what the
+//!     `G64 P` tolerance allows, at `sqrt(0.866·a·R)`, or the kink speed when that is faster
+//!     (`tpCheckTangentPerformance`). What a segment keeps between two blend arcs runs at most
+//!     its length per servo period: two blend arcs that meet in the middle of a segment
+//!     carrying `M62/M63` nearly stop the machine there. That is dial_marks' 17 slowdowns;
+//!   - with rotary motion on either side neither can be made (`tpRotaryMotionCheck`): the
+//!     *parabolic* blend (`tpComputeBlendVelocity`): the next segment starts when the previous
+//!     one has slowed below its blend speed and their speeds add up through the overlap, so
+//!     the path runs as if at the blend speed there, which is how this model counts it.
+//!   - A parabolic term condition halves the acceleration of both its segments
+//!     (`tpGetScaledAccel`); so does the one the queue ends on, where the task waits for motion
+//!     to end before a dwell, an immediate output (`M64`/`M65`/`M68`), another M-code or the
+//!     program's end: measured on conrod_notch, whose first move runs at half the axis
+//!     acceleration. Each such drain rests the machine for about `DRAIN_CYCLES` servo periods.
+//! - **Look-ahead** (`tpRunOptimization`): end speeds are planned backward over at most
+//!   `ARC_BLEND_OPTIMIZATION_DEPTH` (50) pieces; further on the machine is assumed to stop.
+//! - **Synced outputs** (`M62`/`M63`/`M67`, `tpSetupSyncedIO`): they switch when the next
+//!   segment starts, and they neither stop nor unblend anything; they only keep a blend arc
+//!   from swallowing the segment that carries them.
+//!
+//! Measured against the real controller (`tests/linuxcnc.rs`), every example it runs is within
+//! 1 % of the model in cycle and beam-on time. Not modelled: feed override, spindle sync, the
+//! naive CAM detector's merging of collinear lines (collinear, so time-neutral), the servo
+//! period's quantisation, and blend arcs in 3D or next to arcs beyond their chord.
+
+use crate::axes::to_external;
+use crate::machine::{AxisKind, Machine};
+
+/// The model's name, as `lase plan` prints it.
+pub const MODEL: &str = "LinuxCNC 2.9 trajectory planner model";
+
+/// `ARC_BLEND_KINK_RATIO`'s default.
+const KINK_RATIO: f64 = 0.1;
+/// How much stricter LinuxCNC 2.9's kink test is than `tpSetupTangent` as read (kink ratio
+/// 0.1 of the axis acceleration at full speed over one servo period): measured on the real
+/// controller. dial_marks' dotted arc (0.25 mm chords, 0.434° apart, every one carrying
+/// `M62/M63 P1`) nearly stops at exactly the 17 chords both of whose junctions score above
+/// 0.0925 by this model's formula; any factor from 1.076 to 1.086 picks the same 17, 1.0
+/// picks none. Why it is stricter is not found.
+const KINK_MEASURED: f64 = 1.081;
+/// Servo periods the machine rests where the queue drains (the task waits for motion to end,
+/// then runs an immediate output, a dwell or an M-code and queues the next move): measured,
+/// 2 and 3 ms on conrod_notch.
+const DRAIN_CYCLES: f64 = 2.5;
+/// `ARC_BLEND_OPTIMIZATION_DEPTH`'s default.
+const OPTIMIZATION_DEPTH: usize = 50;
+/// `BLEND_ACC_RATIO_TANGENTIAL`: the share of acceleration an arc may use along its path.
+const ACC_RATIO_TANGENTIAL: f64 = 0.5;
+/// `BLEND_ACC_RATIO_NORMAL`: sqrt(1 − 0.5²), the share left for the turn.
+const ACC_RATIO_NORMAL: f64 = 0.866_025_403_784_438_6;
+/// `BLEND_DIST_FRACTION`: how much of a segment a blend may take.
+const BLEND_DIST_FRACTION: f64 = 0.5;
+/// `TP_MIN_ARC_ANGLE`.
+const MIN_ARC_ANGLE: f64 = 1e-3;
+/// `SHARP_CORNER_DEG` in `tpSetupTangent`: a turn this close to a reversal stops.
+const SHARP_CORNER_DEG: f64 = 2.0;
+/// Lengths below this are no motion (`TP_POS_EPSILON`, `CART_FUZZ`).
+const POS_EPSILON: f64 = 1e-9;
+
+/// One axis as the INI states it (external units: mm, degrees).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AxisLimit {
+    /// The NC letter.
+    pub letter: char,
+    pub rotary: bool,
+    /// `MAX_VELOCITY`, per second.
+    pub v: f64,
+    /// `MAX_ACCELERATION`, per second².
+    pub a: f64,
+}
+
+/// What the planner knows of the machine: the generated INI's numbers.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TpLimits {
+    pub axes: Vec<AxisLimit>,
+    /// `[TRAJ] MAX_LINEAR_VELOCITY`, mm/s.
+    pub max_linear_v: f64,
+    /// `[EMCMOT] SERVO_PERIOD`, s.
+    pub cycle_s: f64,
+    /// The digital output that gates the beam (`M62/M64 Pn` in the post's `laser_on`).
+    pub beam_output: Option<u32>,
+}
+
+impl TpLimits {
+    /// The limits [`super::config::generate`] writes for `machine`, at its servo period.
+    pub fn for_machine(machine: &Machine, cycle_s: f64) -> TpLimits {
+        let axes = machine
+            .axes
+            .iter()
+            .map(|a| AxisLimit {
+                letter: a.name.chars().next().unwrap_or('X').to_ascii_uppercase(),
+                rotary: a.kind == AxisKind::Rotary,
+                v: to_external(a.kind, a.v_max),
+                a: to_external(a.kind, a.a_max),
+            })
+            .collect();
+        let max_linear_v = machine
+            .axes
+            .iter()
+            .filter(|a| a.kind == AxisKind::Linear)
+            .map(|a| a.v_max)
+            .fold(0.0, f64::max);
+        let beam_output = machine.post.get("linuxcnc").and_then(|p| {
+            p.laser_on.iter().find_map(|l| {
+                let w = words(l).ok()?;
+                w.iter()
+                    .find(|(c, v)| *c == 'M' && (*v == 62.0 || *v == 64.0))?;
+                w.iter().find(|(c, _)| *c == 'P').map(|(_, p)| *p as u32)
+            })
+        });
+        TpLimits {
+            axes,
+            max_linear_v,
+            cycle_s,
+            beam_output,
+        }
+    }
+}
+
+/// What the model predicts for one program.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TpTime {
+    /// From the first motion to the end of the last, s (dwells and stops between included).
+    pub total_s: f64,
+    /// How long the beam's output is on within that, s.
+    pub beam_on_s: f64,
+    /// Motion segments the planner queued.
+    pub segments: usize,
+    /// Places where the machine comes to rest between segments.
+    pub stops: usize,
+}
+
+/// The LinuxCNC time of a job: `None` when the machine has no LinuxCNC post, `Err` with the
+/// reason when the program cannot be written or read.
+pub fn controller_time(job: &crate::motion::Job) -> Option<Result<TpTime, String>> {
+    let machine = &job.program.machine;
+    machine.post.get("linuxcnc")?;
+    Some((|| {
+        let nc = crate::emit::emit_to_string(job, crate::emit::Dialect::LinuxCnc)
+            .map_err(|e| e.to_string())?;
+        let limits = TpLimits::for_machine(
+            machine,
+            f64::from(super::config::ConfigOptions::default().servo_period_ns) * 1e-9,
+        );
+        run_program(&nc, &limits)
+    })())
+}
+
+/// The words of one line: letters (upper case) and their numbers, comments dropped.
+fn words(line: &str) -> Result<Vec<(char, f64)>, String> {
+    let mut text = String::new();
+    let mut depth = 0;
+    for c in line.chars() {
+        match c {
+            ';' if depth == 0 => break,
+            '(' => depth += 1,
+            ')' if depth > 0 => depth -= 1,
+            _ if depth > 0 || c.is_whitespace() => {}
+            _ => text.push(c.to_ascii_uppercase()),
+        }
+    }
+    let mut out = Vec::new();
+    let b = text.as_bytes();
+    let mut i = 0;
+    while i < b.len() {
+        let letter = b[i] as char;
+        if !letter.is_ascii_alphabetic() {
+            return Err(format!("`{line}`: `{letter}` is not a word"));
+        }
+        let start = i + 1;
+        let mut j = start;
+        while j < b.len() && (b[j].is_ascii_digit() || b[j] == b'.' || b[j] == b'-' || b[j] == b'+')
+        {
+            j += 1;
+        }
+        let v: f64 = text[start..j]
+            .parse()
+            .map_err(|_| format!("`{line}`: `{letter}` has no number"))?;
+        out.push((letter, v));
+        i = j;
+    }
+    Ok(out)
+}
+
+/// A segment the planner queues, in its own length unit (see the module doc).
+#[derive(Debug, Clone)]
+struct Seg {
+    len: f64,
+    /// The requested speed (F, or the traverse rate), per second.
+    req: f64,
+    /// The segment's own limit (`maxvel`).
+    vmax: f64,
+    /// Acceleration along it before blends scale it.
+    acc: f64,
+    rapid: bool,
+    arc: bool,
+    rotary: bool,
+    /// Unit X Y Z directions at its start and end (zero without X Y Z motion).
+    u0: [f64; 3],
+    u1: [f64; 3],
+    /// Carries synced outputs, applied when it starts: (output, on).
+    dio: Vec<(u32, bool)>,
+    /// Per-axis X Y Z acceleration bounds, for the kink rule.
+    acc_bound: [f64; 3],
+}
+
+/// What comes between two segments.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Joint {
+    /// Motion ends; then `dwell` s at rest. `drain`: the queue runs empty because the task
+    /// waits for motion to end before its next command.
+    Stop { dwell: f64, drain: bool },
+    /// Through at most `cap` (the previous segment's unit), the next entering at `ratio` times
+    /// the previous one's exit speed.
+    Through { cap: f64, ratio: f64 },
+}
+
+/// The program as the planner's queue sees it.
+#[derive(Debug, Default)]
+struct Queue {
+    segs: Vec<Seg>,
+    /// `joints[i]` follows `segs[i]`.
+    joints: Vec<Option<Joint>>,
+    /// Immediate output changes at the stop after segment `i` (or before the first: `None`).
+    immediate: Vec<(Option<usize>, u32, bool)>,
+    /// Dwells before the first segment.
+    stops: usize,
+}
+
+/// Reads the NC text into segments and the stops between them.
+fn read(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<(Queue, Vec<f64>), String> {
+    let n = limits.axes.len();
+    let index = |c: char| limits.axes.iter().position(|a| a.letter == c);
+    let mut q = Queue::default();
+    let mut pos: Vec<f64> = (0..n)
+        .map(|k| start.get(k).copied().unwrap_or(0.0))
+        .collect();
+    let mut motion = 0u32;
+    let mut feed = 0.0;
+    let mut inverse_time = false;
+    let mut exact_stop = false;
+    let mut tolerance = 0.0;
+    // G64 Q, the naive CAM detector's tolerance: P when Q is not given.
+    let mut naive = 0.0;
+    let mut pending: Vec<(u32, bool)> = Vec::new();
+    let mut tolerances = Vec::new();
+    // Ends the current chain: a stop after the last segment (or before the first).
+    fn stop(q: &mut Queue, dwell: f64) {
+        match q.joints.last_mut() {
+            Some(j @ None) => *j = Some(Joint::Stop { dwell, drain: true }),
+            Some(Some(Joint::Stop { dwell: d, .. })) => *d += dwell,
+            _ => q.stops += usize::from(dwell > 0.0),
+        }
+    }
+    for raw in nc.lines() {
+        let w = words(raw)?;
+        if w.is_empty() {
+            continue;
+        }
+        let mut target = pos.clone();
+        let mut moved = false;
+        let mut center = [None, None];
+        let mut dwell = None;
+        let mut p_word = None;
+        for &(c, v) in &w {
+            match c {
+                'G' => match (v * 10.0).round() as i64 {
+                    0 => motion = 0,
+                    10 => motion = 1,
+                    20 => motion = 2,
+                    30 => motion = 3,
+                    40 => dwell = Some(0.0),
+                    930 => inverse_time = true,
+                    940 => inverse_time = false,
+                    610 | 611 => exact_stop = true,
+                    640 => exact_stop = false,
+                    170 | 210 | 900 | 910 | 400 | 490 | 800 | 540 => {}
+                    _ => return Err(format!("`{raw}`: G{v} is not modelled")),
+                },
+                'F' => feed = v,
+                'P' => p_word = Some(v),
+                'Q' | 'E' | 'S' | 'N' | 'K' => {}
+                'I' => center[0] = Some(v),
+                'J' => center[1] = Some(v),
+                'M' => {}
+                c => match index(c) {
+                    Some(k) => {
+                        target[k] = v;
+                        moved = true;
+                    }
+                    None => return Err(format!("`{raw}`: the machine has no axis {c}")),
+                },
+            }
+        }
+        let has_g = |g: f64| w.iter().any(|&(c, v)| c == 'G' && (v - g).abs() < 1e-9);
+        if has_g(64.0) {
+            tolerance = p_word.unwrap_or(0.0);
+            naive = w
+                .iter()
+                .find(|(c, _)| *c == 'Q')
+                .map_or(tolerance, |(_, q)| *q);
+        }
+        // Outputs come before the block's motion (rs274ngc's order of execution).
+        for &(c, v) in &w {
+            if c != 'M' {
+                continue;
+            }
+            match v as i64 {
+                62 | 63 => pending.push((p_word.unwrap_or(0.0) as u32, v as i64 == 62)),
+                67 => {}
+                64 | 65 => {
+                    stop(&mut q, 0.0);
+                    let at = q.segs.len().checked_sub(1);
+                    q.immediate
+                        .push((at, p_word.unwrap_or(0.0) as u32, v as i64 == 64));
+                }
+                2 | 30 => stop(&mut q, 0.0),
+                // Any other M-code is run by the task after motion has ended.
+                _ => stop(&mut q, 0.0),
+            }
+        }
+        if dwell.is_some() {
+            stop(&mut q, p_word.unwrap_or(0.0));
+            continue;
+        }
+        if !moved {
+            continue;
+        }
+        let small_arc = (!exact_stop).then_some(naive);
+        let seg = segment(
+            &pos,
+            &target,
+            motion,
+            center,
+            feed,
+            inverse_time,
+            small_arc,
+            limits,
+            raw,
+        )?;
+        pos = target;
+        let Some(mut seg) = seg else { continue };
+        seg.dio = std::mem::take(&mut pending);
+        if let (Some(j @ None), true) = (q.joints.last_mut(), exact_stop) {
+            // G61: the term condition STOP, inside the planner.
+            *j = Some(Joint::Stop {
+                dwell: 0.0,
+                drain: false,
+            });
+        }
+        q.segs.push(seg);
+        q.joints.push(None);
+        tolerances.push(tolerance);
+    }
+    Ok((q, tolerances))
+}
+
+/// The segment from `from` to `to`, `None` when nothing moves.
+#[allow(clippy::too_many_arguments)]
+fn segment(
+    from: &[f64],
+    to: &[f64],
+    motion: u32,
+    center: [Option<f64>; 2],
+    feed: f64,
+    inverse_time: bool,
+    small_arc: Option<f64>,
+    limits: &TpLimits,
+    raw: &str,
+) -> Result<Option<Seg>, String> {
+    let axes = &limits.axes;
+    let d: Vec<f64> = from.iter().zip(to).map(|(a, b)| b - a).collect();
+    let xyz_of = |v: &[f64]| -> [f64; 3] {
+        let mut out = [0.0; 3];
+        for (k, a) in axes.iter().enumerate() {
+            if let Some(i) = "XYZ".find(a.letter) {
+                out[i] = v[k];
+            }
+        }
+        out
+    };
+    let mut acc_bound = [0.0; 3];
+    for a in axes {
+        if let Some(i) = "XYZ".find(a.letter) {
+            acc_bound[i] = a.a;
+        }
+    }
+    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let dxyz = xyz_of(&d);
+    let lin = norm(&dxyz);
+    let rot: f64 = norm(
+        &axes
+            .iter()
+            .zip(&d)
+            .filter(|(a, _)| a.rotary)
+            .map(|(_, v)| *v)
+            .collect::<Vec<_>>(),
+    );
+    let rotary = rot > POS_EPSILON;
+    if motion >= 2 {
+        // An arc in the XY plane (G17, the only plane lase writes).
+        let (ix, iy) = (
+            axes.iter().position(|a| a.letter == 'X'),
+            axes.iter().position(|a| a.letter == 'Y'),
+        );
+        let (Some(ix), Some(iy)) = (ix, iy) else {
+            return Err(format!("`{raw}`: an arc needs X and Y"));
+        };
+        let c = [
+            from[ix] + center[0].unwrap_or(0.0),
+            from[iy] + center[1].unwrap_or(0.0),
+        ];
+        let r0 = [from[ix] - c[0], from[iy] - c[1]];
+        let r1 = [to[ix] - c[0], to[iy] - c[1]];
+        let radius = r0[0].hypot(r0[1]);
+        let mut sweep = (r0[0] * r1[1] - r0[1] * r1[0]).atan2(r0[0] * r1[0] + r0[1] * r1[1]);
+        let ccw = motion == 3;
+        if ccw && sweep <= 1e-12 {
+            sweep += std::f64::consts::TAU;
+        } else if !ccw && sweep >= -1e-12 {
+            sweep -= std::f64::consts::TAU;
+        }
+        let len = radius * sweep.abs();
+        if len < POS_EPSILON {
+            return Ok(None);
+        }
+        // In blending mode an arc whose chord strays less than the naive CAM tolerance from it
+        // runs as that chord: measured, dial_marks' 0.25 mm arcs turn at their chord ends.
+        let sagitta = radius * (1.0 - (sweep.abs() / 2.0).cos());
+        let as_chord =
+            small_arc.is_some_and(|tol| sweep.abs() <= std::f64::consts::PI && sagitta < tol);
+        if as_chord {
+            return segment(
+                from,
+                to,
+                1,
+                [None, None],
+                feed,
+                inverse_time,
+                None,
+                limits,
+                raw,
+            );
+        }
+        let tangent = |r: [f64; 2]| -> [f64; 3] {
+            let s = if ccw { 1.0 } else { -1.0 };
+            let l = r[0].hypot(r[1]).max(1e-300);
+            [-s * r[1] / l, s * r[0] / l, 0.0]
+        };
+        let (vx, vy) = (axes[ix].v, axes[iy].v);
+        let (ax, ay) = (axes[ix].a, axes[iy].a);
+        let acc = ax.min(ay);
+        let req = if inverse_time {
+            len * feed / 60.0
+        } else {
+            feed / 60.0
+        };
+        let vmax = vx
+            .min(vy)
+            .min(limits.max_linear_v)
+            .min((ACC_RATIO_NORMAL * acc * radius).sqrt())
+            .min(len / limits.cycle_s);
+        return Ok(Some(Seg {
+            len,
+            req: req.min(vmax),
+            vmax,
+            acc,
+            rapid: false,
+            arc: true,
+            rotary,
+            u0: tangent(r0),
+            u1: tangent(r1),
+            dio: Vec::new(),
+            acc_bound,
+        }));
+    }
+    // A line: its length is X Y Z's, or the rotary axes' when X Y Z stay.
+    let len = if lin > POS_EPSILON { lin } else { rot };
+    if len < POS_EPSILON {
+        return Ok(None);
+    }
+    // canon: the time each axis needs at its limit; the line's limit is its length over the
+    // longest.
+    let t_v = axes
+        .iter()
+        .zip(&d)
+        .map(|(a, x)| x.abs() / a.v)
+        .fold(0.0, f64::max);
+    let t_a = axes
+        .iter()
+        .zip(&d)
+        .map(|(a, x)| x.abs() / a.a)
+        .fold(0.0, f64::max);
+    let mut vmax = len / t_v.max(1e-300);
+    if lin > POS_EPSILON {
+        vmax = vmax.min(limits.max_linear_v);
+    }
+    vmax = vmax.min(len / limits.cycle_s);
+    let acc = len / t_a.max(1e-300);
+    let rapid = motion == 0;
+    let req = if rapid {
+        vmax
+    } else if inverse_time {
+        len * feed / 60.0
+    } else {
+        feed / 60.0
+    };
+    let u = if lin > POS_EPSILON {
+        [dxyz[0] / lin, dxyz[1] / lin, dxyz[2] / lin]
+    } else {
+        [0.0; 3]
+    };
+    Ok(Some(Seg {
+        len,
+        req: req.min(vmax),
+        vmax,
+        acc,
+        rapid,
+        arc: false,
+        rotary,
+        u0: u,
+        u1: u,
+        dio: Vec::new(),
+        acc_bound,
+    }))
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// How LinuxCNC joins two segments.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Kind {
+    /// Its term condition becomes STOP.
+    Stop,
+    /// Tangent (or a kink it accepts): through at `cap`; both keep `keep` of their
+    /// acceleration.
+    Tangent { cap: f64, keep: f64 },
+    /// A blend arc of radius `r` and deflection `phi` replacing `d` of each side, at most `v`.
+    Arc { v: f64, d: f64, r: f64, phi: f64 },
+    /// Parabolic: through at `va` (the first's unit), the second entering at `vb`.
+    Parabolic { va: f64, vb: f64 },
+}
+
+/// The junction LinuxCNC makes from `a` into `b` with blend tolerance `tol`.
+fn junction(a: &Seg, b: &Seg, tol: f64, cycle: f64) -> Kind {
+    if a.rapid != b.rapid {
+        return Kind::Stop; // tpCheckCanonType
+    }
+    if a.rotary || b.rotary {
+        return parabolic(a, b, tol);
+    }
+    let c = dot(a.u1, b.u0);
+    let sharp = (std::f64::consts::PI * (1.0 - SHARP_CORNER_DEG / 180.0)).cos();
+    if c < sharp {
+        return Kind::Stop;
+    }
+    // tpSetupTangent: the acceleration to turn at full speed within one servo period.
+    let v_max = a.vmax.min(a.req).min(b.vmax.min(b.req));
+    let a_inst = v_max / cycle;
+    let mut scale: f64 = (0..3)
+        .map(|k| {
+            let diff = a_inst * (b.u0[k] - a.u1[k]);
+            if a.acc_bound[k] > 0.0 {
+                (diff / a.acc_bound[k]).abs()
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max);
+    if a.arc || b.arc {
+        scale /= ACC_RATIO_TANGENTIAL;
+    }
+    scale *= KINK_MEASURED;
+    if scale < KINK_RATIO {
+        return Kind::Tangent {
+            cap: v_max,
+            keep: 1.0 - scale,
+        };
+    }
+    let kink_vel = v_max * KINK_RATIO / scale;
+    let kink = Kind::Tangent {
+        cap: kink_vel,
+        keep: 1.0 - KINK_RATIO,
+    };
+    // blendComputeParameters: half the interior angle, and the blend radius it allows.
+    let theta = (-c).clamp(-1.0, 1.0).acos() / 2.0;
+    let phi = std::f64::consts::PI - 2.0 * theta;
+    if theta < MIN_ARC_ANGLE || phi < MIN_ARC_ANGLE || tol <= 0.0 {
+        return kink;
+    }
+    // tcCanConsume: a line without synced outputs may be swallowed whole.
+    let consumable = !a.arc && a.dio.is_empty();
+    let l1 = if consumable {
+        a.len
+    } else {
+        a.len * BLEND_DIST_FRACTION
+    };
+    let l2 = b.len * BLEND_DIST_FRACTION;
+    let d_tol = theta.cos() * tol / (1.0 - theta.sin());
+    let d = l1.min(l2).min(d_tol);
+    let r = theta.tan() * d;
+    let a_n = a
+        .acc_bound
+        .iter()
+        .copied()
+        .filter(|x| *x > 0.0)
+        .fold(f64::INFINITY, f64::min)
+        * ACC_RATIO_NORMAL;
+    let v = (a_n * r).sqrt().min(a.req.max(b.req));
+    if v < kink_vel {
+        kink // tpCheckTangentPerformance: the kink is faster than the arc
+    } else {
+        Kind::Arc { v, d, r, phi }
+    }
+}
+
+/// tpComputeBlendVelocity: the parabolic blend between `a` and `b` (both at half acceleration).
+fn parabolic(a: &Seg, b: &Seg, tol: f64) -> Kind {
+    let side = |s: &Seg| {
+        let acc = s.acc * 0.5 * if s.arc { ACC_RATIO_TANGENTIAL } else { 1.0 };
+        let reach = (acc * s.len).sqrt().min(s.req);
+        (acc, reach)
+    };
+    let ((acc_a, reach_a), (acc_b, reach_b)) = (side(a), side(b));
+    let t_max = (a.len / reach_a).min(b.len / reach_b);
+    let t_blend = t_max.min((reach_a / acc_a).max(reach_b / acc_b));
+    let mut va = reach_a.min(t_blend * acc_a);
+    let mut vb = reach_b.min(t_blend * acc_b);
+    if tol > 0.0 && a.u1 != [0.0; 3] && b.u0 != [0.0; 3] {
+        let theta = (-dot(a.u1, b.u0)).clamp(-1.0, 1.0).acos() / 2.0;
+        if theta.cos() > (std::f64::consts::FRAC_PI_2 - MIN_ARC_ANGLE).cos() {
+            let v_tol = |acc: f64| 2.0 * (acc * tol / theta.cos()).sqrt();
+            va = va.min(v_tol(acc_a));
+            vb = vb.min(v_tol(acc_b));
+        }
+    }
+    if va <= 0.0 || vb <= 0.0 {
+        return Kind::Stop;
+    }
+    Kind::Parabolic { va, vb }
+}
+
+/// Time to run `len` from `v0` to `v1` under `vmax` at `acc` (a trapezoid, or a triangle).
+fn trapezoid(len: f64, v0: f64, v1: f64, vmax: f64, acc: f64) -> f64 {
+    let peak = ((2.0 * acc * len + v0 * v0 + v1 * v1) / 2.0)
+        .sqrt()
+        .min(vmax);
+    let peak = peak.max(v0).max(v1);
+    if peak <= 0.0 {
+        return 0.0;
+    }
+    let ramps = (2.0 * peak * peak - v0 * v0 - v1 * v1) / (2.0 * acc);
+    let cruise = (len - ramps).max(0.0);
+    (peak - v0) / acc + (peak - v1) / acc + cruise / peak
+}
+
+/// One piece of motion as the planner runs it: a queued segment (trimmed by blend arcs), or
+/// a blend arc.
+#[derive(Debug, Clone)]
+struct Piece {
+    len: f64,
+    v_top: f64,
+    acc: f64,
+    /// Outputs that switch when it starts.
+    dio: Vec<(u32, bool)>,
+    /// What follows it.
+    joint: Joint,
+    /// The queued segment it is (or whose blend arc it is).
+    seg: usize,
+}
+
+/// Runs LinuxCNC's planner model over an NC program, the machine starting at axis zero.
+pub fn run_program(nc: &str, limits: &TpLimits) -> Result<TpTime, String> {
+    run_program_from(nc, limits, &[])
+}
+
+/// [`run_program`] with the machine starting at `start` (machine axis order, external
+/// units; missing axes at zero): a program's first move is as long as the controller finds it.
+pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<TpTime, String> {
+    let (q, tolerances) = read(nc, limits, start)?;
+    let n = q.segs.len();
+    if n == 0 {
+        return Ok(TpTime {
+            total_s: 0.0,
+            beam_on_s: 0.0,
+            segments: 0,
+            stops: 0,
+        });
+    }
+    let segs = &q.segs;
+    let cycle = limits.cycle_s;
+    // Each junction, and each segment's acceleration as tpGetScaledAccel scales it.
+    let kinds: Vec<Option<Kind>> = (0..n)
+        .map(|i| match q.joints[i] {
+            None if i + 1 < n => Some(junction(&segs[i], &segs[i + 1], tolerances[i + 1], cycle)),
+            _ => None,
+        })
+        .collect();
+    let mut acc: Vec<f64> = segs
+        .iter()
+        .map(|s| s.acc * if s.arc { ACC_RATIO_TANGENTIAL } else { 1.0 })
+        .collect();
+    let mut half = vec![false; n];
+    for i in 0..n {
+        match kinds[i] {
+            Some(Kind::Tangent { keep, .. }) => {
+                acc[i] *= keep;
+                acc[i + 1] *= keep;
+            }
+            Some(Kind::Parabolic { .. }) => {
+                half[i] = true;
+                half[i + 1] = true;
+            }
+            // A segment the queue ends on (the task waits for motion before a dwell, an
+            // immediate output or any M-code, or the program ends) keeps its default,
+            // parabolic, term condition.
+            None => {
+                half[i] = i + 1 == n || matches!(q.joints[i], Some(Joint::Stop { drain: true, .. }))
+            }
+            _ => {}
+        }
+    }
+    // Blend arcs take their share of each side; what is left of a segment runs at most its
+    // length per servo period (tcClampVelocityByLength), which is how two blend arcs that
+    // meet in the middle of a segment they may not swallow nearly stop the machine there.
+    let mut pieces: Vec<Piece> = Vec::with_capacity(n);
+    let mut trim_start = 0.0;
+    for i in 0..n {
+        let s = &segs[i];
+        let a = if half[i] { acc[i] * 0.5 } else { acc[i] };
+        let trim_end = match kinds[i] {
+            Some(Kind::Arc { d, .. }) => d,
+            _ => 0.0,
+        };
+        let len = (s.len - trim_start - trim_end).max(0.0);
+        let v_top = s.req.min(s.vmax).min(len.max(1e-6 * s.len) / cycle);
+        let joint = match (kinds[i], q.joints[i]) {
+            (_, Some(j)) => j,
+            (None, None) | (Some(Kind::Stop), _) => Joint::Stop {
+                dwell: 0.0,
+                drain: false,
+            },
+            (Some(Kind::Tangent { cap, .. }), _) => Joint::Through { cap, ratio: 1.0 },
+            (Some(Kind::Arc { v, .. }), _) => Joint::Through { cap: v, ratio: 1.0 },
+            (Some(Kind::Parabolic { va, vb }), _) => Joint::Through {
+                cap: va,
+                ratio: vb / va,
+            },
+        };
+        pieces.push(Piece {
+            len: len.max(1e-12),
+            v_top,
+            acc: a,
+            dio: s.dio.clone(),
+            joint,
+            seg: i,
+        });
+        trim_start = 0.0;
+        if let Some(Kind::Arc { v, d, r, phi }) = kinds[i] {
+            // The blend arc (TC_SPHERICAL: half the acceleration along it), tangent to both.
+            let blend_acc = s
+                .acc_bound
+                .iter()
+                .copied()
+                .filter(|x| *x > 0.0)
+                .fold(f64::INFINITY, f64::min)
+                * ACC_RATIO_TANGENTIAL;
+            let len = r * phi;
+            pieces.push(Piece {
+                len: len.max(1e-12),
+                v_top: v.min(len / cycle),
+                acc: blend_acc,
+                dio: Vec::new(),
+                joint: Joint::Through { cap: v, ratio: 1.0 },
+                seg: i,
+            });
+            trim_start = d;
+        }
+    }
+    let m = pieces.len();
+    // Backward (tpRunOptimization): each piece's highest exit speed, planning to a stop at
+    // most OPTIMIZATION_DEPTH pieces ahead.
+    let entry_of = |k: usize, exit: f64| {
+        (exit * exit + 2.0 * pieces[k].acc * pieces[k].len)
+            .sqrt()
+            .min(pieces[k].v_top)
+    };
+    let exit_of = |k: usize, next_entry: f64| match pieces[k].joint {
+        Joint::Stop { .. } => 0.0,
+        Joint::Through { cap, ratio } => (next_entry / ratio).min(cap).min(pieces[k].v_top),
+    };
+    let mut exit = vec![0.0; m];
+    for (i, e) in exit.iter_mut().enumerate() {
+        let last = (i + OPTIMIZATION_DEPTH).min(m - 1);
+        let mut v = 0.0; // the exit of `last`: the horizon's stop
+        for k in (i + 1..=last).rev() {
+            v = exit_of(k - 1, entry_of(k, v));
+        }
+        *e = v;
+    }
+    // Forward: each piece from its entry to its exit, the outputs as they switch.
+    let mut total = 0.0;
+    let mut beam_on = 0.0;
+    let mut outputs = std::collections::BTreeMap::<u32, bool>::new();
+    let lit = |outputs: &std::collections::BTreeMap<u32, bool>| {
+        limits
+            .beam_output
+            .is_some_and(|b| outputs.get(&b).copied().unwrap_or(false))
+    };
+    let mut stops = q.stops;
+    let mut entry: f64 = 0.0;
+    let apply_immediate =
+        |at: Option<usize>, outputs: &mut std::collections::BTreeMap<u32, bool>| {
+            for &(i, o, on) in &q.immediate {
+                if i == at {
+                    outputs.insert(o, on);
+                }
+            }
+        };
+    apply_immediate(None, &mut outputs);
+    for (k, p) in pieces.iter().enumerate() {
+        for &(o, on) in &p.dio {
+            outputs.insert(o, on);
+        }
+        let v0 = entry.min(p.v_top);
+        let v1 = exit[k]
+            .min((v0 * v0 + 2.0 * p.acc * p.len).sqrt())
+            .min(p.v_top);
+        let t = trapezoid(p.len, v0, v1, p.v_top, p.acc);
+        total += t;
+        if lit(&outputs) {
+            beam_on += t;
+        }
+        match p.joint {
+            Joint::Stop { dwell, drain } => {
+                entry = 0.0;
+                let lit_before = lit(&outputs);
+                apply_immediate(Some(p.seg), &mut outputs);
+                if k + 1 < m {
+                    stops += 1;
+                    // The task sees motion done, runs what waited for it, then queues on.
+                    let latency = if drain { DRAIN_CYCLES * cycle } else { 0.0 };
+                    total += latency + dwell;
+                    if lit_before || lit(&outputs) {
+                        beam_on += latency;
+                    }
+                    if lit(&outputs) {
+                        beam_on += dwell;
+                    }
+                }
+            }
+            Joint::Through { ratio, .. } => entry = v1 * ratio,
+        }
+    }
+    Ok(TpTime {
+        total_s: total,
+        beam_on_s: beam_on,
+        segments: n,
+        stops,
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,122 @@
+//! The model on hand-computed cases: each expected time from the rules the module states.
+
+use super::*;
+
+fn table() -> TpLimits {
+    let m = crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
+    TpLimits::for_machine(&m, 0.001)
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() < 1e-9
+}
+
+#[test]
+fn the_table_limits_are_the_ini_ones() {
+    let l = table();
+    assert_eq!(l.axes.len(), 2);
+    assert_eq!((l.axes[0].v, l.axes[0].a), (250.0, 2000.0));
+    assert_eq!(l.max_linear_v, 250.0);
+    assert_eq!(l.beam_output, Some(0));
+}
+
+#[test]
+fn the_last_segment_before_the_queue_ends_ramps_at_half_the_acceleration() {
+    // 100 mm at F6000 (100 mm/s): its term condition stays parabolic, so 1000 mm/s², not
+    // 2000: 0.1 s up and down (5 mm each), 90 mm at 100 mm/s.
+    let t = run_program("G21 G90 G17 G94\nG1 X100 F6000\nM2\n", &table()).unwrap();
+    assert!(close(t.total_s, 1.1), "{t:?}");
+    assert_eq!((t.segments, t.stops), (1, 0));
+}
+
+#[test]
+fn a_diagonal_line_gets_sqrt2_times_the_axis_limits_and_the_traj_cap() {
+    let a = 2000.0 * 2f64.sqrt() * 0.5;
+    let t = run_program("G1 X100 Y100 F60000\n", &table()).unwrap();
+    let len = 100.0 * 2f64.sqrt();
+    let v = 250.0; // MAX_LINEAR_VELOCITY caps the path speed
+    let expected = v / a * 2.0 + (len - v * v / a) / v;
+    assert!(close(t.total_s, expected), "{t:?} vs {expected}");
+}
+
+#[test]
+fn rapid_to_feed_stops_and_collinear_feeds_carry_through() {
+    let l = table();
+    // Collinear lines (a synced output between them) run through at 20 mm/s: up at 2000,
+    // down at 1000 (the last segment's parabolic term condition).
+    let split = run_program("G1 X10 F1200\nM62 P1 X20\n", &l).unwrap();
+    assert!(
+        close(split.total_s, 0.01 + 0.02 + (20.0 - 0.3) / 20.0),
+        "{split:?}"
+    );
+    assert_eq!(split.stops, 0);
+    let rapid = run_program("G0 X10\nG1 X20 F1200\n", &l).unwrap();
+    assert_eq!(rapid.stops, 1);
+}
+
+#[test]
+fn a_square_corner_gets_a_blend_arc_within_the_tolerance() {
+    // 90°: half the interior angle 45°, d = P·cos45°/(1 − sin45°) = 0.0483 mm for P0.02,
+    // R = d·tan45°, v = sqrt(0.866·2000·R) = 9.14 mm/s; the arc, R·π/2 long, at half the
+    // acceleration along it.
+    let l = table();
+    let corner = run_program("G64 P0.02\nG1 X20 F1200\nY20\n", &l).unwrap();
+    let stop = run_program("G61\nG1 X20 F1200\nY20\n", &l).unwrap();
+    assert!(stop.total_s > corner.total_s);
+    assert_eq!((corner.stops, stop.stops), (0, 1));
+    let d = 0.02 * 0.5f64.sqrt() / (1.0 - 0.5f64.sqrt());
+    let v = (ACC_RATIO_NORMAL * 2000.0 * d).sqrt();
+    let arc = d * std::f64::consts::FRAC_PI_2;
+    let expected = trapezoid(20.0 - d, 0.0, v, 20.0, 2000.0)
+        + arc / v
+        + trapezoid(20.0 - d, v, 0.0, 20.0, 1000.0);
+    assert!(close(corner.total_s, expected), "{corner:?} vs {expected}");
+}
+
+#[test]
+fn small_arcs_in_blending_mode_run_as_their_chords() {
+    // A 0.25 mm arc on r = 33 mm strays 0.24 µm from its chord: under G64 P0.02 it is a
+    // line (its junctions are chord corners), under G61 an arc.
+    let l = table();
+    let nc = |mode: &str| format!("{mode}G0 X33\nG1 X33 Y0 F1500\nG3 X32.999 Y0.25 I-33 J0\n");
+    let blended = run_program(&nc("G64 P0.02\n"), &l).unwrap();
+    let exact = run_program(&nc("G61\n"), &l).unwrap();
+    // The chord ramps at the line's acceleration, the arc at half of it.
+    assert!(blended.total_s < exact.total_s, "{blended:?} {exact:?}");
+}
+
+#[test]
+fn beam_time_follows_the_synced_output() {
+    let l = table();
+    let t = run_program("G1 X10 F1200\nM62 P0\nX20\nM63 P0\nX30\n", &l).unwrap();
+    // The lit middle 10 mm at 20 mm/s, all at cruise (tangent, 0.1 mm ramps at the ends).
+    assert!(close(t.beam_on_s, 0.5), "{t:?}");
+}
+
+#[test]
+fn immediate_outputs_and_dwells_drain_the_queue() {
+    let l = table();
+    let t = run_program("G1 X10 F1200\nM64 P0\nG4 P0.5\nX20\nM65 P0\nX30\n", &l).unwrap();
+    assert_eq!(t.stops, 2);
+    // Lit: the first drain (off → on) and the dwell, the middle segment from rest to rest
+    // at half the acceleration (the queue ends on it), the second drain (on → off).
+    let middle = trapezoid(10.0, 0.0, 0.0, 20.0, 1000.0);
+    let drains = 2.0 * DRAIN_CYCLES * 0.001;
+    assert!(close(t.beam_on_s, 0.5 + middle + drains), "{t:?}");
+}
+
+#[test]
+fn a_program_starts_where_the_machine_is() {
+    let l = table();
+    let from_zero = run_program("G0 X10\n", &l).unwrap();
+    let from_ten = run_program_from("G0 X10\n", &l, &[10.0, 0.0]).unwrap();
+    assert!(from_zero.total_s > 0.0);
+    assert_eq!(from_ten.segments, 0);
+}
+
+#[test]
+fn words_it_does_not_know_are_refused() {
+    assert!(run_program("G1 X10 F1200\nG2 X20 R5\n", &table()).is_err());
+    assert!(run_program("G1 W10 F100\n", &table()).is_err());
+    assert!(run_program("G1 X10 F1200\nG7\n", &table()).is_err());
+}
