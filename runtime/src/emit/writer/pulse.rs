@@ -26,7 +26,6 @@
 
 use super::super::format::{self, LaserWords};
 use super::{Modal, Out, immediate, motion_line, part_way};
-use crate::axes::Axes;
 use crate::emit::Dialect;
 use crate::machine::{DialectPost, Machine};
 use crate::program::{Op, OpKind, Pulse, PulseMode};
@@ -108,7 +107,7 @@ pub(super) struct Gate<'a> {
     pub post: &'a DialectPost,
     pub machine: &'a Machine,
     /// The planned axes each op ends at (`Job::op_axes`).
-    pub op_axes: &'a [Axes],
+    pub op_axes: &'a crate::motion::OpAxes,
     pub arc_axes: Option<(usize, usize, Option<usize>)>,
     pub words: &'a dyn Fn(f64) -> LaserWords,
 }
@@ -183,7 +182,7 @@ pub(super) fn write_gated(
     let mut trigger = train.trigger;
     for (s, high) in cuts {
         let f = if len > 0.0 { s / len } else { 1.0 };
-        let (sub, q) = part_way(op, (from, &from_q), &g.op_axes[i], f, g.arc_axes);
+        let (sub, q) = part_way(op, (from, &from_q), &g.op_axes.get(i), f, g.arc_axes);
         let line = motion_line(&sub, q, m, g.machine, g.arc_axes);
         if high != trigger {
             write_edge(out, g, high, power, line, tag)?;
