@@ -5,10 +5,10 @@
 //!
 //! Before issue 18's second round a job held every planner move beside its plan (80 B a move),
 //! the evaluator's ops were copied into the program, the lead-in pass copied them again and kept
-//! tables of every op (about 120 B an op), and each op's axes took 48 B: at 100 000 moves the
-//! peak was over 450 B a move. Now it is about 356 B (a 168-byte op, the plan's 128 B and the
-//! look-ahead's 40 B of scratch, 16 B of op axes), and a per-move table that comes back fails
-//! this test.
+//! tables of every op (about 120 B an op), and each op's axes took 48 B: 477 B a move at the
+//! peak (`examples/bench_moves.rs`, 500 000 moves). Now it is about 356 B (a 168-byte op, the
+//! plan's 128 B and the look-ahead's 40 B of scratch, 16 B of op axes), and a per-move table
+//! that comes back fails this test.
 
 use cap::Cap;
 use lase_runtime::compile::{self, MemFiles};
