@@ -255,14 +255,18 @@ fn cmd_emit(
         let mut setup = setup.iter();
         // The work frame's lines are ours, not the emitter's: counted here for the result line.
         let mut extra = (0u64, 0u64);
+        // Lines are gathered into one large buffer of bytes and written a batch at a time:
+        // a texturing program is millions of short lines, and a write call (through `dyn
+        // Write`) for each line and each newline was a tenth of the time of `lase emit`.
+        const BATCH: usize = 1 << 20;
+        let mut batch: Vec<u8> = Vec::with_capacity(BATCH + 512);
         let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
             lines += 1;
             if lines.is_multiple_of(1 << 16) && busy.shown() {
                 busy.say(format!("writing {dialect} NC: {lines} lines"));
             }
-            w.write_all(l.text.as_bytes())
-                .and_then(|()| w.write_all(b"\n"))
-                .inspect_err(|e| io_err = Some(e.to_string()))?;
+            batch.extend_from_slice(l.text.as_bytes());
+            batch.push(b'\n');
             // The work frame is set right after the header's units and distance mode.
             // (ISO numbers its blocks: `N30 G21 G90 …`.)
             let body = l
@@ -270,13 +274,22 @@ fn cmd_emit(
                 .trim_start_matches(|c: char| c == 'N' || c.is_ascii_digit());
             if body.trim_start().starts_with("G21 G90") {
                 for line in setup.by_ref() {
-                    w.write_all(line.as_bytes())
-                        .and_then(|()| w.write_all(b"\n"))
-                        .inspect_err(|e| io_err = Some(e.to_string()))?;
+                    batch.extend_from_slice(line.as_bytes());
+                    batch.push(b'\n');
                     extra = (extra.0 + 1, extra.1 + line.len() as u64 + 1);
                 }
             }
+            if batch.len() >= BATCH {
+                w.write_all(&batch)
+                    .inspect_err(|e| io_err = Some(e.to_string()))?;
+                batch.clear();
+            }
             Ok(())
+        })
+        .and_then(|stats| {
+            w.write_all(&batch)
+                .inspect_err(|e| io_err = Some(e.to_string()))?;
+            Ok(stats)
         });
         match r {
             Ok(stats) => {

@@ -395,7 +395,7 @@ pub fn run(recipe: &mut Recipe, files: &mut impl Files) -> Result<Evaluator, Eva
 /// ([`validate`]).
 pub fn evaluate(recipe: &mut Recipe, files: &mut impl Files) -> Result<ProcessProgram, Failure> {
     let program = run(recipe, files)
-        .and_then(|ev| ev.program(&recipe.name(), recipe.end()))
+        .and_then(|ev| ev.into_program(&recipe.name(), recipe.end()))
         .map_err(Failure::one)?;
     validate(&program)?;
     Ok(program)

@@ -28,6 +28,7 @@ use crate::kinematics::{self, KinError, Kinematics, ToolPose};
 use crate::planner::{self, AxisLimits, Move, Plan, PlannerConfig, ProfileKind};
 use crate::program::{LeadIn, Op, OpKind, Orient, P3, ProcessProgram, Ramp, arc_circle, dist};
 use lase_lang::Span;
+use std::collections::VecDeque;
 use std::sync::Arc;
 
 /// Planning errors that point at the recipe.
@@ -147,9 +148,7 @@ pub struct Job {
     /// Axis positions each op of `program.ops` leaves the machine at: a motion op's end
     /// through the inverse kinematics (continuous with the solution before it, inside travel),
     /// any other op the position before it. The one place poses are computed.
-    pub op_axes: Vec<Axes>,
-    /// The moves handed to the planner; `tag` is the index of the op that produced each.
-    pub moves: Vec<Move>,
+    pub op_axes: OpAxes,
     /// Standstill before the first move (dwells and events ahead of any motion), s.
     pub initial_dwell_s: f64,
     pub plan: Plan,
@@ -195,6 +194,49 @@ impl Job {
         };
         let s = self.kin.forward_at(q, standoff).spot;
         [s.x, s.y, s.z]
+    }
+}
+
+/// The axes each op ends at ([`Job::op_axes`]), the machine's axes in use only, in one flat
+/// table: 16 bytes an op on a two-axis table instead of an [`Axes`]' 48 (issue 18).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct OpAxes {
+    n_axes: usize,
+    values: Vec<f64>,
+}
+
+impl OpAxes {
+    /// An empty table of `n_axes` axes with room for `ops` ops.
+    pub fn with_capacity(n_axes: usize, ops: usize) -> OpAxes {
+        OpAxes {
+            n_axes,
+            values: Vec::with_capacity(n_axes * ops),
+        }
+    }
+
+    pub fn push(&mut self, q: &Axes) {
+        self.values.extend_from_slice(&q[..self.n_axes]);
+    }
+
+    /// The axes op `i` ends at (the axes not in use at 0). Panics past the last op.
+    pub fn get(&self, i: usize) -> Axes {
+        let mut q = Axes::ZERO;
+        q[..self.n_axes].copy_from_slice(&self.values[i * self.n_axes..(i + 1) * self.n_axes]);
+        q
+    }
+
+    /// Sets the axes op `i` ends at.
+    pub fn set(&mut self, i: usize, q: &Axes) {
+        self.values[i * self.n_axes..(i + 1) * self.n_axes].copy_from_slice(&q[..self.n_axes]);
+    }
+
+    /// How many ops.
+    pub fn len(&self) -> usize {
+        self.values.len().checked_div(self.n_axes).unwrap_or(0)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
     }
 }
 
@@ -257,7 +299,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     let laser_switch_stops = switch_stops.every_switch;
     let led = leadin::add_leads(
         program.start,
-        &program.ops,
+        std::mem::take(&mut program.ops),
         &leadin::LeadContext {
             kin: &*kin,
             limits: &limits,
@@ -279,89 +321,38 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     }
     // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
     let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;
-    let mut moves: Vec<Move> = Vec::new();
-    let mut initial_dwell_s = 0.0;
-    let mut pos = program.start;
-    let mut q_prev = start;
-    let mut lit_prev = false;
-    let mut orient: Option<Orient> = None;
-    let mut op_axes: Vec<Axes> = Vec::with_capacity(program.ops.len());
-    for (i, op) in program.ops.iter().enumerate() {
-        orient = op.orient().or(orient);
-        let tag = i as u32;
-        let stop_here =
-            |moves: &mut Vec<Move>, initial: &mut f64, dwell: f64| match moves.last_mut() {
-                Some(m) => {
-                    m.stop_after = true;
-                    m.dwell_after += dwell;
-                }
-                None => *initial += dwell,
-            };
-        let lit = op.laser().is_some();
-        if op.target().is_some() && lit != lit_prev && laser_switch_stops {
-            // The machine switches the beam with an M-function that needs it at rest (§4).
-            stop_here(&mut moves, &mut initial_dwell_s, 0.0);
-        }
-        if arm_stops.binary_search(&i).is_ok() {
-            // GRBL re-arms the laser (M3/M4 S0) before this op: a synced spindle change.
-            stop_here(&mut moves, &mut initial_dwell_s, 0.0);
-        }
-        match &op.kind {
-            OpKind::Rapid { to, .. } => {
-                let q = inverse(&*kin, *to, orient, Some(&q_prev), op.span, &program)?;
-                push_line(&mut moves, q_prev, q, dist(pos, *to), f64::INFINITY, tag);
-                pos = *to;
-                q_prev = q;
-            }
-            OpKind::Line { to, feed_mm_s, .. } => {
-                let q = inverse(&*kin, *to, orient, Some(&q_prev), op.span, &program)?;
-                push_line(&mut moves, q_prev, q, dist(pos, *to), *feed_mm_s, tag);
-                pos = *to;
-                q_prev = q;
-            }
-            OpKind::Arc {
-                to,
-                center,
-                ccw,
-                feed_mm_s,
-                ..
-            } => {
-                for p in arc_points(pos, *to, *center, *ccw, program.planner.arc_tolerance_mm) {
-                    let q = inverse(&*kin, p, orient, Some(&q_prev), op.span, &program)?;
-                    push_line(&mut moves, q_prev, q, dist(pos, p), *feed_mm_s, tag);
-                    pos = p;
-                    q_prev = q;
-                }
-            }
-            OpKind::Dwell { seconds } => stop_here(&mut moves, &mut initial_dwell_s, *seconds),
-            OpKind::Fire { window_s, .. } => stop_here(&mut moves, &mut initial_dwell_s, *window_s),
-            OpKind::MCode { .. } => stop_here(&mut moves, &mut initial_dwell_s, 0.0),
-            // An output the controller switches with the next move (LinuxCNC `M62`/`M63`)
-            // leaves the plan blending through; one that syncs (GRBL `M8`) stops it.
-            OpKind::Output { stops, .. } => {
-                if *stops {
-                    stop_here(&mut moves, &mut initial_dwell_s, 0.0)
-                }
-            }
-            OpKind::Event { name } => {
-                let dwell = program
-                    .machine
-                    .events
-                    .get(name)
-                    .map(|e| e.dwell_s)
-                    .unwrap_or(0.0);
-                stop_here(&mut moves, &mut initial_dwell_s, dwell)
-            }
-        }
-        if op.target().is_some() {
-            lit_prev = lit;
-        }
-        op_axes.push(q_prev);
+    let expected = program.ops.iter().filter(|o| o.target().is_some()).count();
+    let mut low = Lowering {
+        kin: &*kin,
+        program: &program,
+        laser_switch_stops,
+        arm_stops: &arm_stops,
+        next_op: 0,
+        pos: program.start,
+        q_prev: start,
+        lit_prev: false,
+        orient: None,
+        queue: VecDeque::new(),
+        initial_dwell_s: 0.0,
+        op_axes: OpAxes::with_capacity(n_axes, program.ops.len()),
+        error: None,
+        last_tag: 0,
+    };
+    let planned = planner::plan_iter(start, &mut low, expected, &limits, &cfg);
+    // The op whose move the planner refused: the move it read last.
+    let refused = low.last_tag as usize;
+    if planned.is_err() {
+        // A motion error anywhere in the program comes first, as when every op was lowered
+        // before planning: lower the rest to find one.
+        for _ in &mut low {}
     }
-    let plan = planner::plan(start, &moves, &limits, &cfg).map_err(|e| {
+    if let Some(e) = low.error {
+        return Err(e);
+    }
+    let (op_axes, initial_dwell_s) = (low.op_axes, low.initial_dwell_s);
+    let plan = planned.map_err(|e| {
         let span = planner_error_move(&e)
-            .and_then(|i| moves.get(i))
-            .and_then(|m| program.ops.get(m.tag as usize))
+            .and_then(|_| program.ops.get(refused))
             .map(|o: &Op| o.span)
             .unwrap_or(start_span);
         MotionError::Planner(PlannerFailure { error: e, span })
@@ -371,7 +362,6 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         kin,
         start,
         op_axes,
-        moves,
         initial_dwell_s,
         plan,
         sections: led.sections,
@@ -431,6 +421,135 @@ fn arcs_as_chords(program: &mut ProcessProgram) {
         s.op = index[s.op];
     }
     program.ops = ops;
+}
+
+/// A program's planner moves, made op by op as the planner reads them, so that a job never
+/// holds them all (issue 18: 80 bytes a move, next to the plan's own segment). Each op is
+/// turned into axes once, here, and its end recorded in `op_axes`.
+///
+/// The last move made is held back until the next op is lowered: a stop or a dwell that
+/// follows it (an M-code, a laser switch that needs rest) belongs to its end. The first error
+/// ends the moves and waits in `error`.
+struct Lowering<'a> {
+    kin: &'a dyn Kinematics,
+    program: &'a ProcessProgram,
+    /// Every beam switch needs the machine at rest (`beam::switch_stops`).
+    laser_switch_stops: bool,
+    /// The ops a flying GRBL post re-arms the laser before (sorted).
+    arm_stops: &'a [usize],
+    next_op: usize,
+    /// The spot and the axes where the last move ended.
+    pos: P3,
+    q_prev: Axes,
+    lit_prev: bool,
+    orient: Option<Orient>,
+    /// Moves made and not read yet.
+    queue: VecDeque<Move>,
+    /// Standstill before the first move, s.
+    initial_dwell_s: f64,
+    op_axes: OpAxes,
+    error: Option<MotionError>,
+    /// The tag (op index) of the last move read.
+    last_tag: u32,
+}
+
+impl Iterator for Lowering<'_> {
+    type Item = Move;
+
+    fn next(&mut self) -> Option<Move> {
+        loop {
+            let done = self.error.is_some() || self.next_op >= self.program.ops.len();
+            if self.queue.len() >= 2 || (done && self.error.is_none() && !self.queue.is_empty()) {
+                let m = self.queue.pop_front()?;
+                self.last_tag = m.tag;
+                return Some(m);
+            }
+            if done {
+                return None;
+            }
+            if let Err(e) = self.lower(self.next_op) {
+                self.error = Some(e);
+            }
+            self.next_op += 1;
+        }
+    }
+}
+
+impl Lowering<'_> {
+    /// A stop (with a standstill of `dwell` s) after the last move made, or before the first.
+    fn stop_here(&mut self, dwell: f64) {
+        match self.queue.back_mut() {
+            Some(m) => {
+                m.stop_after = true;
+                m.dwell_after += dwell;
+            }
+            None => self.initial_dwell_s += dwell,
+        }
+    }
+
+    /// Lowers op `i` into moves and records the axes it ends at.
+    fn lower(&mut self, i: usize) -> Result<(), MotionError> {
+        let (program, kin) = (self.program, self.kin);
+        let op = &program.ops[i];
+        self.orient = op.orient().or(self.orient);
+        let tag = i as u32;
+        let lit = op.laser().is_some();
+        if op.target().is_some() && lit != self.lit_prev && self.laser_switch_stops {
+            // The machine switches the beam with an M-function that needs it at rest (§4).
+            self.stop_here(0.0);
+        }
+        if self.arm_stops.binary_search(&i).is_ok() {
+            // GRBL re-arms the laser (M3/M4 S0) before this op: a synced spindle change.
+            self.stop_here(0.0);
+        }
+        let line_to = |low: &mut Self, p: P3, feed: f64| -> Result<(), MotionError> {
+            let q = inverse(kin, p, low.orient, Some(&low.q_prev), op.span, program)?;
+            push_line(&mut low.queue, low.q_prev, q, dist(low.pos, p), feed, tag);
+            low.pos = p;
+            low.q_prev = q;
+            Ok(())
+        };
+        match &op.kind {
+            OpKind::Rapid { to, .. } => line_to(self, *to, f64::INFINITY)?,
+            OpKind::Line { to, feed_mm_s, .. } => line_to(self, *to, *feed_mm_s)?,
+            OpKind::Arc {
+                to,
+                center,
+                ccw,
+                feed_mm_s,
+                ..
+            } => {
+                let tol = program.planner.arc_tolerance_mm;
+                for p in arc_points(self.pos, *to, *center, *ccw, tol) {
+                    line_to(self, p, *feed_mm_s)?;
+                }
+            }
+            OpKind::Dwell { seconds } => self.stop_here(*seconds),
+            OpKind::Fire { window_s, .. } => self.stop_here(*window_s),
+            OpKind::MCode { .. } => self.stop_here(0.0),
+            // An output the controller switches with the next move (LinuxCNC `M62`/`M63`)
+            // leaves the plan blending through; one that syncs (GRBL `M8`) stops it.
+            OpKind::Output { stops, .. } => {
+                if *stops {
+                    self.stop_here(0.0)
+                }
+            }
+            OpKind::Event { name } => {
+                let dwell = program
+                    .machine
+                    .events
+                    .get(name)
+                    .map(|e| e.dwell_s)
+                    .unwrap_or(0.0);
+                self.stop_here(dwell)
+            }
+        }
+        if op.target().is_some() {
+            self.lit_prev = lit;
+        }
+        self.op_axes.push(&self.q_prev);
+        Ok(())
+    }
 }
 
 fn planner_error_move(e: &planner::PlanError) -> Option<usize> {
@@ -497,7 +616,7 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
     }
 }
 
-fn push_line(moves: &mut Vec<Move>, from: Axes, to: Axes, length: f64, feed: f64, tag: u32) {
+fn push_line(moves: &mut VecDeque<Move>, from: Axes, to: Axes, length: f64, feed: f64, tag: u32) {
     if length <= 1e-12 && from == to {
         return;
     }
@@ -511,7 +630,7 @@ fn push_line(moves: &mut Vec<Move>, from: Axes, to: Axes, length: f64, feed: f64
     } else {
         length
     };
-    moves.push(Move {
+    moves.push_back(Move {
         target: to,
         length,
         feed,

@@ -237,7 +237,9 @@ fn axis_words_are_the_planned_axes() {
         .iter()
         .position(|o| matches!(o.kind, OpKind::Rapid { .. }))
         .expect("a rapid");
-    j.op_axes[i][0] = 12.5;
+    let mut q = j.op_axes.get(i);
+    q[0] = 12.5;
+    j.op_axes.set(i, &q);
     let nc = emit_to_string(&j, Dialect::LinuxCnc).unwrap();
     assert!(
         nc.lines()

@@ -111,14 +111,20 @@ pub fn gcode_lines(rec: &Recording) -> Vec<String> {
 pub fn planned_op_ends(job: &Job) -> Vec<(usize, AxisPos)> {
     let map = to_controller(&job.program.machine);
     let mut out: Vec<(usize, AxisPos)> = Vec::new();
-    for m in &job.moves {
-        let p = map(&m.target);
+    for (tag, target) in planned_moves(job) {
+        let p = map(&target);
         match out.last_mut() {
-            Some((op, q)) if *op == m.tag as usize => *q = p,
-            _ => out.push((m.tag as usize, p)),
+            Some((op, q)) if *op == tag as usize => *q = p,
+            _ => out.push((tag as usize, p)),
         }
     }
     out
+}
+
+/// The planned moves in order: the tag (op index) and the axes each ends at.
+fn planned_moves(job: &Job) -> impl Iterator<Item = (u32, Axes)> + '_ {
+    let plan = &job.plan;
+    (0..plan.segments().len()).map(|i| (plan.segments()[i].tag, plan.segment_target(i)))
 }
 
 /// Lit runs of the plan: (start, end, length) of each maximal run of consecutive lit moves,
@@ -133,9 +139,9 @@ pub fn planned_lit_runs(job: &Job) -> Vec<PlannedRun> {
     let mut prev = map(&job.start);
     let mut in_run = false;
     let mut part = job.program.start;
-    for m in &job.moves {
-        let end = map(&m.target);
-        let op = &job.program.ops[m.tag as usize];
+    for (tag, target) in planned_moves(job) {
+        let end = map(&target);
+        let op = &job.program.ops[tag as usize];
         let pitch = op
             .laser()
             .and_then(|l| match l.pulse.as_ref().map(|p| p.mode) {

@@ -17,7 +17,7 @@
 use super::format::{self, LaserWords};
 use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
-use crate::axes::{self, Axes, MAX_AXES};
+use crate::axes::{self, Axes};
 use crate::machine::AxisKind;
 use crate::motion::{Job, beam};
 use crate::program::{Coupling, Op, OpKind, P3};
@@ -100,10 +100,13 @@ impl Out<'_> {
     }
 }
 
-/// A word's value as last written, in a buffer that is reused (`set` copies into it).
+/// A word's value as last written, in a buffer that is reused (`set` copies into it), and the
+/// number it was formatted from.
 #[derive(Default)]
 struct Last {
     text: String,
+    /// The bits of the number `text` was formatted from.
+    value: u64,
     written: bool,
 }
 
@@ -112,9 +115,18 @@ impl Last {
         self.written && self.text == v
     }
 
-    fn set(&mut self, v: &str) {
+    /// Whether `x` was the number last written: the same bits format to the same text, so a
+    /// word that did not change (the row's Y, the feed, on every block of a dot row) is
+    /// neither formatted nor compared as text.
+    fn is_number(&self, x: f64) -> bool {
+        self.written && self.value == x.to_bits()
+    }
+
+    /// `v`, formatted from the number `x`, is written.
+    fn set(&mut self, v: &str, x: f64) {
         self.text.clear();
         self.text.push_str(v);
+        self.value = x.to_bits();
         self.written = true;
     }
 
@@ -395,20 +407,26 @@ pub(super) fn write(
                             ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag,
                         )?;
                     } else if blocks.is_empty() {
-                        let mut line = motion_line(op, q_end, &mut m, machine, arc_axes);
-                        if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
-                            // Every feed move carries its power, S0 when unlit: in laser mode an S
-                            // word on a G1/G2/G3 block changes power as the block starts, without
-                            // a stop. A G0 needs none: GRBL runs rapids with the laser off
-                            // (gcode.c: a block not in G1/G2/G3 is GC_PARSER_LASER_DISABLE'd).
-                            let s = s_word(op.laser().map_or(0.0, |l| l.power_w));
-                            if m.s.as_deref() != Some(s.as_str()) {
-                                line.push(' ');
-                                line.push_str(&s);
-                                m.s = Some(s);
-                            }
-                        }
-                        out.put(&line, tag)?;
+                        let to = op.target().unwrap_or(m.pos);
+                        out.put_with(
+                            |line| {
+                                motion_line(line, op, to, q_end, &mut m, machine, arc_axes);
+                                if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
+                                    // Every feed move carries its power, S0 when unlit: in laser
+                                    // mode an S word on a G1/G2/G3 block changes power as the
+                                    // block starts, without a stop. A G0 needs none: GRBL runs
+                                    // rapids with the laser off (gcode.c: a block not in
+                                    // G1/G2/G3 is GC_PARSER_LASER_DISABLE'd).
+                                    let s = s_word(op.laser().map_or(0.0, |l| l.power_w));
+                                    if m.s.as_deref() != Some(s.as_str()) {
+                                        line.push(' ');
+                                        line.push_str(&s);
+                                        m.s = Some(s);
+                                    }
+                                }
+                            },
+                            tag,
+                        )?;
                         out.stats.motion_blocks += 1;
                     } else {
                         let (from, from_q) = (m.pos, m.q);
@@ -430,9 +448,11 @@ pub(super) fn write(
                             } else {
                                 b.s_end / total
                             };
-                            let (sub, q) = part_way(op, (from, &from_q), &q_end, f, arc_axes);
-                            let line = motion_line(&sub, q, &mut m, machine, arc_axes);
-                            out.put(&line, tag)?;
+                            let (to, q) = part_way(op, (from, &from_q), &q_end, f, arc_axes);
+                            out.put_with(
+                                |line| motion_line(line, op, to, q, &mut m, machine, arc_axes),
+                                tag,
+                            )?;
                             out.stats.motion_blocks += 1;
                         }
                     }
@@ -536,7 +556,8 @@ fn synchronized(dialect: Dialect, line: &str) -> String {
 }
 
 /// Block `op` (from spot `from` at axes `from_q`, to its planned axes `to_q`) cut at fraction
-/// `f` of its length: the shorter op, and the axes where the controller is then.
+/// `f` of its length: the spot where the shorter block ends (its new target; the rest of the
+/// op is unchanged), and the axes where the controller is then.
 ///
 /// The axes are the point of the block as the controller runs it, so a sub-block never leaves
 /// the move the planner timed: a line's axes interpolate straight (`from_q → to_q`, what
@@ -550,30 +571,29 @@ fn part_way(
     to_q: &Axes,
     f: f64,
     arc_axes: Option<(usize, usize, Option<usize>)>,
-) -> (Op, Axes) {
-    let mut sub = op.clone();
+) -> (P3, Axes) {
+    let end = op.target().unwrap_or(from);
     if f >= 1.0 {
-        return (sub, *to_q);
+        return (end, *to_q);
     }
     let mut q = from_q.lerp(to_q, f);
-    let arc = op.arc_from(from);
-    match &mut sub.kind {
+    match &op.kind {
         OpKind::Rapid { to, .. } | OpKind::Line { to, .. } => {
-            *to = std::array::from_fn(|k| from[k] + f * (to[k] - from[k]));
+            (std::array::from_fn(|k| from[k] + f * (to[k] - from[k])), q)
         }
         OpKind::Arc { to, center, .. } => {
-            let (r, a0, sweep) = arc.unwrap_or_default();
+            let (r, a0, sweep) = op.arc_from(from).unwrap_or_default();
             let a = a0 + f * sweep;
             let z = from[2] + f * (to[2] - from[2]);
-            *to = [center[0] + r * a.cos(), center[1] + r * a.sin(), z];
+            let p = [center[0] + r * a.cos(), center[1] + r * a.sin(), z];
             if let Some((x, y, _)) = arc_axes {
-                q[x] = to[0];
-                q[y] = to[1];
+                q[x] = p[0];
+                q[y] = p[1];
             }
+            (p, q)
         }
-        _ => {}
+        _ => (end, q),
     }
-    (sub, q)
 }
 
 /// Whether the next op that moves the spot is lit (non-motion ops in between keep the beam
@@ -584,34 +604,37 @@ fn next_move_lit(rest: &[Op], pos: P3) -> bool {
         .is_some_and(|o| o.laser().is_some())
 }
 
-/// The block that moves to axes `q` (planned: see [`part_way`]) as `op` says.
+/// The block that moves the spot to `to` at axes `q` (planned: see [`part_way`]) as `op`
+/// says (its motion mode, feed and arc centre; `to` is the op's target or a point part way
+/// along it), its words appended to `line` (after the ISO block number or a trigger word a
+/// caller put there), each separated by one space.
 fn motion_line(
+    line: &mut String,
     op: &Op,
+    to: P3,
     q: Axes,
     m: &mut Modal,
     machine: &crate::machine::Machine,
     arc_axes: Option<(usize, usize, Option<usize>)>,
-) -> String {
-    let (g, to, feed) = match &op.kind {
-        OpKind::Rapid { to, .. } => ("G0", *to, None),
-        OpKind::Line { to, feed_mm_s, .. } => ("G1", *to, Some(*feed_mm_s)),
-        OpKind::Arc {
-            to, ccw, feed_mm_s, ..
-        } => (if *ccw { "G3" } else { "G2" }, *to, Some(*feed_mm_s)),
+) {
+    let (g, feed) = match &op.kind {
+        OpKind::Rapid { .. } => ("G0", None),
+        OpKind::Line { feed_mm_s, .. } => ("G1", Some(*feed_mm_s)),
+        OpKind::Arc { ccw, feed_mm_s, .. } => (if *ccw { "G3" } else { "G2" }, Some(*feed_mm_s)),
         _ => unreachable!("motion_line is called for motion ops only"),
     };
-    // One buffer, words appended with a separating space: this runs once per NC block, and
-    // a million-spot raster writes millions of them.
-    let mut line = String::with_capacity(16 * (MAX_AXES + 3));
+    // Words go straight into the line handed to the sink: this runs once per NC block, and a
+    // million-spot raster writes millions of them.
+    let start = line.len();
     let word = |line: &mut String, letter: &str, value: &str| {
-        if !line.is_empty() {
+        if line.len() > start {
             line.push(' ');
         }
         line.push_str(letter);
         line.push_str(value);
     };
     if m.motion != Some(g) {
-        word(&mut line, g, "");
+        word(line, g, "");
         m.motion = Some(g);
     }
     // An arc always names its plane's axes: a full circle ends where it starts, and G2/G3
@@ -622,21 +645,24 @@ fn motion_line(
     };
     let mut v = std::mem::take(&mut m.scratch);
     for (k, axis) in machine.axes.iter().enumerate() {
+        let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
+        if !forced && m.words[k].is_number(q[k]) {
+            continue;
+        }
         v.clear();
         match axis.kind {
             AxisKind::Linear => format::number_into(&mut v, q[k]),
             AxisKind::Rotary => v.push_str(&format::degrees(axes::to_external(axis.kind, q[k]))),
         }
-        let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
         if forced || !m.words[k].is(&v) {
-            word(&mut line, &axis.name, &v);
-            m.words[k].set(&v);
+            word(line, &axis.name, &v);
         }
+        m.words[k].set(&v, q[k]);
     }
     if let OpKind::Arc { center, .. } = &op.kind {
         // Center relative to the start, in part x/y (= machine X/Y, validated).
-        word(&mut line, "I", &format::number(center[0] - m.pos[0]));
-        word(&mut line, "J", &format::number(center[1] - m.pos[1]));
+        word(line, "I", &format::number(center[0] - m.pos[0]));
+        word(line, "J", &format::number(center[1] - m.pos[1]));
     }
     match feed {
         Some(f) if m.inverse_time => {
@@ -653,21 +679,21 @@ fn motion_line(
                     .map(|(k, a)| (q[k] - m.q[k]).abs() / a.v_max / 60.0)
                     .fold(1e-9, f64::max)
             };
-            word(&mut line, "F", &format::inverse_time(1.0 / minutes));
+            word(line, "F", &format::inverse_time(1.0 / minutes));
             m.feed.unset();
         }
+        Some(f) if m.feed.is_number(f) => {}
         Some(f) => {
             v.clear();
             format::number_into(&mut v, f * 60.0);
             if !m.feed.is(&v) {
-                word(&mut line, "F", &v);
-                m.feed.set(&v);
+                word(line, "F", &v);
             }
+            m.feed.set(&v, f);
         }
         None => m.feed.unset(),
     }
     m.scratch = v;
     m.pos = to;
     m.q = q;
-    line
 }

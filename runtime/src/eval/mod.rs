@@ -274,20 +274,30 @@ impl Evaluator {
 
     /// The process program of everything evaluated so far.
     pub fn program(&self, recipe: &str, span: Span) -> R<ProcessProgram> {
+        self.program_of(self.ops.clone(), recipe, span)
+    }
+
+    /// [`program`](Self::program) of an evaluator that is done: its ops move into the program
+    /// instead of being copied (issue 18: a second copy of a million ops was the peak of
+    /// memory of `lase check`).
+    pub fn into_program(mut self, recipe: &str, span: Span) -> R<ProcessProgram> {
+        let mut ops = std::mem::take(&mut self.ops);
+        // The room the list grew into while evaluating (up to as much again) is given back.
+        ops.shrink_to_fit();
+        self.program_of(ops, recipe, span)
+    }
+
+    /// The process program of `ops` with this evaluator's machine and settings.
+    fn program_of(&self, ops: Vec<Op>, recipe: &str, span: Span) -> R<ProcessProgram> {
         let machine = self.machine.clone().ok_or_else(|| no_machine(span))?;
         let planner = self.planner_settings_now();
         // Settled row starts are indices into the ops as written, so a program that settles
         // keeps its source order and no kerf (cut order and kerf serve cutting; settling,
         // texturing).
         let (ops, ordering) = if self.settles.is_empty() {
-            order::order_ops(
-                &self.ops,
-                self.start,
-                planner.order,
-                planner.arc_tolerance_mm,
-            )?
+            order::order_ops(ops, self.start, planner.order, planner.arc_tolerance_mm)?
         } else {
-            (self.ops.clone(), None)
+            (ops, None)
         };
         Ok(ProcessProgram {
             recipe: recipe.to_string(),

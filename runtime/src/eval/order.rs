@@ -89,7 +89,7 @@ enum Item {
 /// `ops` (starting at `start`) with the paths ordered and kerf applied, and what the order
 /// saved; the ops unchanged when there is nothing to do.
 pub(super) fn order_ops(
-    ops: &[Op],
+    ops: Vec<Op>,
     start: P3,
     how: CutOrder,
     tol_mm: f64,
@@ -99,8 +99,9 @@ pub(super) fn order_ops(
         .iter()
         .any(|o| o.laser().is_some_and(|l| l.kerf_mm > 0.0));
     if (how == CutOrder::Source && !kerfed) || ops.iter().any(|o| o.orient().is_some()) {
-        return Ok((ops.to_vec(), None));
+        return Ok((ops, None));
     }
+    let ops = &ops[..];
     let items = split(ops, start);
     let mut out = Vec::with_capacity(ops.len());
     let mut run: Vec<Path> = Vec::new();

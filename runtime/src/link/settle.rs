@@ -95,7 +95,7 @@ pub fn settle_points(
             run += 1;
         }
         line = line.max(runs.get(run).map_or(len, |r| r.0));
-        let p = axes.to_controller(&job.op_axes[s.op]);
+        let p = axes.to_controller(&job.op_axes.get(s.op));
         out.push(SettlePoint {
             after: line.saturating_sub(1),
             target: [p[0], p[1]],

@@ -40,6 +40,7 @@ use crate::kinematics::Kinematics;
 use crate::planner::{self, AxisLimits, PlannerConfig};
 use crate::program::{Laser, Op, OpKind, Orient, P3};
 use lase_lang::units::format_number;
+use std::collections::BTreeMap;
 
 use crate::program::PULSE_CRUISE_MARGIN_S;
 
@@ -105,16 +106,18 @@ pub struct Leads {
 /// An op to insert, and what lead it is (kind, length, lit) if it is one.
 type Insert = (Op, Option<(LeadKind, f64, bool)>);
 
-/// Edits to the op list, collected first and applied in one pass.
+/// Edits to the op list, collected first and applied in one pass. Keyed by op index, and only
+/// where there is an edit: a lit section of a million short moves gets four, not tables of a
+/// million entries.
 #[derive(Default)]
 struct Edits {
     /// New target (and orientation) of op i (an unlit straight move redirected to a lead-in
     /// start).
-    redirect: Vec<Option<(P3, Option<Orient>)>>,
-    /// Ops to insert before op i (index `ops.len()` = at the end).
-    before: Vec<Vec<Insert>>,
+    redirect: BTreeMap<usize, (P3, Option<Orient>)>,
+    /// Ops to insert before op i.
+    before: BTreeMap<usize, Vec<Insert>>,
     /// Ops to insert after op i.
-    after: Vec<Vec<Insert>>,
+    after: BTreeMap<usize, Vec<Insert>>,
     /// Ops to insert before everything.
     front: Vec<Op>,
 }
@@ -123,34 +126,31 @@ struct Edits {
 ///
 /// Fails, without a partial result, when a lead does not fit in the machine's travel or the
 /// lit feed is above what the axes allow along the cut (then no lead could reach it).
-pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, MotionError> {
-    let starts = start_points(start, ops);
+pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads, MotionError> {
+    let starts = start_points(start, &ops);
     let moving: Vec<bool> = ops
         .iter()
         .zip(&starts)
         .map(|(op, from)| op.moves_from(*from))
         .collect();
-    let runs = lit_runs(ops, &moving);
+    let runs = lit_runs(&ops, &moving);
     if !cx.enabled || runs.is_empty() {
         let sections = runs
             .iter()
-            .map(|&(f, l)| section(ops, &starts, f, l, f as u32, l as u32))
+            .map(|&(f, l)| section(&ops, &starts, f, l, f as u32, l as u32))
             .collect();
         return Ok(Leads {
-            ops: ops.to_vec(),
             index: (0..ops.len() as u32).collect(),
+            ops,
             sections,
             leads: Vec::new(),
         });
     }
 
     let n = ops.len();
-    let mut ed = Edits {
-        redirect: vec![None; n],
-        before: vec![Vec::new(); n],
-        after: vec![Vec::new(); n],
-        front: Vec::new(),
-    };
+    let mut ed = Edits::default();
+    let owned = ops;
+    let ops = &owned[..];
     for &(first, last) in &runs {
         let prev_move = (0..first).rev().find(|&i| moving[i]);
         let next_move = (last + 1..n).find(|&i| moving[i]);
@@ -202,9 +202,13 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
                     OpKind::Rapid { .. } | OpKind::Line { laser: None, .. }
                 ) =>
             {
-                ed.redirect[pm] = Some((p_lead, o_lead))
+                ed.redirect.insert(pm, (p_lead, o_lead));
             }
-            Some(pm) => ed.after[pm].push((rapid(p_lead, op, o_lead), None)),
+            Some(pm) => ed
+                .after
+                .entry(pm)
+                .or_default()
+                .push((rapid(p_lead, op, o_lead), None)),
             None if dist(start, p_lead) > 1e-12 => ed.front.push(rapid(p_lead, op, o_lead)),
             None => {}
         }
@@ -220,10 +224,10 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
                     OpKind::Rapid { .. } | OpKind::Line { laser: None, .. }
                 )
             {
-                ed.redirect[i] = Some((p_lead, o_lead));
+                ed.redirect.insert(i, (p_lead, o_lead));
             }
         }
-        ed.before[first].push((
+        ed.before.entry(first).or_default().push((
             Op {
                 kind: OpKind::Line {
                     to: p0,
@@ -275,7 +279,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             });
         }
         let lit_lead = cx.switch_stops.then(|| lead_laser(op.laser()));
-        ed.after[last].push((
+        ed.after.entry(last).or_default().push((
             Op {
                 kind: OpKind::Line {
                     to: p_out,
@@ -292,56 +296,88 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             && matches!(ops[nm].kind, OpKind::Arc { .. })
         {
             // An arc is defined from where it starts: go back to it.
-            ed.after[last].push((rapid(p1, op, op.orient()), None));
+            ed.after
+                .entry(last)
+                .or_default()
+                .push((rapid(p1, op, op.orient()), None));
         }
     }
-    Ok(apply(ops, &starts, &runs, ed))
+    Ok(apply(owned, &starts, &runs, ed))
 }
 
-fn apply(ops: &[Op], starts: &[P3], runs: &[(usize, usize)], mut ed: Edits) -> Leads {
-    let mut out: Vec<Op> = Vec::with_capacity(ops.len() + 4 * runs.len() + 1);
+fn apply(mut ops: Vec<Op>, starts: &[P3], runs: &[(usize, usize)], mut ed: Edits) -> Leads {
+    let n = ops.len();
+    // The sections as written, before any op moves or is redirected.
+    let mut sections: Vec<LitSection> = runs
+        .iter()
+        .map(|&(f, l)| section(&ops, starts, f, l, 0, 0))
+        .collect();
+    let len = |v: Option<&Vec<Insert>>| v.map_or(0, Vec::len);
+    let mut new_index = vec![0u32; n];
+    let mut at = ed.front.len();
+    for (i, x) in new_index.iter_mut().enumerate() {
+        at += len(ed.before.get(&i));
+        *x = at as u32;
+        at += 1 + len(ed.after.get(&i));
+    }
+    for (&i, &(p, o)) in &ed.redirect {
+        match &mut ops[i].kind {
+            OpKind::Rapid { to, orient } | OpKind::Line { to, orient, .. } => {
+                *to = p;
+                if o.is_some() {
+                    *orient = o;
+                }
+            }
+            _ => {}
+        }
+    }
+    // The ops move to their places in the one list, from the back (each place is at or after
+    // the op's own, and every op behind it has moved already), and the inserts fill the gaps:
+    // the program is never held twice (issue 18: a million short moves).
+    let gap = || Op {
+        kind: OpKind::Dwell { seconds: 0.0 },
+        span: Default::default(),
+    };
+    ops.reserve_exact(at - n);
+    ops.resize_with(at, gap);
+    for i in (0..n).rev() {
+        ops.swap(i, new_index[i] as usize);
+    }
     let mut leads = Vec::new();
-    let mut new_index = vec![0u32; ops.len()];
-    out.append(&mut ed.front);
-    let mut push = |out: &mut Vec<Op>, (op, lead): Insert| {
+    let mut put = |ops: &mut Vec<Op>, k: usize, (op, lead): Insert| {
         if let Some((kind, length_mm, lit)) = lead {
             leads.push(Lead {
-                op: out.len() as u32,
+                op: k as u32,
                 kind,
                 length_mm,
                 lit,
             });
         }
-        out.push(op);
+        ops[k] = op;
     };
-    for (i, op) in ops.iter().enumerate() {
-        for x in std::mem::take(&mut ed.before[i]) {
-            push(&mut out, x);
-        }
-        let mut op = op.clone();
-        if let Some((p, o)) = ed.redirect[i] {
-            match &mut op.kind {
-                OpKind::Rapid { to, orient } | OpKind::Line { to, orient, .. } => {
-                    *to = p;
-                    if o.is_some() {
-                        *orient = o;
-                    }
-                }
-                _ => {}
+    for (k, op) in std::mem::take(&mut ed.front).into_iter().enumerate() {
+        put(&mut ops, k, (op, None));
+    }
+    for (i, &k) in new_index.iter().enumerate() {
+        let k = k as usize;
+        if let Some(b) = ed.before.remove(&i) {
+            let first = k - b.len();
+            for (j, x) in b.into_iter().enumerate() {
+                put(&mut ops, first + j, x);
             }
         }
-        new_index[i] = out.len() as u32;
-        out.push(op);
-        for x in std::mem::take(&mut ed.after[i]) {
-            push(&mut out, x);
+        if let Some(a) = ed.after.remove(&i) {
+            for (j, x) in a.into_iter().enumerate() {
+                put(&mut ops, k + 1 + j, x);
+            }
         }
     }
-    let sections = runs
-        .iter()
-        .map(|&(f, l)| section(ops, starts, f, l, new_index[f], new_index[l]))
-        .collect();
+    for (s, &(f, l)) in sections.iter_mut().zip(runs) {
+        s.first_op = new_index[f];
+        s.last_op = new_index[l];
+    }
     Leads {
-        ops: out,
+        ops,
         index: new_index,
         sections,
         leads,

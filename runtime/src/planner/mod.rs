@@ -245,17 +245,32 @@ pub fn plan(
     limits: &AxisLimits,
     cfg: &PlannerConfig,
 ) -> Result<Plan, PlanError> {
-    let start = start.into();
-    validate(start, limits, cfg)?;
     if u32::try_from(moves.len()).is_err() {
         return Err(PlanError::TooManyMoves { count: moves.len() });
     }
+    plan_iter(start, moves.iter().copied(), moves.len(), limits, cfg)
+}
+
+/// [`plan`] of moves made as the planner reads them, so the caller never holds them all:
+/// `motion` lowers a program of a million short moves straight into the plan's compact
+/// segments (the 80-byte [`Move`]s were the largest table a job held). `expected` is how many
+/// moves to make room for (the tables grow past it if there are more); a move's index in
+/// errors and in [`Segment::move_index`] is its position in `moves`.
+pub fn plan_iter(
+    start: impl Into<Axes>,
+    moves: impl IntoIterator<Item = Move>,
+    expected: usize,
+    limits: &AxisLimits,
+    cfg: &PlannerConfig,
+) -> Result<Plan, PlanError> {
+    let start = start.into();
+    validate(start, limits, cfg)?;
     let Prepared {
         mut segments,
         points,
         mut kin,
         end,
-    } = prepare(start, moves, limits, cfg)?;
+    } = prepare(start, moves.into_iter(), expected, limits, cfg)?;
     let mut timeline = Timeline {
         segments: &mut segments,
         t: 0.0,
@@ -359,15 +374,16 @@ fn validate(start: Axes, limits: &AxisLimits, cfg: &PlannerConfig) -> Result<(),
 #[allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 fn prepare(
     start: Axes,
-    moves: &[Move],
+    moves: impl Iterator<Item = Move>,
+    expected: usize,
     limits: &AxisLimits,
     cfg: &PlannerConfig,
 ) -> Result<Prepared, PlanError> {
     let n_axes = cfg.n_axes;
     let scurve = cfg.profile == ProfileKind::SCurve;
-    let mut segments: Vec<Segment> = Vec::with_capacity(moves.len());
-    let mut points: Vec<f64> = Vec::with_capacity(moves.len() * n_axes);
-    let mut kin: Vec<Kin> = Vec::with_capacity(moves.len());
+    let mut segments: Vec<Segment> = Vec::with_capacity(expected);
+    let mut points: Vec<f64> = Vec::with_capacity(expected * n_axes);
+    let mut kin: Vec<Kin> = Vec::with_capacity(expected);
     let mut q = start;
     // The previous move ends at a stop point (or there is none yet).
     let mut prev_stop = true;
@@ -386,7 +402,11 @@ fn prepare(
         path_a: cfg.path_a,
         n_axes,
     };
-    for (index, mv) in moves.iter().enumerate() {
+    for (index, mv) in moves.enumerate() {
+        if u32::try_from(index).is_err() {
+            return Err(PlanError::TooManyMoves { count: index + 1 });
+        }
+        let mv = &mv;
         let bad = |field, value, why| PlanError::BadMove {
             index,
             field,

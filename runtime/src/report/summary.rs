@@ -142,7 +142,7 @@ pub fn summarize(job: &Job) -> Summary {
         pulses_moving: moving,
         pulses_standstill: standstill,
         standstill_fire_time_s: round_sig(fire_time),
-        blocks: job.moves.len(),
+        blocks: job.plan.segments().len(),
         ops: job.program.ops.len(),
         axes,
     }

@@ -26,7 +26,6 @@
 
 use super::super::format::{self, LaserWords};
 use super::{Modal, Out, immediate, motion_line, part_way};
-use crate::axes::Axes;
 use crate::emit::Dialect;
 use crate::machine::{DialectPost, Machine};
 use crate::program::{Op, OpKind, Pulse, PulseMode};
@@ -108,7 +107,7 @@ pub(super) struct Gate<'a> {
     pub post: &'a DialectPost,
     pub machine: &'a Machine,
     /// The planned axes each op ends at (`Job::op_axes`).
-    pub op_axes: &'a [Axes],
+    pub op_axes: &'a crate::motion::OpAxes,
     pub arc_axes: Option<(usize, usize, Option<usize>)>,
     pub words: &'a dyn Fn(f64) -> LaserWords,
 }
@@ -183,17 +182,19 @@ pub(super) fn write_gated(
     let mut trigger = train.trigger;
     for (s, high) in cuts {
         let f = if len > 0.0 { s / len } else { 1.0 };
-        let (sub, q) = part_way(op, (from, &from_q), &g.op_axes[i], f, g.arc_axes);
-        let line = motion_line(&sub, q, m, g.machine, g.arc_axes);
+        let (to, q) = part_way(op, (from, &from_q), &g.op_axes.get(i), f, g.arc_axes);
+        let block = |line: &mut String, m: &mut Modal| {
+            motion_line(line, op, to, q, m, g.machine, g.arc_axes)
+        };
         if high != trigger {
-            write_edge(out, g, high, power, line, tag)?;
+            write_edge(out, g, high, power, m, block, tag)?;
             if g.dialect.is_grbl_family() {
                 // The S word it wrote is in force now.
                 m.s = Some(grbl_s(g, if high { power } else { 0.0 }));
             }
             trigger = high;
         } else {
-            out.put(&line, tag)?;
+            out.put_with(|line| block(line, m), tag)?;
         }
         out.stats.motion_blocks += 1;
     }
@@ -217,18 +218,26 @@ fn grbl_s(g: &Gate<'_>, power_w: f64) -> String {
     format!("S{}", format::number(w.power_w / w.max_power_w * w.s_max))
 }
 
-/// A motion block with the trigger switched at its start.
+/// A motion block (`block` writes its words) with the trigger switched at its start.
 fn write_edge(
     out: &mut Out<'_>,
     g: &Gate<'_>,
     high: bool,
     power_w: f64,
-    line: String,
+    m: &mut Modal,
+    block: impl FnOnce(&mut String, &mut Modal),
     tag: Option<u32>,
 ) -> io::Result<()> {
     if g.dialect.is_grbl_family() {
         let s = grbl_s(g, if high { power_w } else { 0.0 });
-        return out.put(&format!("{line} {s}"), tag);
+        return out.put_with(
+            |line| {
+                block(line, m);
+                line.push(' ');
+                line.push_str(&s);
+            },
+            tag,
+        );
     }
     let (lines, fallback) = if high {
         (&g.post.pulse_on, &g.post.laser_on)
@@ -238,10 +247,10 @@ fn write_edge(
     let w = (g.words)(power_w);
     match (lines.len(), lines.is_empty()) {
         (1, _) => out.put_with(
-            |text| {
-                format::fill_into(text, &lines[0], w);
-                text.push(' ');
-                text.push_str(&line);
+            |line| {
+                format::fill_into(line, &lines[0], w);
+                line.push(' ');
+                block(line, m);
             },
             tag,
         ),
@@ -249,13 +258,13 @@ fn write_edge(
             for t in lines {
                 out.put(&format::fill(t, w), tag)?;
             }
-            out.put(&line, tag)
+            out.put_with(|line| block(line, m), tag)
         }
         (_, true) => {
             for t in fallback {
                 out.put(&format::fill(t, w), tag)?;
             }
-            out.put(&line, tag)
+            out.put_with(|line| block(line, m), tag)
         }
     }
 }

@@ -46,7 +46,7 @@ pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -
     else {
         return vec![Piece {
             op: Cow::Borrowed(op),
-            q: job.op_axes[i],
+            q: job.op_axes.get(i),
             blocks,
         }];
     };
@@ -63,7 +63,7 @@ pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -
         };
         let s1 = if last { total } else { dist(from, p) };
         let q = if last {
-            job.op_axes[i]
+            job.op_axes.get(i)
         } else {
             run_axes(
                 job,
@@ -71,7 +71,7 @@ pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -
                 *orient,
                 &q_prev,
                 &from_q,
-                &job.op_axes[i],
+                &job.op_axes.get(i),
                 s1 / total,
             )
         };

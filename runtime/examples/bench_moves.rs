@@ -1,0 +1,85 @@
+//! Memory per move of a job of many short moves written with a `for` loop (issue 18): the
+//! recipe is compiled (load, check, evaluate, plan: what `lase check` and `lase plan` do) and
+//! emitted as LinuxCNC NC to a sink that keeps nothing (what `lase emit` adds), in this one
+//! process, and the peak of live heap above what was live before is counted by a counting
+//! global allocator, not read from RSS.
+//!
+//! ```text
+//! cargo run --release -p lase-runtime --example bench_moves            # 500 000 moves
+//! cargo run --release -p lase-runtime --example bench_moves -- 100000
+//! ```
+//!
+//! The default is the evaluator's op budget (`MAX_OPS`, 500 000): a `for` loop cannot write
+//! more moves than that. The recipe is generated (`tests/support/short_moves.rs`): lit moves of
+//! 0.05 mm zigzagging over a 100 × 100 mm field, two per loop turn.
+
+use lase_runtime::compile::{self, MemFiles};
+use lase_runtime::emit::{self, Dialect, EmitOptions, NcLine};
+use std::alloc::System;
+
+#[path = "../tests/support/short_moves.rs"]
+mod short_moves;
+
+#[global_allocator]
+static ALLOC: cap::Cap<System> = cap::Cap::new(System, usize::MAX);
+
+/// CPU time this thread has run, in s (`/proc/thread-self/schedstat`): on a shared machine
+/// the wall clock also counts the time other processes hold the core.
+fn cpu_time() -> f64 {
+    std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
+        .map_or(f64::NAN, |ns| ns as f64 * 1e-9)
+}
+
+fn main() {
+    let n: usize = match std::env::args().nth(1) {
+        Some(s) => s.parse().unwrap_or_else(|_| {
+            eprintln!("bench_moves: the argument is a number of moves, not `{s}`");
+            std::process::exit(2)
+        }),
+        None => 500_000,
+    };
+    let mut files = MemFiles::new([("moves.lase", short_moves::recipe(n))]);
+    let before = ALLOC.allocated();
+    let c0 = cpu_time();
+    let (_recipe, job) = compile::compile(&mut files, "moves.lase").unwrap_or_else(|(_, f)| {
+        eprintln!("bench_moves: {f}");
+        std::process::exit(1)
+    });
+    let c1 = cpu_time();
+    let compile_peak = ALLOC.max_allocated().saturating_sub(before);
+    let held = ALLOC.allocated().saturating_sub(before);
+    let moves = job.plan.segments().len();
+    let mut bytes = 0u64;
+    let stats = emit::emit(
+        &job,
+        Dialect::LinuxCnc,
+        &EmitOptions::default(),
+        &mut |l: &NcLine| {
+            bytes += l.text.len() as u64 + 1;
+            Ok(())
+        },
+    )
+    .unwrap_or_else(|e| {
+        eprintln!("bench_moves: {e}");
+        std::process::exit(1)
+    });
+    let c2 = cpu_time();
+    let peak = ALLOC.max_allocated().saturating_sub(before);
+    let per = |b: usize| b as f64 / moves.max(1) as f64;
+    println!(
+        "{moves} moves ({} ops): check + plan peak {:.0} B/move ({:.1} MiB), the job holds {:.0} \
+         B/move; with emit peak {:.0} B/move ({:.1} MiB); {} NC lines, {bytes} bytes; CPU \
+         {:.2} s compile, {:.2} s emit",
+        job.program.ops.len(),
+        per(compile_peak),
+        compile_peak as f64 / (1 << 20) as f64,
+        per(held),
+        per(peak),
+        peak as f64 / (1 << 20) as f64,
+        stats.lines,
+        c1 - c0,
+        c2 - c1,
+    );
+}

@@ -1,0 +1,57 @@
+//! Planning holds bounded memory per move (issue 18): a recipe of many short moves from a
+//! `for` loop is compiled (check, evaluate, leads, plan: what `lase check` and `lase plan` do)
+//! and emitted (what `lase emit` adds), under a fixed cap on the peak of live heap per move,
+//! counted by this binary's global allocator.
+//!
+//! Before issue 18's second round a job held every planner move beside its plan (80 B a move),
+//! the evaluator's ops were copied into the program, the lead-in pass copied them again and kept
+//! tables of every op (about 120 B an op), and each op's axes took 48 B: 477 B a move at the
+//! peak (`examples/bench_moves.rs`, 500 000 moves). Now it is about 356 B (a 168-byte op, the
+//! plan's 128 B and the look-ahead's 40 B of scratch, 16 B of op axes), and a per-move table
+//! that comes back fails this test.
+
+use cap::Cap;
+use lase_runtime::compile::{self, MemFiles};
+use lase_runtime::emit::{self, Dialect, EmitOptions, NcLine};
+use std::alloc::System;
+
+#[global_allocator]
+static ALLOC: Cap<System> = Cap::new(System, usize::MAX);
+
+#[path = "support/short_moves.rs"]
+mod short_moves;
+
+/// Peak live heap per move while compiling and emitting, above what was live before, bytes.
+const CAP_PER_MOVE: f64 = 370.0;
+
+#[test]
+fn short_moves_from_a_loop_compile_and_emit_within_a_fixed_budget_per_move() {
+    let n = 100_000;
+    let mut files = MemFiles::new([("moves.lase", short_moves::recipe(n))]);
+    let before = ALLOC.allocated();
+    let (_recipe, job) = compile::compile(&mut files, "moves.lase")
+        .unwrap_or_else(|(_, f)| panic!("the recipe compiles: {f}"));
+    let moves = job.plan.segments().len();
+    // Every move of the loop was planned (plus the lead-in and lead-out lase adds).
+    assert!((n..n + 8).contains(&moves), "{moves} moves planned");
+    let mut lines = 0usize;
+    emit::emit(
+        &job,
+        Dialect::LinuxCnc,
+        &EmitOptions::default(),
+        &mut |_: &NcLine| {
+            lines += 1;
+            Ok(())
+        },
+    )
+    .expect("the job emits");
+    assert!(lines >= n, "{lines} lines");
+    let peak = ALLOC.max_allocated().saturating_sub(before);
+    let per_move = peak as f64 / moves as f64;
+    eprintln!("{moves} moves: peak {peak} B, {per_move:.1} B per move");
+    assert!(
+        per_move < CAP_PER_MOVE,
+        "compiling and emitting {moves} moves held {peak} bytes at the peak ({per_move:.1} B per \
+         move), over the cap of {CAP_PER_MOVE} B per move"
+    );
+}
