@@ -278,7 +278,7 @@ pub(super) fn write(
             let (Some(x), Some(y)) = settle_axes else {
                 continue;
             };
-            let q = &job.op_axes[s.op];
+            let q = job.op_axes.get(s.op);
             let line = settle::call(dialect, machine, s, [q[x], q[y]]);
             out.put(&line, Some(s.op as u32))?;
             // The call leaves the motion mode and (ISO's macro) the feed unknown.
