@@ -479,7 +479,10 @@ mod tests {
             .map(|l| l.to_string())
             .collect();
         assert_eq!(away_from_end(&lines, &[0.0; 6]), None);
-        assert_eq!(away_from_end(&lines, &[0.0004, 0.0, 7.0, 0.0, 0.0, 0.0]), None);
+        assert_eq!(
+            away_from_end(&lines, &[0.0004, 0.0, 7.0, 0.0, 0.0, 0.0]),
+            None
+        );
         let stopped = away_from_end(&lines, &[2.3, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
         assert_eq!(
             stopped,
