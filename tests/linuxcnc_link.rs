@@ -193,7 +193,6 @@ fn flat_bed_runs_holds_aborts_and_survives_a_dropped_link() {
     // 3. Abort: LinuxCNC stops, and the beam's outputs are off at once.
     let lc = lc_job(&lcnc, &lines, "abort.ngc", vec!['X', 'Y']);
     let before = mark(&mut lcnc);
-    let mut rsh = lcnc.rsh();
     lcjob::start(&mut rsh, &lc, None).unwrap();
     let t0 = Instant::now();
     let report = lcjob::follow(&mut rsh, &lc, None, &mut |_| {
