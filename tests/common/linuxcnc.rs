@@ -253,7 +253,14 @@ impl Headless {
         }
         let deadline = Instant::now() + Duration::from_secs(600);
         while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.linuxcnc.try_wait() {
+            // The script's end is not enough: seen on a restart, this instance's milltask and
+            // rtapi_app outlived it, and the next instance's start cleaned them up by name,
+            // taking its own milltask with them.
+            let gone = ["milltask", "linuxcncsvr", "io"]
+                .iter()
+                .all(|n| self.pid_of(n).is_none())
+                && !process_named("rtapi_app");
+            if matches!(self.linuxcnc.try_wait(), Ok(Some(_))) && gone {
                 return;
             }
             std::thread::sleep(Duration::from_millis(200));
@@ -423,6 +430,16 @@ impl Headless {
         }
         Some(self.samples_since(before))
     }
+}
+
+/// Whether a process named `name` runs (rtapi_app's command line names no INI file; one
+/// LinuxCNC at a time runs here, by the lock).
+fn process_named(name: &str) -> bool {
+    std::fs::read_dir("/proc")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .any(|e| std::fs::read_to_string(e.path().join("comm")).is_ok_and(|c| c.trim() == name))
 }
 
 /// `linuxcnc lase.ini` in `dir`, in its own process group.
