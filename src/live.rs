@@ -71,10 +71,10 @@ pub struct RunArgs {
     /// `$I`, else 128).
     #[arg(long)]
     pub rx_buffer: Option<usize>,
-    /// The built-in simulator's clock: `max` (the default: moves take no time, a job ends as
-    /// fast as lase can stream it), `real` (moves take their planned time: status `Run`, the
-    /// progress bar and the hold keys as at a machine), or a speed-up factor such as `10`.
-    /// Same as `--link 'sim://?time-scale=real'`.
+    /// The built-in simulator's clock: `real` (the default: moves take the firmware's time,
+    /// status `Run`, the progress bar and the hold keys as at a machine), `max` (moves take no
+    /// time, a job ends as fast as lase can stream it; what tests use), or a speed-up factor
+    /// such as `10`. Same as `--link 'sim://?time-scale=max'`.
     #[arg(long, value_name = "real|max|FACTOR")]
     pub time_scale: Option<String>,
 }
@@ -167,9 +167,16 @@ pub fn cmd_run(args: RunArgs) -> CmdResult {
                 "--time-scale sets the built-in simulator's clock; the link {url} is a real controller's"
             )));
         };
-        o.time_scale = ts
-            .parse()
-            .map_err(|e: String| io_fail(format!("--time-scale: {e}")))?;
+        o.time_scale = Some(
+            ts.parse()
+                .map_err(|e: String| io_fail(format!("--time-scale: {e}")))?,
+        );
+    }
+    // A run on the simulator takes the job's own time unless asked otherwise (issue 14): what
+    // the operator sees (`Run`, the progress bar, hold and resume) is then what a machine
+    // shows. Tests ask for `max`.
+    if let LinkUrl::Sim(o) = &mut url {
+        o.time_scale.get_or_insert(TimeScale::Real);
     }
     let options = ConnectOptions {
         rx_buffer: args.rx_buffer,
@@ -880,12 +887,12 @@ pub struct SimArgs {
     /// Throttle the link to this baud rate (8N1: baud/10 bytes per second each way).
     #[arg(long)]
     pub baud: Option<u32>,
-    /// Serial RX buffer, bytes.
-    #[arg(long, default_value_t = 128)]
-    pub rx_buffer: usize,
-    /// Planner buffer, blocks.
-    #[arg(long, default_value_t = 15)]
-    pub planner_blocks: usize,
+    /// Serial RX buffer, bytes (default: the firmware's, GRBL 128, grblHAL 1024).
+    #[arg(long)]
+    pub rx_buffer: Option<usize>,
+    /// Usable planner blocks (default: the firmware's, GRBL 15, grblHAL 100).
+    #[arg(long)]
+    pub planner_blocks: Option<usize>,
     /// A GRBL setting different from the machine file's, N=VALUE (e.g. 32=0; repeatable).
     #[arg(long = "setting", value_name = "N=VALUE")]
     pub settings: Vec<String>,
@@ -972,7 +979,8 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
     let handle = sim::serve(&machine, addr, opts)
         .map_err(|e| io_fail(format!("cannot listen on {addr}: {e}")))?;
     let bound = handle.addr().unwrap_or(addr);
-    let firmware = match sim::Firmware::for_machine(&machine) {
+    let built = sim::Firmware::for_machine(&machine);
+    let firmware = match built {
         sim::Firmware::Grbl => "GRBL 1.1".to_string(),
         sim::Firmware::GrblHal { axes } => format!("grblHAL ({axes} axes)"),
     };
@@ -980,8 +988,8 @@ pub fn cmd_sim(args: SimArgs) -> CmdResult {
         "lase sim: {firmware} simulator for `{}` listening on {bound} (time scale {time_scale}{}, RX buffer {} bytes, {} planner blocks)",
         machine.name,
         args.baud.map(|b| format!(", {b} baud")).unwrap_or_default(),
-        args.rx_buffer,
-        args.planner_blocks
+        args.rx_buffer.unwrap_or(built.rx_buffer()),
+        args.planner_blocks.unwrap_or(built.planner_blocks())
     );
     outln!("lase sim: stream to it with `lase run FILE --link tcp://{bound}`");
     use std::io::Write;

@@ -114,17 +114,31 @@ fn run_seconds(out: &str) -> f64 {
     t.split_whitespace().next().unwrap().parse().unwrap()
 }
 
-/// The built-in simulator's clock is `--time-scale`: `max` by default (a 20 s job streams in
-/// a moment), a factor of 40 takes about 20 s / 40; it is documented in `--help` and refused
-/// for a real controller's link.
+/// The built-in simulator's clock is `--time-scale`: `real` by default (a job takes the
+/// firmware's time, as at a machine), `max` streams at once (what tests use), a factor of 40
+/// takes about 20 s / 40; it is documented in `--help` and refused for a real controller's
+/// link.
 #[test]
 fn run_time_scale_sets_the_simulators_clock() {
     let (_, help, _) = lase(&["run", "--help"]);
     assert!(
-        help.contains("--time-scale") && help.contains("`max` (the default"),
+        help.contains("--time-scale") && help.contains("`real` (the default"),
         "{help}"
     );
-    let (code, out, err) = lase(&["run", "examples/frame_marking.lase"]);
+    // A 1 s job (20 mm at 20 mm/s, plus the ramps) at the default clock takes its time.
+    let dir = tempfile::tempdir().unwrap();
+    let line = dir.path().join("line.lase");
+    std::fs::write(
+        &line,
+        "machine xy_table\nlaser { power 10 W }\n\
+         follow profile polyline [(0, 0), (20 mm, 0)] at 20 mm/s\n",
+    )
+    .unwrap();
+    let (code, out, err) = lase(&["run", line.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let real = run_seconds(&out);
+    assert!(real > 0.9, "the default clock ran a 1 s job in {real} s");
+    let (code, out, err) = lase(&["run", "examples/frame_marking.lase", "--time-scale", "max"]);
     assert_eq!(code, 0, "{err}");
     let fast = run_seconds(&out);
     let (code, out, err) = lase(&["run", "examples/frame_marking.lase", "--time-scale", "40"]);
@@ -186,7 +200,7 @@ fn sigint_holds_then_stops_a_run_without_a_terminal() {
 fn run_into_a_closed_pipe_does_not_panic() {
     use std::process::{Command, Stdio};
     let mut child = Command::new(env!("CARGO_BIN_EXE_lase"))
-        .args(["run", "examples/frame_marking.lase"])
+        .args(["run", "examples/frame_marking.lase", "--time-scale", "max"])
         .current_dir(root())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

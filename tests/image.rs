@@ -388,7 +388,7 @@ fn image_scans_check_plan_emit_and_run_in_every_flat_bed_dialect() {
             );
         }
     }
-    let (code, out, err) = lase(&["run", r]);
+    let (code, out, err) = lase(&["run", r, "--time-scale", "max"]);
     assert_eq!(code, 0, "{err}");
     let lines = emit_ok(&j.recipe, "grbl").lines().count();
     assert!(out.contains(&format!("{lines} lines")), "{out}");

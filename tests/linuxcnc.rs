@@ -23,6 +23,12 @@ struct Measured {
     name: String,
     planned_s: f64,
     executed_s: f64,
+    /// Time in motion (samples whose position changed), planned and executed: what motion
+    /// did, without the waits at queue busters (`M64`/`M65`, `G4`), which on a non-realtime
+    /// LinuxCNC last as long as a loaded computer's scheduler lets task take (conrod_notch
+    /// ran 4.73 s against 4.24 s planned under load, every extra ms standing still).
+    planned_moving_s: f64,
+    executed_moving_s: f64,
     beam_on_planned_s: f64,
     beam_on_executed_s: f64,
     edges_planned: usize,
@@ -101,7 +107,7 @@ fn speed(q: &[Vec<f64>], i: usize, dt: f64) -> f64 {
     dist(&q[a], &q[b]) / ((b - a).max(1) as f64 * dt)
 }
 
-fn measure(lcnc: &Headless, example: &str) -> Measured {
+fn measure(lcnc: &mut Headless, example: &str) -> Measured {
     let path = common::root()
         .join("examples")
         .join(format!("{example}.lase"));
@@ -129,6 +135,7 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
     let run = &samples[first..=last];
     let dt = 0.001;
     let executed_s = (last - first) as f64 * dt;
+    let moving = |q: &[Vec<f64>]| q.windows(2).filter(|w| dist(&w[0], &w[1]) > 1e-9).count();
     let summary = lase_runtime::report::summarize(&job);
 
     let plan = planned(&job, dt);
@@ -202,6 +209,8 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
         name: example.to_string(),
         planned_s: job.plan.duration(),
         executed_s,
+        planned_moving_s: moving(&plan_q) as f64 * dt,
+        executed_moving_s: moving(&run_q) as f64 * dt,
         beam_on_planned_s: summary.laser_on_time_s,
         beam_on_executed_s: run.iter().filter(|s| s.dout[0]).count() as f64 * dt,
         edges_planned: plan_edges.len(),
@@ -216,11 +225,12 @@ fn measure(lcnc: &Headless, example: &str) -> Measured {
 
 fn report(ms: &[Measured]) {
     eprintln!(
-        "{:<30} {:>9} {:>9} {:>7} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8}",
+        "{:<30} {:>9} {:>9} {:>7} {:>8} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8}",
         "example",
         "plan s",
         "LinuxCNC",
         "ratio",
+        "moving",
         "beam",
         "model s",
         "/model",
@@ -233,11 +243,12 @@ fn report(ms: &[Measured]) {
     );
     for m in ms {
         eprintln!(
-            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>7.4} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
+            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>8.4} {:>7.4} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
             m.name,
             m.planned_s,
             m.executed_s,
             m.executed_s / m.planned_s,
+            m.executed_moving_s / m.planned_moving_s,
             m.beam_on_executed_s / m.beam_on_planned_s.max(1e-9),
             m.model_s,
             m.executed_s / m.model_s,
@@ -258,8 +269,8 @@ fn machine(name: &str) -> lase_runtime::machine::Machine {
 }
 
 fn run_all(machine_name: &str, examples: &[&str]) -> Vec<Measured> {
-    let lcnc = Headless::start(&machine(machine_name));
-    let ms: Vec<Measured> = examples.iter().map(|e| measure(&lcnc, e)).collect();
+    let mut lcnc = Headless::start(&machine(machine_name));
+    let ms: Vec<Measured> = examples.iter().map(|e| measure(&mut lcnc, e)).collect();
     drop(lcnc);
     report(&ms);
     ms
@@ -267,16 +278,16 @@ fn run_all(machine_name: &str, examples: &[&str]) -> Vec<Measured> {
 
 /// What every run must show: each planned beam edge and pulse executed, the edges within
 /// `place` (mm, deg) of the planned point and `dv` of the planned speed, the lit path within
-/// `place` of the planned one, and LinuxCNC at most 1 % slower than the plan, at least
-/// `fastest` of it (LinuxCNC 2.9 ramps with trapezoids, so it is faster than an S-curve plan
-/// wherever jerk limits the plan: short moves, the texture rows).
+/// `place` of the planned one, and LinuxCNC's time in motion at most 1 % over the plan's, at
+/// least `fastest` of it (LinuxCNC 2.9 ramps with trapezoids, so it is faster than an S-curve
+/// plan wherever jerk limits the plan: short moves, the texture rows).
 fn assert_close(m: &Measured, place: f64, dv: f64, fastest: f64) {
     assert_eq!(m.edges_executed, m.edges_planned, "{m:?}");
     assert_eq!(m.pulses_executed, m.pulses_planned, "{m:?}");
     assert!(m.edge_place <= place, "{m:?}");
     assert!(m.edge_speed <= dv, "{m:?}");
     assert!(m.deviation <= place, "{m:?}");
-    let ratio = m.executed_s / m.planned_s;
+    let ratio = m.executed_moving_s / m.planned_moving_s;
     assert!((fastest..=1.01).contains(&ratio), "{m:?}");
     // `lase plan`'s LinuxCNC model: the cycle and the beam-on time within 1 % (issue 13).
     let vs_model = m.executed_s / m.model_s;

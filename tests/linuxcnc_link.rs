@@ -55,8 +55,14 @@ fn planned(example: &str) -> (lase_runtime::Job, usize, u64) {
     (job, edges, s.pulses)
 }
 
-/// The newest sample number so far (samples after it belong to what follows).
-fn mark(lcnc: &Headless) -> u64 {
+/// The newest sample number so far (samples after it belong to what follows), after
+/// restarting LinuxCNC if its task vanished at the end of the step before (see
+/// `Headless::task_alive`).
+fn mark(lcnc: &mut Headless) -> u64 {
+    if !lcnc.task_alive() {
+        eprintln!("LinuxCNC's task (milltask) vanished after the step before; restarting LinuxCNC");
+        lcnc.restart();
+    }
     lcnc.last_sample()
 }
 
@@ -139,11 +145,11 @@ fn flat_bed_runs_holds_aborts_and_survives_a_dropped_link() {
     if !available() {
         return;
     }
-    let lcnc = Headless::start(&machine("xy_table"));
+    let mut lcnc = Headless::start(&machine("xy_table"));
     let (job, plan_edges, plan_pulses) = planned("texture_array");
 
     // 1. The command line, end to end: every beam edge and pulse of the plan.
-    let before = mark(&lcnc);
+    let before = mark(&mut lcnc);
     let j = lcnc.dir().join("texture.journal");
     let (code, out) = lase_run(&lcnc, "texture_array", &j);
     assert_eq!(code, 0, "{out}");
@@ -156,8 +162,8 @@ fn flat_bed_runs_holds_aborts_and_survives_a_dropped_link() {
     // no pulse is lost or added.
     let lines = lines_of(&job);
     let lc = lc_job(&lcnc, &lines, "hold.ngc", vec!['X', 'Y']);
+    let before = mark(&mut lcnc);
     let mut rsh = lcnc.rsh();
-    let before = mark(&lcnc);
     lcjob::start(&mut rsh, &lc, None).unwrap();
     let t0 = Instant::now();
     let mut held_at: Option<Instant> = None;
@@ -186,7 +192,7 @@ fn flat_bed_runs_holds_aborts_and_survives_a_dropped_link() {
 
     // 3. Abort: LinuxCNC stops, and the beam's outputs are off at once.
     let lc = lc_job(&lcnc, &lines, "abort.ngc", vec!['X', 'Y']);
-    let before = mark(&lcnc);
+    let before = mark(&mut lcnc);
     lcjob::start(&mut rsh, &lc, None).unwrap();
     let t0 = Instant::now();
     let report = lcjob::follow(&mut rsh, &lc, None, &mut |_| {
@@ -209,6 +215,7 @@ fn flat_bed_runs_holds_aborts_and_survives_a_dropped_link() {
     let _ = std::fs::remove_file(&jpath);
     let header = lcjob::header("texture_array", "linuxcnc://test", &lines, [0.0; 6]);
     let mut journal = Journal::create(&jpath, &header).unwrap();
+    let before = mark(&mut lcnc);
     let tcp = TcpTransport::connect("127.0.0.1", lcnc.port).unwrap();
     // The handshake and start take about 20 reads; polls take 5 or more each.
     let mut flaky = Rsh::over(
@@ -220,7 +227,6 @@ fn flat_bed_runs_holds_aborts_and_survives_a_dropped_link() {
     )
     .unwrap();
     flaky.set_reply_timeout(Duration::from_secs(60));
-    let before = mark(&lcnc);
     lcjob::start(&mut flaky, &lc, None).unwrap();
     let report = lcjob::follow(&mut flaky, &lc, Some(&mut journal), &mut |_| None);
     assert!(matches!(report.outcome, Outcome::Lost(_)), "{report:?}");
@@ -248,9 +254,9 @@ fn the_cam_example_runs_from_the_command_line() {
     if !available() {
         return;
     }
-    let lcnc = Headless::start(&machine("cam_xwb"));
+    let mut lcnc = Headless::start(&machine("cam_xwb"));
     let (_, plan_edges, _) = planned("cam_hardening");
-    let before = mark(&lcnc);
+    let before = mark(&mut lcnc);
     let j = lcnc.dir().join("cam.journal");
     let (code, out) = lase_run(&lcnc, "cam_hardening", &j);
     assert_eq!(code, 0, "{out}");

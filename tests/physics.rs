@@ -211,7 +211,7 @@ fn position_synchronized_pulses_are_counted_exactly() {
 
 #[test]
 fn run_executes_every_line_on_the_simulator() {
-    let (code, out, err) = lase(&["run", "examples/frame_marking.lase"]);
+    let (code, out, err) = lase(&["run", "examples/frame_marking.lase", "--time-scale", "max"]);
     assert_eq!(code, 0, "{err}");
     // `run` streams the grbl dialect (the link speaks GRBL 1.1).
     let (_, ngc, _) = lase(&["emit", "examples/frame_marking.lase", "--dialect", "grbl"]);

@@ -237,7 +237,7 @@ fn grblhal_build_info_and_no_banner() {
     let s = send(&mut c, "$I\n", 0.0);
     for l in [
         "[VER:1.1f.",
-        "[OPT:VNML+,16,128,6,0]",
+        "[OPT:VNML+,100,1024,6,0]",
         "[AXS:6:XYZABC]",
         "[NEWOPT:ENUMS,RT+,",
         "[FIRMWARE:grblHAL]",

@@ -117,7 +117,7 @@ fn a_rotary_machine_gets_a_six_axis_grblhal_that_times_g93_blocks() {
     // is, and the RX buffer its `[OPT:…]` reports is the one lines are counted against.
     assert!(link.banner().is_none(), "{:?}", link.banner());
     assert!(link.is_grblhal());
-    assert_eq!(link.rx_buffer(), 128);
+    assert_eq!(link.rx_buffer(), 1024);
     // Rates and accelerations in degrees: C at 180 deg/s is $115 = 10800 deg/min.
     let needs = |letter: char, v: f64, a: f64| Requirements {
         axes: vec![lase_runtime::link::AxisNeed {
@@ -320,8 +320,8 @@ fn send_response_and_character_counting_deliver_the_same_lines() {
 fn lines_wait_in_the_rx_buffer_while_the_planner_is_full_and_it_never_overflows() {
     let h = start(SimOptions {
         time_scale: TimeScale::Factor(50.0),
-        rx_buffer: 64,
-        planner_blocks: 4,
+        rx_buffer: Some(64),
+        planner_blocks: Some(4),
         ..SimOptions::default()
     });
     let mut link = connect(
@@ -351,8 +351,8 @@ fn lines_wait_in_the_rx_buffer_while_the_planner_is_full_and_it_never_overflows(
 fn the_rx_buffer_the_controller_reports_is_used_and_never_overrun() {
     let h = start(SimOptions {
         time_scale: TimeScale::Factor(50.0),
-        rx_buffer: 1024,
-        planner_blocks: 4,
+        rx_buffer: Some(1024),
+        planner_blocks: Some(4),
         ..SimOptions::default()
     });
     let mut link = connect(
@@ -375,11 +375,54 @@ fn the_rx_buffer_the_controller_reports_is_used_and_never_overrun() {
     );
 }
 
+/// A simulated grblHAL has grblHAL's own buffers, not GRBL's: `$I` says 100 planner blocks
+/// and a 1024-byte RX buffer (`[OPT:VNML+,100,1024,6,0]`, as the grblHAL Simulator reports),
+/// the default link counts characters against those 1024 bytes, and the planner holds more
+/// than GRBL's 15 blocks.
+#[test]
+fn a_grblhal_has_grblhals_buffers_and_the_link_counts_against_them() {
+    let cam = parse_machine(lase_stdlib::machine("cam_xwb").unwrap(), 0).unwrap();
+    let h = sim::serve(
+        &cam,
+        "127.0.0.1:0".parse().unwrap(),
+        SimOptions {
+            time_scale: TimeScale::Factor(50.0),
+            ..SimOptions::default()
+        },
+    )
+    .unwrap();
+    let mut link = connect(&h, &ConnectOptions::default());
+    assert_eq!(link.rx_buffer(), 1024);
+    let mut job = lines(&["G21 G90 G17 G94", "G0 X0", "M3 S300"]);
+    for i in 0..300 {
+        let x = if i % 2 == 0 { 20.0 } else { 0.0 };
+        job.push(format!("G1 X{x} C{} F3000", i % 360));
+    }
+    job.extend(lines(&["M5", "M2"]));
+    let r = run(&mut link, &job);
+    assert_eq!(r.outcome, Outcome::Done);
+    drop(link);
+    let rec = h.stop();
+    assert_eq!(rec.rx_overflows, 0, "{:?}", rec.overflow_log);
+    assert!(
+        rec.max_rx_fill > 127 && rec.max_rx_fill <= 1023,
+        "the RX buffer held {} bytes at most",
+        rec.max_rx_fill
+    );
+    let mut c = sim::Controller::new(sim::ControllerConfig::for_machine(&cam));
+    for b in b"$I\n" {
+        c.receive(*b);
+    }
+    c.run(0.0);
+    let info = String::from_utf8_lossy(&c.take_output()).into_owned();
+    assert!(info.contains("[OPT:VNML+,100,1024,6,0]"), "{info}");
+}
+
 #[test]
 fn a_client_that_overruns_the_rx_buffer_is_caught() {
     let h = start(SimOptions {
         time_scale: TimeScale::Factor(1.0),
-        planner_blocks: 2,
+        planner_blocks: Some(2),
         ..SimOptions::default()
     });
     let a = h.addr().unwrap();

@@ -18,9 +18,11 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Whether to run on LinuxCNC: it is installed and `LASE_LINUXCNC_TESTS=1` asks for it; when
-/// not, says why the caller skips. Opt-in for now: on a loaded two-core machine the first
-/// program of a freshly started instance sometimes stays RUNNING without finishing (seen in
-/// 3 of about 12 starts; cause not found yet), which would make CI flaky.
+/// not, says why the caller skips. Still opt-in: on this two-core computer shared with other
+/// builds, an instance's realtime side (rtapi_app, milltask, halsampler) sometimes vanishes
+/// together, with nothing in LinuxCNC's logs (2 of 3 instances in one run; cause not found,
+/// see `Headless::task_alive`). The first-program failures once blamed for keeping these
+/// tests out of CI were task's motion-command timeout, fixed (`ConfigOptions::comm_timeout_s`).
 pub fn available() -> bool {
     let found = ["linuxcnc", "halsampler", "linuxcncrsh"]
         .iter()
@@ -34,7 +36,7 @@ pub fn available() -> bool {
     let asked = std::env::var_os("LASE_LINUXCNC_TESTS").is_some_and(|v| v == "1");
     if !asked {
         eprintln!(
-            "SKIPPED: the real-LinuxCNC tests run with LASE_LINUXCNC_TESTS=1 (opt-in until an intermittent hang is fixed)"
+            "SKIPPED: the real-LinuxCNC tests run with LASE_LINUXCNC_TESTS=1 (opt-in while LinuxCNC's realtime processes sometimes vanish on a shared computer)"
         );
     }
     asked
@@ -163,18 +165,7 @@ impl Headless {
                 std::os::unix::fs::chown(dir.join("rtapi"), Some(RTAPI_UID), None).unwrap();
             }
         }
-        let mut cmd = Command::new("linuxcnc");
-        cmd.arg("lase.ini")
-            .current_dir(&dir)
-            .envs(rtapi_env(&dir, root))
-            .stdin(Stdio::null())
-            .stdout(std::fs::File::create(dir.join("linuxcnc.out")).unwrap())
-            .stderr(std::fs::File::create(dir.join("linuxcnc.err")).unwrap());
-        {
-            use std::os::unix::process::CommandExt;
-            cmd.process_group(0);
-        }
-        let linuxcnc = cmd.spawn().expect("linuxcnc starts");
+        let linuxcnc = spawn_linuxcnc(&dir, root);
         let mut h = Headless {
             samples_path: dir.join("samples.txt"),
             dir,
@@ -184,31 +175,108 @@ impl Headless {
             sampler: None,
             _lock: lock,
         };
+        h.await_and_sample();
+        h
+    }
+
+    /// Waits until linuxcncrsh answers, then starts recording with halsampler.
+    fn await_and_sample(&mut self) {
+        let port = self.port;
         let deadline = Instant::now() + Duration::from_secs(90);
         while std::net::TcpStream::connect(("127.0.0.1", port)).is_err() {
-            if let Ok(Some(status)) = h.linuxcnc.try_wait() {
+            if let Ok(Some(status)) = self.linuxcnc.try_wait() {
                 panic!(
                     "LinuxCNC ended before linuxcncrsh listened ({status}):\n{}",
-                    h.log()
+                    self.log()
                 );
             }
             assert!(
                 Instant::now() < deadline,
                 "linuxcncrsh did not listen on {port} within 90 s:\n{}",
-                h.log()
+                self.log()
             );
             std::thread::sleep(Duration::from_millis(200));
         }
         let sampler = Command::new("halsampler")
             .args(["-c", "0", "-t"])
-            .envs(rtapi_env(&h.dir, root))
+            .envs(rtapi_env(&self.dir, is_root()))
             .stdin(Stdio::null())
-            .stdout(std::fs::File::create(&h.samples_path).unwrap())
-            .stderr(std::fs::File::create(h.dir.join("halsampler.err")).unwrap())
+            .stdout(std::fs::File::create(&self.samples_path).unwrap())
+            .stderr(std::fs::File::create(self.dir.join("halsampler.err")).unwrap())
             .spawn()
             .expect("halsampler starts");
-        h.sampler = Some(sampler);
-        h
+        self.sampler = Some(sampler);
+    }
+
+    /// The pid of this instance's process named `name` (its command line names this
+    /// instance's INI file).
+    fn pid_of(&self, name: &str) -> Option<u32> {
+        let ini = self.dir.join("lase.ini").display().to_string();
+        std::fs::read_dir("/proc").ok()?.flatten().find_map(|e| {
+            let pid: u32 = e.file_name().to_str()?.parse().ok()?;
+            let cmd = std::fs::read(e.path().join("cmdline")).ok()?;
+            let cmd = String::from_utf8_lossy(&cmd);
+            let mut words = cmd.split('\0');
+            let exe = words.next()?;
+            (exe.rsplit('/').next() == Some(name) && words.any(|w| w == ini)).then_some(pid)
+        })
+    }
+
+    /// Whether this instance's task (milltask) still runs. On a computer shared with other
+    /// builds it has been seen to vanish, together with rtapi_app and halsampler and with no
+    /// message in LinuxCNC's logs (cause not found); the status linuxcncrsh serves then stays
+    /// frozen (a program RUNNING forever: the hang once blamed on the first program) and
+    /// every `set` goes unanswered.
+    pub fn task_alive(&self) -> bool {
+        self.pid_of("milltask").is_some()
+    }
+
+    /// Stops this LinuxCNC (linuxcncrsh's `shutdown`; without a task, which `shutdown`
+    /// needs, by ending this instance's linuxcncrsh, which makes the start script clean up)
+    /// and waits until its start script has ended.
+    fn stop(&mut self) {
+        if let Some(mut s) = self.sampler.take() {
+            // The sampler is this harness's own child: stopped by its id.
+            let _ = s.kill();
+            let _ = s.wait();
+        }
+        // LinuxCNC stops itself on linuxcncrsh's `shutdown`; its start script then cleans up.
+        // That cleanup stops LinuxCNC's programs *by name* (milltask, linuxcncsvr, …), so the
+        // lock is held until the script has ended: a next instance started earlier would lose
+        // its own milltask to it. On a loaded computer the cleanup takes minutes.
+        let asked = self.task_alive()
+            && Rsh::connect("127.0.0.1", self.port)
+                .and_then(|rsh| rsh.shutdown())
+                .is_ok();
+        if !asked && let Some(pid) = self.pid_of("linuxcncrsh") {
+            let _ = Command::new("kill").arg(pid.to_string()).status();
+        }
+        let deadline = Instant::now() + Duration::from_secs(600);
+        while Instant::now() < deadline {
+            // The script's end is not enough: seen on a restart, this instance's milltask and
+            // rtapi_app outlived it, and the next instance's start cleaned them up by name,
+            // taking its own milltask with them.
+            let gone = ["milltask", "linuxcncsvr", "io"]
+                .iter()
+                .all(|n| self.pid_of(n).is_none())
+                && !process_named("rtapi_app");
+            if matches!(self.linuxcnc.try_wait(), Ok(Some(_))) && gone {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(200));
+        }
+        eprintln!(
+            "LinuxCNC did not stop within 600 s of `shutdown`:\n{}",
+            self.log()
+        );
+    }
+
+    /// Stops this LinuxCNC and starts it again with the same configuration (its samples
+    /// start again from 0).
+    pub fn restart(&mut self) {
+        self.stop();
+        self.linuxcnc = spawn_linuxcnc(&self.dir, is_root());
+        self.await_and_sample();
     }
 
     /// The folder of the configuration, programs and logs.
@@ -264,6 +332,43 @@ impl Headless {
         out
     }
 
+    /// What LinuxCNC says about itself when a run goes wrong: linuxcncrsh's view, motion's
+    /// pins, and the start script's print file (where task and motion write what they do not
+    /// send to the error channel, such as "USRMOT: ERROR: command timeout").
+    pub fn diagnose(&self, rsh: &mut Rsh) -> String {
+        let mut out = String::new();
+        for key in [
+            "program_status",
+            "program_line",
+            "mode",
+            "machine",
+            "estop",
+            "abs_act_pos",
+        ] {
+            out += &format!("get {key}: {:?}\n", rsh.get(key));
+        }
+        let halcmd = Command::new("halcmd")
+            .args(["show", "pin", "motion."])
+            .envs(rtapi_env(&self.dir, is_root()))
+            .output();
+        if let Ok(o) = halcmd {
+            out += &String::from_utf8_lossy(&o.stdout);
+        }
+        let prints = std::fs::read_dir(std::env::temp_dir())
+            .into_iter()
+            .flatten()
+            .flatten()
+            .filter(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .starts_with("linuxcnc.print.")
+            });
+        for e in prints {
+            out += &std::fs::read_to_string(e.path()).unwrap_or_default();
+        }
+        out
+    }
+
     /// Connects a linuxcncrsh session.
     /// Its replies may take long: a non-realtime LinuxCNC shares this computer's cores with
     /// the build and the other tests.
@@ -274,10 +379,30 @@ impl Headless {
     }
 
     /// Runs an NC program in AUTO mode to its end and returns the samples from `set run` to
-    /// idle.
-    pub fn run_program(&self, name: &str, nc: &str) -> Vec<Sample> {
+    /// idle. When LinuxCNC's task vanished (see [`Headless::task_alive`]) before the program
+    /// was seen to end, LinuxCNC is restarted and the program run again, twice at most.
+    pub fn run_program(&mut self, name: &str, nc: &str) -> Vec<Sample> {
+        for attempt in 1..=3 {
+            match self.try_program(name, nc) {
+                Some(samples) => return samples,
+                None => {
+                    eprintln!(
+                        "LinuxCNC's task (milltask) vanished while running {name} (attempt {attempt}); restarting LinuxCNC"
+                    );
+                    self.restart();
+                }
+            }
+        }
+        panic!("LinuxCNC's task vanished three times running {name}");
+    }
+
+    /// One run of a program; `None` when the task vanished before it was seen idle again.
+    fn try_program(&self, name: &str, nc: &str) -> Option<Vec<Sample>> {
         let path = self.dir.join(name);
         std::fs::write(&path, nc).unwrap();
+        if !self.task_alive() {
+            return None;
+        }
         let mut rsh = self.rsh();
         rsh.start_auto().unwrap();
         rsh.errors().unwrap();
@@ -294,11 +419,43 @@ impl Headless {
             if st.program == ProgramStatus::Idle && (seen_running || t0.elapsed().as_secs() > 2) {
                 break;
             }
-            assert!(t0.elapsed().as_secs() < 300, "{name} ran over 5 minutes");
+            // A vanished task leaves its last status (RUNNING) behind for linuxcncrsh.
+            if !self.task_alive() {
+                return None;
+            }
+            if t0.elapsed().as_secs() >= 120 {
+                panic!("{name} ran over 2 minutes:\n{}", self.diagnose(&mut rsh));
+            }
             std::thread::sleep(Duration::from_millis(50));
         }
-        self.samples_since(before)
+        Some(self.samples_since(before))
     }
+}
+
+/// Whether a process named `name` runs (rtapi_app's command line names no INI file; one
+/// LinuxCNC at a time runs here, by the lock).
+fn process_named(name: &str) -> bool {
+    std::fs::read_dir("/proc")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .any(|e| std::fs::read_to_string(e.path().join("comm")).is_ok_and(|c| c.trim() == name))
+}
+
+/// `linuxcnc lase.ini` in `dir`, in its own process group.
+fn spawn_linuxcnc(dir: &Path, root: bool) -> Child {
+    let mut cmd = Command::new("linuxcnc");
+    cmd.arg("lase.ini")
+        .current_dir(dir)
+        .envs(rtapi_env(dir, root))
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(dir.join("linuxcnc.out")).unwrap())
+        .stderr(std::fs::File::create(dir.join("linuxcnc.err")).unwrap());
+    {
+        use std::os::unix::process::CommandExt;
+        cmd.process_group(0);
+    }
+    cmd.spawn().expect("linuxcnc starts")
 }
 
 fn rtapi_env(dir: &Path, root: bool) -> Vec<(String, String)> {
@@ -314,28 +471,6 @@ fn rtapi_env(dir: &Path, root: bool) -> Vec<(String, String)> {
 
 impl Drop for Headless {
     fn drop(&mut self) {
-        if let Some(mut s) = self.sampler.take() {
-            // The sampler is this harness's own child: stopped by its id.
-            let _ = s.kill();
-            let _ = s.wait();
-        }
-        // LinuxCNC stops itself on linuxcncrsh's `shutdown`; its start script then cleans up.
-        // That cleanup stops LinuxCNC's programs *by name* (milltask, linuxcncsvr, …), so the
-        // lock is held until the script has ended: a next instance started earlier would lose
-        // its own milltask to it. On a loaded computer the cleanup takes minutes.
-        if let Ok(rsh) = Rsh::connect("127.0.0.1", self.port) {
-            let _ = rsh.shutdown();
-        }
-        let deadline = Instant::now() + Duration::from_secs(600);
-        while Instant::now() < deadline {
-            if let Ok(Some(_)) = self.linuxcnc.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(200));
-        }
-        eprintln!(
-            "LinuxCNC did not stop within 600 s of `shutdown`:\n{}",
-            self.log()
-        );
+        self.stop();
     }
 }

@@ -535,8 +535,9 @@ pub fn reply_error(line: &str, reply: Reply) -> Result<(), LinkError> {
 /// Options of a connection, whatever the transport.
 #[derive(Debug, Clone)]
 pub struct ConnectOptions {
-    /// The controller's serial input buffer, bytes (GRBL: 128); `None` asks the controller
-    /// (GRBL's and grblHAL's `$I` report it), and takes 128 if it does not say.
+    /// The controller's serial input buffer, bytes; `None` (the default) counts against what
+    /// the controller reports in `$I` (`[OPT:…,blocks,rx]`: GRBL 128, grblHAL 1024), and
+    /// 128 if it does not say.
     pub rx_buffer: Option<usize>,
     /// Send-response instead of character counting: one line in flight at a time.
     pub send_response: bool,
@@ -550,7 +551,7 @@ pub struct ConnectOptions {
 impl Default for ConnectOptions {
     fn default() -> Self {
         ConnectOptions {
-            rx_buffer: Some(128),
+            rx_buffer: None,
             send_response: false,
             connect_timeout: Duration::from_secs(5),
             busy_wait: Duration::from_secs(600),

@@ -29,32 +29,24 @@ pub enum LinkUrl {
 }
 
 /// Options of the in-process simulator, from the URL's query (`sim://?time-scale=real`).
-#[derive(Debug, Clone, PartialEq)]
+/// `None` leaves the choice to the command (`lase run` runs in real time) or to the simulated
+/// firmware (its own RX buffer: GRBL 128 bytes, grblHAL 1024).
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct SimUrlOptions {
-    pub time_scale: TimeScale,
-    pub rx_buffer: usize,
+    pub time_scale: Option<TimeScale>,
+    pub rx_buffer: Option<usize>,
     pub baud: Option<u32>,
     pub error_at_line: Vec<(u64, u32)>,
     /// The table's positioning error (`position-error=backlash=3um,random=5um`).
     pub position_error: Option<super::sim::poserr::PositionErrorConfig>,
 }
 
-impl Default for SimUrlOptions {
-    fn default() -> Self {
-        SimUrlOptions {
-            time_scale: TimeScale::Max,
-            rx_buffer: 128,
-            baud: None,
-            error_at_line: Vec::new(),
-            position_error: None,
-        }
-    }
-}
-
 impl SimUrlOptions {
+    /// The simulator's options; a clock the URL leaves open runs as fast as it can (the REPL,
+    /// `lase frame`; `lase run` chooses real time before it gets here).
     pub fn to_options(&self) -> SimOptions {
         SimOptions {
-            time_scale: self.time_scale,
+            time_scale: self.time_scale.unwrap_or(TimeScale::Max),
             rx_buffer: self.rx_buffer,
             baud: self.baud,
             faults: Faults {
@@ -96,13 +88,16 @@ impl LinkUrl {
                 let mut o = SimUrlOptions::default();
                 for (k, v) in params {
                     match k {
-                        "time-scale" => o.time_scale = v.parse().map_err(|e: String| bad(&e))?,
+                        "time-scale" => {
+                            o.time_scale = Some(v.parse().map_err(|e: String| bad(&e))?)
+                        }
                         "rx-buffer" => {
-                            o.rx_buffer = v
-                                .parse()
-                                .ok()
-                                .filter(|n| *n >= 16)
-                                .ok_or_else(|| bad("rx-buffer is a byte count, at least 16"))?
+                            o.rx_buffer = Some(
+                                v.parse()
+                                    .ok()
+                                    .filter(|n| *n >= 16)
+                                    .ok_or_else(|| bad("rx-buffer is a byte count, at least 16"))?,
+                            )
                         }
                         "baud" => {
                             o.baud = Some(
@@ -213,20 +208,24 @@ impl fmt::Display for LinkUrl {
         match self {
             LinkUrl::Sim(o) => {
                 write!(f, "sim")?;
-                if *o != SimUrlOptions::default() {
-                    write!(f, "://?time-scale={}", o.time_scale)?;
-                    if o.rx_buffer != 128 {
-                        write!(f, "&rx-buffer={}", o.rx_buffer)?;
-                    }
-                    if let Some(b) = o.baud {
-                        write!(f, "&baud={b}")?;
-                    }
-                    for (line, code) in &o.error_at_line {
-                        write!(f, "&error-at-line={line}:{code}")?;
-                    }
-                    if let Some(p) = &o.position_error {
-                        write!(f, "&position-error={p}")?;
-                    }
+                let mut q: Vec<String> = Vec::new();
+                if let Some(t) = o.time_scale {
+                    q.push(format!("time-scale={t}"));
+                }
+                if let Some(rx) = o.rx_buffer {
+                    q.push(format!("rx-buffer={rx}"));
+                }
+                if let Some(b) = o.baud {
+                    q.push(format!("baud={b}"));
+                }
+                for (line, code) in &o.error_at_line {
+                    q.push(format!("error-at-line={line}:{code}"));
+                }
+                if let Some(p) = &o.position_error {
+                    q.push(format!("position-error={p}"));
+                }
+                if !q.is_empty() {
+                    write!(f, "://?{}", q.join("&"))?;
                 }
                 Ok(())
             }
@@ -269,6 +268,7 @@ mod tests {
             "tcp://127.0.0.1:5000",
             "serial:///dev/ttyUSB0?baud=115200",
             "sim://?time-scale=real&baud=115200",
+            "sim://?rx-buffer=256",
             "linuxcnc://127.0.0.1:5007",
             "linuxcnc://cnc:5008?dir=/mnt/cnc&remote-dir=/home/cnc/nc",
         ] {

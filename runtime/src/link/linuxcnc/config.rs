@@ -18,6 +18,13 @@ pub struct ConfigOptions {
     pub servo_period_ns: u32,
     /// Samples the HAL `sampler` FIFO holds before `halsampler` must have read them.
     pub sampler_depth: u32,
+    /// `[EMCMOT]COMM_TIMEOUT`, s: how long task waits for motion to take a command. When it
+    /// runs out, task aborts the program *without an error message* (its EXEC_ERROR path;
+    /// only "USRMOT: ERROR: command timeout" in its print file), and linuxcncrsh reports the
+    /// program idle. LinuxCNC's usual 1 s suits a realtime kernel; a POSIX non-realtime
+    /// LinuxCNC on a loaded computer misses it (1 start in about 12 ended its first program
+    /// early with load 15 on two cores), so the default here is generous.
+    pub comm_timeout_s: f64,
 }
 
 impl Default for ConfigOptions {
@@ -26,6 +33,7 @@ impl Default for ConfigOptions {
             port: super::DEFAULT_PORT,
             servo_period_ns: 1_000_000,
             sampler_depth: 16_000,
+            comm_timeout_s: 60.0,
         }
     }
 }
@@ -86,7 +94,7 @@ pub fn generate(machine: &Machine, options: &ConfigOptions) -> Config {
          [DISPLAY]\nDISPLAY = linuxcncrsh --port {port}\n\n\
          [TASK]\nTASK = milltask\nCYCLE_TIME = 0.001\n\n\
          [RS274NGC]\nPARAMETER_FILE = lase.var\n\n\
-         [EMCMOT]\nEMCMOT = motmod\nCOMM_TIMEOUT = 1.0\nSERVO_PERIOD = {servo}\n\n\
+         [EMCMOT]\nEMCMOT = motmod\nCOMM_TIMEOUT = {comm}\nSERVO_PERIOD = {servo}\n\n\
          [EMCIO]\nEMCIO = io\nCYCLE_TIME = 0.100\nTOOL_TABLE = lase.tbl\n\n\
          [HAL]\nHALFILE = lase.hal\n\n\
          [TRAJ]\nCOORDINATES = {spaced}\nLINEAR_UNITS = mm\nANGULAR_UNITS = degree\n\
@@ -95,6 +103,7 @@ pub fn generate(machine: &Machine, options: &ConfigOptions) -> Config {
         name = machine.name,
         port = options.port,
         servo = options.servo_period_ns,
+        comm = num(options.comm_timeout_s),
         spaced = letters
             .iter()
             .map(char::to_string)
@@ -170,6 +179,7 @@ mod tests {
         assert!(c.ini.contains("[AXIS_C]\nMAX_VELOCITY = 180\nMAX_ACCELERATION = 1800\nMIN_LIMIT = -36000\nMAX_LIMIT = 36000\n"), "{}", c.ini);
         assert!(c.ini.contains("[JOINT_2]\nTYPE = ANGULAR\n"));
         assert!(c.hal.contains("cfg=fffbbfs"));
+        assert!(c.ini.contains("COMM_TIMEOUT = 60\n"), "{}", c.ini);
         assert!(
             c.hal
                 .contains("net s3 motion.program-line => sampler.0.pin.6")

@@ -106,6 +106,32 @@ fn last_motion_line(lines: &[String]) -> usize {
         .map_or(0, |c| c.saturating_sub(1))
 }
 
+/// Where the program leaves the machine (the axes it moves, absolute X…C), against where
+/// LinuxCNC reports it: `None` when they agree within 1 µm (linuxcncrsh prints 6 decimals),
+/// else both, for the operator.
+fn away_from_end(lines: &[String], at: &[f64; 6]) -> Option<String> {
+    let kinds = modal::predict(&Tracker::new([0.0; 6]), lines);
+    let end = kinds.last()?.0.pos;
+    let moved: Vec<usize> = (0..6)
+        .filter(|&k| kinds.iter().any(|(t, _)| t.pos[k] != 0.0))
+        .collect();
+    let off = moved.iter().any(|&k| (at[k] - end[k]).abs() > 1e-3);
+    off.then(|| {
+        let show = |p: &[f64]| {
+            moved
+                .iter()
+                .map(|&k| format!("{}{:.4}", crate::link::AXIS_LETTERS[k], p[k]))
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        format!(
+            "the machine stands at {}, the program ends at {}",
+            show(at),
+            show(&end)
+        )
+    })
+}
+
 /// The progress of a job at a poll, in the shared stream's terms.
 fn progress(st: &RunStatus, total: usize, done: usize, held: bool) -> Progress {
     let state = match st.program {
@@ -213,31 +239,28 @@ pub fn follow(
             Ok(_) => {}
             Err(e) => return report(lost(e), done, None),
         }
-        // Line L (1-based) is running: the lines before it have run.
-        let passed = (st.line as usize).saturating_sub(1).min(total);
-        if passed > done {
-            if let Some(j) = journal.as_deref_mut() {
-                for i in done..passed {
-                    j.acked(i);
-                }
-                if last_sync.elapsed() > Duration::from_millis(500) {
-                    let _ = j.sync();
-                    last_sync = Instant::now();
-                }
-            }
-            done = passed;
-        }
         seen_running |= st.program != ProgramStatus::Idle;
         if st.program == ProgramStatus::Idle
             && (seen_running || t0.elapsed() > Duration::from_secs(2))
         {
-            // Idle after running: the end, unless E-stop or a machine off stopped it.
+            // Idle after running: the end, unless E-stop, a machine off or an abort stopped
+            // it. An idle LinuxCNC reports the line its interpreter read last, not the last
+            // that moved, and a program its task aborted without a message (a motion command
+            // not acknowledged within `[EMCMOT]COMM_TIMEOUT`) ends idle too, with every line
+            // read: only where the machine stands tells that the program ran to its end.
             let stopped = matches!(rsh.get("estop").as_deref(), Ok("ON"))
                 || matches!(rsh.get("machine").as_deref(), Ok("OFF"));
-            if stopped || (st.line as usize) < last_motion_line(job.lines) + 1 {
+            let short = (st.line as usize) < last_motion_line(job.lines) + 1;
+            let away = away_from_end(job.lines, &st.abs_pos);
+            if stopped || short || away.is_some() {
                 let e = LinkError::NotReady {
-                    reason: format!("LinuxCNC stopped the program at line {}", st.line),
-                    help: "E-stop, machine off or an abort from another client; check the part, then resume with `lase run --resume`".into(),
+                    reason: match away {
+                        Some(where_) if !stopped && !short => format!(
+                            "LinuxCNC ended the program without reaching its end: {where_}"
+                        ),
+                        _ => format!("LinuxCNC stopped the program at line {}", st.line),
+                    },
+                    help: "E-stop, machine off, an abort from another client, or LinuxCNC's task aborting silently (its motion did not answer within [EMCMOT]COMM_TIMEOUT); check the part, then resume with `lase run --resume`".into(),
                 };
                 if let Some(j) = journal.as_deref_mut() {
                     let _ = j.sync();
@@ -251,6 +274,20 @@ pub fn follow(
                 let _ = j.finish("done");
             }
             return report(Outcome::Done, total, None);
+        }
+        // Line L (1-based) is running: the lines before it have run.
+        let passed = (st.line as usize).saturating_sub(1).min(total);
+        if passed > done {
+            if let Some(j) = journal.as_deref_mut() {
+                for i in done..passed {
+                    j.acked(i);
+                }
+                if last_sync.elapsed() > Duration::from_millis(500) {
+                    let _ = j.sync();
+                    last_sync = Instant::now();
+                }
+            }
+            done = passed;
         }
         let p = progress(&st, total, done, held);
         let control = observer(&p);
@@ -313,9 +350,11 @@ pub fn resume(
         return Ok(Resumed::Reattached { line: st.line });
     }
     let last = last_motion_line(job.lines);
-    // The journal knows what surely ran; LinuxCNC's line (when it still shows this program's)
-    // may know more.
-    let from = state.acked.max((st.line as usize).saturating_sub(1));
+    // The journal knows what surely ran. An idle LinuxCNC's line is the one its interpreter
+    // read last, which runs ahead of motion: it says the program ended only when the machine
+    // also stands where the program ends.
+    let ended = (st.line as usize) > last && away_from_end(job.lines, &st.abs_pos).is_none();
+    let from = if ended { last + 1 } else { state.acked };
     if from > last {
         if let Some(j) = journal {
             j.finish("done")?;
@@ -428,5 +467,26 @@ mod tests {
         );
         let p = Placement::new(Some(Path::new("/mnt/cnc")), Some("/home/cnc/nc/"), "a.ngc");
         assert_eq!(p.remote, "/home/cnc/nc/a.ngc");
+    }
+
+    /// An idle LinuxCNC ended the program only where the program ends: run8 of the
+    /// COMM_TIMEOUT hunt reported `PROGRAM_LINE 913` (the last line, read ahead) with the
+    /// table at X2.3 of a dot row; that is a stop, not the end.
+    #[test]
+    fn the_end_is_where_the_program_leaves_the_machine() {
+        let lines: Vec<String> = ["G21 G90", "G1 X2.3 F1200", "G1 X10 Y5", "G0 X0 Y0", "M2"]
+            .iter()
+            .map(|l| l.to_string())
+            .collect();
+        assert_eq!(away_from_end(&lines, &[0.0; 6]), None);
+        assert_eq!(
+            away_from_end(&lines, &[0.0004, 0.0, 7.0, 0.0, 0.0, 0.0]),
+            None
+        );
+        let stopped = away_from_end(&lines, &[2.3, 0.0, 0.0, 0.0, 0.0, 0.0]).unwrap();
+        assert_eq!(
+            stopped,
+            "the machine stands at X2.3000 Y0.0000, the program ends at X0.0000 Y0.0000"
+        );
     }
 }

@@ -121,8 +121,10 @@ pub fn parse_error_at(s: &str) -> Result<(u64, u32), String> {
 pub struct SimOptions {
     pub time_scale: TimeScale,
     pub baud: Option<u32>,
-    pub rx_buffer: usize,
-    pub planner_blocks: usize,
+    /// The RX buffer, bytes; `None`: the firmware's own ([`Firmware::rx_buffer`]).
+    pub rx_buffer: Option<usize>,
+    /// Usable planner blocks; `None`: the firmware's own ([`Firmware::planner_blocks`]).
+    pub planner_blocks: Option<usize>,
     pub faults: Faults,
     /// Settings that differ from the machine file's (`$32=0` …).
     pub settings: Vec<(u32, f64)>,
@@ -146,8 +148,8 @@ impl Default for SimOptions {
         SimOptions {
             time_scale: TimeScale::Real,
             baud: None,
-            rx_buffer: 128,
-            planner_blocks: 15,
+            rx_buffer: None,
+            planner_blocks: None,
             faults: Faults::default(),
             settings: Vec::new(),
             log: false,
@@ -221,8 +223,8 @@ fn controller_for(machine: &Machine, opts: &SimOptions) -> Controller {
     cfg.settings.extend(opts.settings.iter().copied());
     cfg.position_error = opts.position_error;
     cfg.work_offsets = opts.work_offsets;
-    cfg.rx_buffer = opts.rx_buffer.max(16);
-    cfg.planner_blocks = opts.planner_blocks.max(1);
+    cfg.rx_buffer = opts.rx_buffer.unwrap_or(cfg.rx_buffer).max(16);
+    cfg.planner_blocks = opts.planner_blocks.unwrap_or(cfg.planner_blocks).max(1);
     cfg.error_at_line = opts.faults.error_at_line.clone();
     cfg.keep = opts.keep;
     Controller::new(cfg)

@@ -47,6 +47,26 @@ impl Firmware {
         }
     }
 
+    /// The serial RX buffer, bytes, as `$I` reports it: GRBL's `RX_BUFFER_SIZE` (128 on an
+    /// Uno, serial.h), grblHAL's (1024, its stream.h; `[OPT:VNML+,100,1024,6,0]` from the
+    /// grblHAL Simulator, CONTROLLERS.md).
+    pub fn rx_buffer(self) -> usize {
+        match self {
+            Firmware::Grbl => 128,
+            Firmware::GrblHal { .. } => 1024,
+        }
+    }
+
+    /// Usable planner blocks, as `$I` reports them: GRBL's ring of `BLOCK_BUFFER_SIZE` 16
+    /// holds 15 (its report prints `BLOCK_BUFFER_SIZE-1`); grblHAL allocates `$398` blocks
+    /// plus one, `DEFAULT_PLANNER_BUFFER_BLOCKS` 100 (config.h), and reports the 100.
+    pub fn planner_blocks(self) -> usize {
+        match self {
+            Firmware::Grbl => 15,
+            Firmware::GrblHal { .. } => 100,
+        }
+    }
+
     pub fn banner(self) -> &'static str {
         match self {
             Firmware::Grbl => BANNER,
@@ -58,9 +78,9 @@ impl Firmware {
 /// How the controller is built and configured.
 #[derive(Debug, Clone)]
 pub struct ControllerConfig {
-    /// Serial RX buffer size (GRBL: 128, of which 127 usable).
+    /// Serial RX buffer size (GRBL: 128, of which 127 usable; grblHAL 1024).
     pub rx_buffer: usize,
-    /// Planner blocks (GRBL on an Uno: 15 usable).
+    /// Usable planner blocks (GRBL on an Uno: 15; grblHAL: 100).
     pub planner_blocks: usize,
     pub firmware: Firmware,
     /// Travel per axis X Y Z A B C, mm or degrees; `None` for an axis the machine lacks (it
@@ -81,10 +101,11 @@ pub struct ControllerConfig {
 impl ControllerConfig {
     /// A machine's controller: its firmware, travel and settings.
     pub fn for_machine(machine: &Machine) -> ControllerConfig {
+        let firmware = Firmware::for_machine(machine);
         ControllerConfig {
-            rx_buffer: 128,
-            planner_blocks: 15,
-            firmware: Firmware::for_machine(machine),
+            rx_buffer: firmware.rx_buffer(),
+            planner_blocks: firmware.planner_blocks(),
+            firmware,
             travel: travel_for(machine),
             settings: settings_for(machine),
             error_at_line: Vec::new(),

@@ -58,11 +58,8 @@ impl Controller {
             "I" => match self.cfg.firmware {
                 Firmware::Grbl => {
                     self.say("[VER:1.1h.20190825:lase sim]");
-                    let opt = format!(
-                        "[OPT:V,{},{}]",
-                        self.cfg.planner_blocks + 1,
-                        self.cfg.rx_buffer
-                    );
+                    // report.c prints BLOCK_BUFFER_SIZE-1: the usable blocks.
+                    let opt = format!("[OPT:V,{},{}]", self.cfg.planner_blocks, self.cfg.rx_buffer);
                     self.say(&opt);
                 }
                 // grblHAL: its own version, the axis count in OPT, then the lines its
@@ -73,8 +70,7 @@ impl Controller {
                         "[VER:1.1f.20250101:lase sim]".to_string(),
                         format!(
                             "[OPT:VNML+,{},{},{axes},0]",
-                            self.cfg.planner_blocks + 1,
-                            self.cfg.rx_buffer
+                            self.cfg.planner_blocks, self.cfg.rx_buffer
                         ),
                         format!("[AXS:{axes}:{letters}]"),
                         "[NEWOPT:ENUMS,RT+,TC,SED]".into(),
