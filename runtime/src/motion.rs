@@ -232,6 +232,9 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         path_j: program.path_limits.j,
         lookahead: program.planner.lookahead,
         n_axes,
+        // The plan is what the machine does: corners at speed follow a blend every axis can
+        // follow (issue 13), never a velocity step.
+        corners: planner::Corners::Blend,
     };
     // A machine whose beam switch needs rest on any of its posts (seed 4's M27, a GRBL post
     // that switches with M3/M5): plan for the strictest, so one plan serves every dialect.
@@ -256,6 +259,12 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
     let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;
     let mut moves: Vec<Move> = Vec::new();
+    // What the planner knows of each move beyond its axes (`planner::Along`): the spot's
+    // part-space direction of each feed move (none for rapids, whose spot path on an oriented
+    // machine is no straight line), which bounds the blends' reach; and whether it is lit:
+    // corners between lit moves keep the junction-deviation step for now, since blending the
+    // chords of a lit curve would lower its lit speed (issue 13, item 3: what is left).
+    let mut along: Vec<planner::Along> = Vec::new();
     let mut initial_dwell_s = 0.0;
     let mut pos = program.start;
     let mut q_prev = start;
@@ -286,12 +295,14 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
             OpKind::Rapid { to, .. } => {
                 let q = inverse(&*kin, *to, orient, Some(&q_prev), op.span, &program)?;
                 push_line(&mut moves, q_prev, q, dist(pos, *to), f64::INFINITY, tag);
+                along.resize(moves.len(), planner::Along::default());
                 pos = *to;
                 q_prev = q;
             }
             OpKind::Line { to, feed_mm_s, .. } => {
                 let q = inverse(&*kin, *to, orient, Some(&q_prev), op.span, &program)?;
                 push_line(&mut moves, q_prev, q, dist(pos, *to), *feed_mm_s, tag);
+                push_along(&mut along, moves.len(), pos, *to, lit);
                 pos = *to;
                 q_prev = q;
             }
@@ -305,6 +316,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
                 for p in arc_points(pos, *to, *center, *ccw, program.planner.arc_tolerance_mm) {
                     let q = inverse(&*kin, p, orient, Some(&q_prev), op.span, &program)?;
                     push_line(&mut moves, q_prev, q, dist(pos, p), *feed_mm_s, tag);
+                    push_along(&mut along, moves.len(), pos, p, lit);
                     pos = p;
                     q_prev = q;
                 }
@@ -334,7 +346,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         }
         op_axes.push(q_prev);
     }
-    let plan = planner::plan(start, &moves, &limits, &cfg).map_err(|e| {
+    let plan = planner::plan_along(start, &moves, &along, &limits, &cfg).map_err(|e| {
         let span = planner_error_move(&e)
             .and_then(|i| moves.get(i))
             .and_then(|m| program.ops.get(m.tag as usize))
@@ -416,6 +428,27 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
             }
         }
         KinError::Unreachable(reason) => MotionError::Unreachable { reason, span },
+    }
+}
+
+/// Records what the planner may know of the last of `len` moves (when `push_line` made one):
+/// the spot's part-space unit direction from `from` to `to`, and whether it is lit.
+fn push_along(along: &mut Vec<planner::Along>, len: usize, from: P3, to: P3, lit: bool) {
+    if along.len() >= len {
+        // `push_line` skipped a move of no length.
+        return;
+    }
+    along.resize(len, planner::Along::default());
+    let d = dist(from, to);
+    if let Some(last) = along.last_mut() {
+        last.step_corners = lit;
+        if d > 1e-12 {
+            last.part_dir = [
+                (to[0] - from[0]) / d,
+                (to[1] - from[1]) / d,
+                (to[2] - from[2]) / d,
+            ];
+        }
     }
 }
 

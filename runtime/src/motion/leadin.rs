@@ -176,7 +176,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
         } else {
             0.0
         };
-        let d_in = planner::lead_distance(v, w_max, a, j) + margin;
+        let d_in = planner::lead_distance(v, w_max, a, j) + margin + blend_room(cx);
         let (p_lead, o_lead, room) =
             match oriented_lead(cx, (p0, o_in), (chord_end, op.orient()), d_in) {
                 Some((p, o)) => (p, Some(o), d_in),
@@ -255,7 +255,7 @@ pub fn add_leads(start: P3, ops: &[Op], cx: &LeadContext<'_>) -> Result<Leads, M
             Some(nm) if stop_between(last + 1, nm) => 0.0,
             Some(_) => v,
         };
-        let d_out = planner::lead_distance(v, w_max, a, j);
+        let d_out = planner::lead_distance(v, w_max, a, j) + blend_room(cx);
         let o_start = orient_before(ops, last).or(op.orient());
         let (p_out, o_out, room) =
             match oriented_lead(cx, (p1, op.orient()), (chord_start, o_start), d_out) {
@@ -404,6 +404,20 @@ fn lit_runs(ops: &[Op], moving: &[bool]) -> Vec<(usize, usize)> {
 }
 
 /// Ops that bring the machine to rest where they stand.
+/// Room a lead keeps for the blends at its ends (`planner::lead_blend_room`): its corners
+/// (the one to the lit move, whose axis-space continuation is straight only to rounding, and
+/// the far one when it is entered or left at speed) are rounded over part of it, which then
+/// cannot count toward its straight ramp. Scan rows run up by the same rule (`eval::scan`). A
+/// machine that switches its beam at rest has lit leads: their corner to the lit move keeps
+/// the velocity-step model and their far end is a stop, so they need no room.
+fn blend_room(cx: &LeadContext<'_>) -> f64 {
+    if !cx.switch_stops && cx.cfg.corners == planner::Corners::Blend {
+        planner::lead_blend_room(cx.cfg.junction_deviation)
+    } else {
+        0.0
+    }
+}
+
 fn is_stop(op: &Op) -> bool {
     matches!(
         op.kind,
