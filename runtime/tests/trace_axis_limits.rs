@@ -62,8 +62,8 @@ fn report(name: &str, w: &AxisWorst) -> String {
 
 /// Measured worst |v|/v_max, |a|/a_max, |j|/j_max at 1 kHz of the examples whose lit paths
 /// have corners between two lit moves taken at speed (module doc), rounded up in the fourth
-/// digit; every other example and axis, and every sample away from those corners, is held to
-/// 1. Measured with `cargo test -p lase-runtime --test trace_axis_limits -- --nocapture`,
+/// digit; every other example and axis, and every sample away from those corners, is held
+/// to 1. Measured with `cargo test -p lase-runtime --test trace_axis_limits -- --nocapture`,
 /// which prints each example's row. Each peak lies at a lit corner: the lit polylines' and
 /// glyphs' corners and the chords of lit arcs (air_assist, dial_marks, frame_marking,
 /// material_test, nested_parts, serial_number: a velocity step, so a and j), and the lit chords

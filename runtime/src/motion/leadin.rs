@@ -27,7 +27,10 @@
 //! other end may have. After a stop (always in style a) `w_max = 0` and `d` is PROCESS.md §4's
 //! ramp distance from rest (for an S-curve with `v < a²/J`, `d = v · √(v/J)`). When the lead-in
 //! may be entered at speed (the move before ends in a corner) `w_max = v`, because a
-//! jerk-limited ramp entered at speed can need more room than one from rest.
+//! jerk-limited ramp entered at speed can need more room than one from rest. In style (b) a
+//! lead also keeps [`planner::lead_blend_room`] for the corner blends at its two ends (the
+//! planner rounds corners taken at speed over up to `4 · corner` of each move), so that its
+//! straight ramp still reaches the feed at the lit point.
 //!
 //! Positioning moves adjacent to a section change: the unlit move before it now ends at the
 //! lead-in start (or a rapid there is inserted when no straight move precedes), and the move

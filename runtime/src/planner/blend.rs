@@ -106,6 +106,7 @@ impl Blend {
 
     /// Axis positions, velocities, accelerations and jerks at `x` along the blend, at path
     /// speed `v`, acceleration `a` and jerk `j`.
+    #[allow(clippy::needless_range_loop)] // one index over parallel axis arrays
     pub fn state(&self, x: f64, v: f64, a: f64, j: f64) -> [Axes; 4] {
         let x = x.clamp(0.0, 1.0);
         let (_, h, h1, h2) = smoothstep(x);
