@@ -243,7 +243,7 @@ follow disc_cam(30 mm, 10 mm, 120 deg, 40 deg, 120 deg, \"cycloidal\") at speed 
     assert!(err.contains("no_such_extension.rhai"), "{err}");
     assert!(out.contains("repl: done"), "{out}");
     // One turn of the cam, back at C = −360° after the lead-out.
-    assert!(out.contains("C-360.315"), "{out}");
+    assert!(out.contains("C-360.468"), "{out}");
 }
 
 /// A speed override multiplies the pulse rate of pulses by distance: `:set speed 200%` on a

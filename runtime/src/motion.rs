@@ -292,6 +292,9 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         path_j: program.path_limits.j,
         lookahead: program.planner.lookahead,
         n_axes,
+        // The plan is what the machine does: corners at speed follow a blend every axis can
+        // follow (issue 13), never a velocity step.
+        corners: planner::Corners::Blend,
     };
     // A machine whose beam switch needs rest on any of its posts (seed 4's M27, a GRBL post
     // that switches with M3/M5): plan for the strictest, so one plan serves every dialect.
@@ -338,7 +341,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         error: None,
         last_tag: 0,
     };
-    let planned = planner::plan_iter(start, &mut low, expected, &limits, &cfg);
+    let planned = planner::plan_along_iter(start, &mut low, expected, &limits, &cfg);
     // The op whose move the planner refused: the move it read last.
     let refused = low.last_tag as usize;
     if planned.is_err() {
@@ -443,8 +446,9 @@ struct Lowering<'a> {
     q_prev: Axes,
     lit_prev: bool,
     orient: Option<Orient>,
-    /// Moves made and not read yet.
-    queue: VecDeque<Move>,
+    /// Moves made and not read yet, with what the planner may know of each beyond its axes
+    /// (`planner::Along`).
+    queue: VecDeque<(Move, planner::Along)>,
     /// Standstill before the first move, s.
     initial_dwell_s: f64,
     op_axes: OpAxes,
@@ -454,14 +458,14 @@ struct Lowering<'a> {
 }
 
 impl Iterator for Lowering<'_> {
-    type Item = Move;
+    type Item = (Move, planner::Along);
 
-    fn next(&mut self) -> Option<Move> {
+    fn next(&mut self) -> Option<(Move, planner::Along)> {
         loop {
             let done = self.error.is_some() || self.next_op >= self.program.ops.len();
             if self.queue.len() >= 2 || (done && self.error.is_none() && !self.queue.is_empty()) {
                 let m = self.queue.pop_front()?;
-                self.last_tag = m.tag;
+                self.last_tag = m.0.tag;
                 return Some(m);
             }
             if done {
@@ -479,7 +483,7 @@ impl Lowering<'_> {
     /// A stop (with a standstill of `dwell` s) after the last move made, or before the first.
     fn stop_here(&mut self, dwell: f64) {
         match self.queue.back_mut() {
-            Some(m) => {
+            Some((m, _)) => {
                 m.stop_after = true;
                 m.dwell_after += dwell;
             }
@@ -502,9 +506,19 @@ impl Lowering<'_> {
             // GRBL re-arms the laser (M3/M4 S0) before this op: a synced spindle change.
             self.stop_here(0.0);
         }
+        // What the planner may know of a move (`planner::Along`): the spot's part-space
+        // direction of each feed move (none for rapids, whose spot path on an oriented machine
+        // is no straight line), which bounds the blends' reach; and whether it is lit: corners
+        // between lit moves keep the junction-deviation step for now, since blending the
+        // chords of a lit curve would lower its lit speed (issue 13, item 3: what is left).
         let line_to = |low: &mut Self, p: P3, feed: f64| -> Result<(), MotionError> {
             let q = inverse(kin, p, low.orient, Some(&low.q_prev), op.span, program)?;
-            push_line(&mut low.queue, low.q_prev, q, dist(low.pos, p), feed, tag);
+            let along = if feed.is_finite() {
+                along_of(low.pos, p, lit)
+            } else {
+                planner::Along::default()
+            };
+            push_line(&mut low.queue, low.q_prev, q, dist(low.pos, p), feed, tag, along);
             low.pos = p;
             low.q_prev = q;
             Ok(())
@@ -616,7 +630,33 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
     }
 }
 
-fn push_line(moves: &mut VecDeque<Move>, from: Axes, to: Axes, length: f64, feed: f64, tag: u32) {
+/// What the planner may know of a feed move from `from` to `to` (spot, part space): the
+/// spot's unit direction, and whether it is lit.
+fn along_of(from: P3, to: P3, lit: bool) -> planner::Along {
+    let d = dist(from, to);
+    let mut along = planner::Along {
+        step_corners: lit,
+        ..planner::Along::default()
+    };
+    if d > 1e-12 {
+        along.part_dir = [
+            (to[0] - from[0]) / d,
+            (to[1] - from[1]) / d,
+            (to[2] - from[2]) / d,
+        ];
+    }
+    along
+}
+
+fn push_line(
+    moves: &mut VecDeque<(Move, planner::Along)>,
+    from: Axes,
+    to: Axes,
+    length: f64,
+    feed: f64,
+    tag: u32,
+    along: planner::Along,
+) {
     if length <= 1e-12 && from == to {
         return;
     }
@@ -630,14 +670,17 @@ fn push_line(moves: &mut VecDeque<Move>, from: Axes, to: Axes, length: f64, feed
     } else {
         length
     };
-    moves.push_back(Move {
-        target: to,
-        length,
-        feed,
-        stop_after: false,
-        dwell_after: 0.0,
-        tag,
-    });
+    moves.push_back((
+        Move {
+            target: to,
+            length,
+            feed,
+            stop_after: false,
+            dwell_after: 0.0,
+            tag,
+        },
+        along,
+    ));
 }
 
 /// Points along an arc (excluding its start, including its end) such that no chord deviates

@@ -159,6 +159,7 @@ fn check(c: &Case, moves: &[Move], profile: ProfileKind) -> Result<(), TestCaseE
         path_j: c.path.2,
         lookahead: c.lookahead,
         n_axes: c.n_axes,
+        corners: lase_runtime::planner::Corners::JunctionDeviation,
     };
     let p =
         plan([0.0; 6], moves, &c.limits, &cfg).map_err(|e| TestCaseError::fail(e.to_string()))?;

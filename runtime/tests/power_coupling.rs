@@ -191,8 +191,13 @@ fn emitted_sub_block_power_is_the_plans_time_mean() {
                     .iter()
                     .map(|s| s.length)
                     .sum();
-                let q0 = j.plan.segment_start(range.start);
-                let q1 = j.plan.segment_target(range.end - 1);
+                // Along the op as programmed (what the NC writes): a blend at its end corner
+                // (`planner::Blend`) leaves the plan's own end point off the corner.
+                let q0 = match (*op as usize).checked_sub(1) {
+                    Some(prev) => j.op_axes.get(prev),
+                    None => j.start,
+                };
+                let q1 = j.op_axes.get(*op as usize);
                 let f = b.s_end / s_total;
                 for k in 0..2 {
                     let want = q0[k] + f * (q1[k] - q0[k]);

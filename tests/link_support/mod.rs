@@ -121,10 +121,21 @@ pub fn planned_op_ends(job: &Job) -> Vec<(usize, AxisPos)> {
     out
 }
 
-/// The planned moves in order: the tag (op index) and the axes each ends at.
+/// The planned moves in order: the tag (op index) and the axes each ends at, as programmed —
+/// a move whose end the plan rounds (a corner blend, `planner::blend`) ends at the corner the
+/// NC names, not on the blend curve where its segments meet.
 fn planned_moves(job: &Job) -> impl Iterator<Item = (u32, Axes)> + '_ {
     let plan = &job.plan;
-    (0..plan.segments().len()).map(|i| (plan.segments()[i].tag, plan.segment_target(i)))
+    let segs = plan.segments();
+    (0..segs.len())
+        .filter(move |&i| i + 1 == segs.len() || segs[i + 1].move_index != segs[i].move_index)
+        .map(move |i| {
+            let end = match plan.blend_of(i) {
+                Some((blend, false)) => blend.corner,
+                _ => plan.segment_target(i),
+            };
+            (segs[i].tag, end)
+        })
 }
 
 /// Lit runs of the plan: (start, end, length) of each maximal run of consecutive lit moves,

@@ -659,7 +659,9 @@ impl Evaluator {
                 Some("lower `speed`, or turn the rows (`angle`) along a faster axis"),
             ));
         }
-        Ok(planner::lead_distance(v, v, a, j))
+        // Entered at speed, like a lead-in: room for the blends at its ends (`motion::leadin`).
+        let room = planner::lead_blend_room(self.planner_settings_now().junction_deviation_mm);
+        Ok(planner::lead_distance(v, v, a, j) + room)
     }
 
     /// Path limits (v, a, j) of a row of `frame` at `speed`, as the planner will derive them
@@ -699,6 +701,7 @@ impl Evaluator {
             path_j: self.path_limits.j,
             lookahead: p.lookahead,
             n_axes: kin.axis_count(),
+            corners: planner::Corners::Blend,
         };
         planner::move_limits(&dq, 10.0, speed, &limits, &cfg)
     }

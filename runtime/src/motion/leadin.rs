@@ -27,7 +27,10 @@
 //! other end may have. After a stop (always in style a) `w_max = 0` and `d` is PROCESS.md §4's
 //! ramp distance from rest (for an S-curve with `v < a²/J`, `d = v · √(v/J)`). When the lead-in
 //! may be entered at speed (the move before ends in a corner) `w_max = v`, because a
-//! jerk-limited ramp entered at speed can need more room than one from rest.
+//! jerk-limited ramp entered at speed can need more room than one from rest. In style (b) a
+//! lead also keeps [`planner::lead_blend_room`] for the corner blends at its two ends (the
+//! planner rounds corners taken at speed over up to `4 · corner` of each move), so that its
+//! straight ramp still reaches the feed at the lit point.
 //!
 //! Positioning moves adjacent to a section change: the unlit move before it now ends at the
 //! lead-in start (or a rapid there is inserted when no straight move precedes), and the move
@@ -176,7 +179,7 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
         } else {
             0.0
         };
-        let d_in = planner::lead_distance(v, w_max, a, j) + margin;
+        let d_in = planner::lead_distance(v, w_max, a, j) + margin + blend_room(cx);
         let (p_lead, o_lead, room) =
             match oriented_lead(cx, (p0, o_in), (chord_end, op.orient()), d_in) {
                 Some((p, o)) => (p, Some(o), d_in),
@@ -259,7 +262,7 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
             Some(nm) if stop_between(last + 1, nm) => 0.0,
             Some(_) => v,
         };
-        let d_out = planner::lead_distance(v, w_max, a, j);
+        let d_out = planner::lead_distance(v, w_max, a, j) + blend_room(cx);
         let o_start = orient_before(ops, last).or(op.orient());
         let (p_out, o_out, room) =
             match oriented_lead(cx, (p1, op.orient()), (chord_start, o_start), d_out) {
@@ -440,6 +443,20 @@ fn lit_runs(ops: &[Op], moving: &[bool]) -> Vec<(usize, usize)> {
 }
 
 /// Ops that bring the machine to rest where they stand.
+/// Room a lead keeps for the blends at its ends (`planner::lead_blend_room`): its corners
+/// (the one to the lit move, whose axis-space continuation is straight only to rounding, and
+/// the far one when it is entered or left at speed) are rounded over part of it, which then
+/// cannot count toward its straight ramp. Scan rows run up by the same rule (`eval::scan`). A
+/// machine that switches its beam at rest has lit leads: their corner to the lit move keeps
+/// the velocity-step model and their far end is a stop, so they need no room.
+fn blend_room(cx: &LeadContext<'_>) -> f64 {
+    if !cx.switch_stops && cx.cfg.corners == planner::Corners::Blend {
+        planner::lead_blend_room(cx.cfg.junction_deviation)
+    } else {
+        0.0
+    }
+}
+
 fn is_stop(op: &Op) -> bool {
     matches!(
         op.kind,

@@ -8,22 +8,33 @@
 //! The path of one move through [`plan`]:
 //! 1. `prepare` validates it, merges a zero-length move into its predecessor, and derives its
 //!    limits from its direction `u = Δq / length`: `v ≤ min_i v_i / |u_i|` (likewise `a`, `j`),
-//!    the path limits and the feed; it caps its entry speed with the corner model
-//!    (`junction`: GRBL's junction deviation and Klipper's centripetal cap where the length is
-//!    the axis-space arc length, as on Cartesian machines; otherwise, as for the part-space
-//!    chords of oriented machines, each axis's velocity jump against that axis's own
-//!    acceleration), and a move that lies wholly on the rounding curves of its two corners (a
-//!    chord of a curve) gets a speed and acceleration budget shared between centripetal and
-//!    tangential acceleration (`curve_limits`).
+//!    the path limits and the feed. Corners taken at speed are planned by one of two models
+//!    ([`Corners`]):
+//!    - `Blend` (what lase plans its jobs with): each corner is rounded by a curve within the
+//!      corner tolerance whose axis velocity and acceleration are continuous, with its own
+//!      speed, acceleration and jerk limits so that every axis stays within its limits along
+//!      it (`blend`); a corner that cannot be rounded is a stop. Each move is split into the
+//!      half-blend after its start corner, its straight middle and the half-blend before its
+//!      end corner, all three with the move's tag.
+//!    - `JunctionDeviation` (GRBL's model, kept for comparison and its own tests): the entry
+//!      speed is capped by the corner model (`junction`: GRBL's junction deviation and
+//!      Klipper's centripetal cap where the length is the axis-space arc length, as on
+//!      Cartesian machines; otherwise, as for the part-space chords of oriented machines, each
+//!      axis's velocity jump against that axis's own acceleration), and a move that lies
+//!      wholly on the rounding curves of its two corners (a chord of a curve) gets a speed and
+//!      acceleration budget shared between centripetal and tangential acceleration
+//!      (`curve_limits`). Axis velocities step at corners.
 //! 2. `lookahead` chooses entry and exit speeds with a backward and a forward pass, over the
 //!    whole program or through a bounded streaming window.
 //! 3. As the forward pass commits each move's end speeds, `profile` turns (length, entry, exit,
 //!    limits) into the fastest ramp-cruise-ramp shape.
-//! 4. The result is stored as a compact [`Segment`] (112 bytes) plus its start point in a flat
-//!    table of the axes in use; [`Plan::sample`] evaluates it exactly.
+//! 4. The result is stored as a compact [`Segment`] (120 bytes) plus its start point in a flat
+//!    table of the axes in use; [`Plan::sample`] evaluates it exactly (on a blend, along the
+//!    blend curve).
 //!
-//! Memory: 112 bytes of segment, `8 · n_axes` of points and 40 of look-ahead scratch per move
-//! (168 bytes for two axes, 200 for six), and nothing else per move.
+//! Memory: 120 bytes of segment, `8 · n_axes` of points and 40 of look-ahead scratch per move
+//! (176 bytes for two axes, 208 for six), and nothing else per move; a blended corner adds two
+//! segments and a 152-byte [`Blend`].
 //!
 //! Known limit: every S-curve move starts and ends at zero path acceleration, so acceleration
 //! is continuous everywhere, but a run of very short moves gains speed in small jerk-limited
@@ -31,14 +42,16 @@
 //! jerk-limited ramp over several straight-enough moves would lift that.
 //!
 //! Module map: `error` (diagnostics), `junction` (corner speeds), `lookahead` (speed passes),
-//! `profile` (1-D closed forms), `plan` (segments and sampling).
+//! `profile` (1-D closed forms), `plan` (segments and sampling), `blend` (corner blends).
 
+mod blend;
 mod error;
 mod junction;
 mod lookahead;
 mod plan;
 mod profile;
 
+pub use blend::{Blend, REACH_MAX as BLEND_REACH_MAX};
 pub use error::PlanError;
 pub use plan::{Plan, Sample, Segment};
 
@@ -55,6 +68,20 @@ pub enum ProfileKind {
     Trapezoid,
     /// 7-phase jerk-limited profile (PROCESS.md §4).
     SCurve,
+}
+
+/// How corners taken at speed are planned.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Corners {
+    /// GRBL's and Klipper's model: the path runs through the corner point and each axis's
+    /// velocity steps there, within the junction-deviation and centripetal caps (`junction`).
+    /// What a GRBL controller does; not feasible per axis at every instant.
+    #[default]
+    JunctionDeviation,
+    /// Every corner passed at speed follows a blend curve within the corner tolerance, planned
+    /// so that each axis keeps its velocity, acceleration and jerk limits along it (`blend`);
+    /// corners it cannot round are stops. What lase plans its jobs with (issue 13).
+    Blend,
 }
 
 /// Per-axis limits, in machine units per s, s², s³. Axes in use need values > 0;
@@ -87,6 +114,8 @@ pub struct PlannerConfig {
     pub lookahead: Option<usize>,
     /// How many of the [`MAX_AXES`] axes are in use (1..=6).
     pub n_axes: usize,
+    /// How corners taken at speed are planned; `junction_deviation` is their tolerance.
+    pub corners: Corners,
 }
 
 impl Default for PlannerConfig {
@@ -101,6 +130,7 @@ impl Default for PlannerConfig {
             path_j: f64::INFINITY,
             lookahead: None,
             n_axes: 3,
+            corners: Corners::JunctionDeviation,
         }
     }
 }
@@ -225,6 +255,15 @@ pub fn lead_distance(v: f64, w_max: f64, a: f64, j: f64) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// Room a lead (or a scan row's run-up) entered or left at speed keeps for the corner blends
+/// at its two ends (`Corners::Blend`): each may round up to `BLEND_REACH_MAX · delta` of it,
+/// which then cannot count toward its straight ramp. 0 for an infinite corner tolerance
+/// (blends then reach half a move: lead-ins are not sized for that).
+pub fn lead_blend_room(delta: f64) -> f64 {
+    let room = 2.0 * BLEND_REACH_MAX * delta;
+    if room.is_finite() { room } else { 0.0 }
+}
+
 /// Relative slack on "a move lies wholly on its corners' rounding circles": the chords of one
 /// arc have equal lengths up to rounding.
 const CURVED_TOL: f64 = 1e-9;
@@ -245,20 +284,63 @@ pub fn plan(
     limits: &AxisLimits,
     cfg: &PlannerConfig,
 ) -> Result<Plan, PlanError> {
+    plan_along(start, moves, &[], limits, cfg)
+}
+
+/// What the planner may know of a move beyond its axes (`plan_along`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Along {
+    /// The spot's unit direction in part space; zero where the move is not a straight
+    /// part-space move (a rapid of an oriented machine) or it is not known. Where a move's
+    /// length is not its axis-space length (oriented machines) a blend's reach is bounded by
+    /// the spot's turn between two known directions, else by the largest turn there is.
+    pub part_dir: [f64; 3],
+    /// A corner between two such moves keeps the junction-deviation model (an axis velocity
+    /// step) under `Corners::Blend`. lase's lit paths use it until their chords' blends can be
+    /// planned without lowering the lit speed (issue 13, item 3: what is left).
+    pub step_corners: bool,
+}
+
+/// [`plan`], told more about each move: `along[i]` belongs to `moves[i]` (a shorter slice
+/// leaves the rest at `Along::default()`).
+pub fn plan_along(
+    start: impl Into<Axes>,
+    moves: &[Move],
+    along: &[Along],
+    limits: &AxisLimits,
+    cfg: &PlannerConfig,
+) -> Result<Plan, PlanError> {
     if u32::try_from(moves.len()).is_err() {
         return Err(PlanError::TooManyMoves { count: moves.len() });
     }
-    plan_iter(start, moves.iter().copied(), moves.len(), limits, cfg)
+    let along = moves
+        .iter()
+        .enumerate()
+        .map(|(i, m)| (*m, along.get(i).copied().unwrap_or_default()));
+    plan_along_iter(start, along, moves.len(), limits, cfg)
+}
+
+/// [`plan_along_iter`] of moves with nothing known beyond their axes.
+pub fn plan_iter(
+    start: impl Into<Axes>,
+    moves: impl IntoIterator<Item = Move>,
+    expected: usize,
+    limits: &AxisLimits,
+    cfg: &PlannerConfig,
+) -> Result<Plan, PlanError> {
+    let moves = moves.into_iter().map(|m| (m, Along::default()));
+    plan_along_iter(start, moves, expected, limits, cfg)
 }
 
 /// [`plan`] of moves made as the planner reads them, so the caller never holds them all:
 /// `motion` lowers a program of a million short moves straight into the plan's compact
 /// segments (the 80-byte [`Move`]s were the largest table a job held). `expected` is how many
 /// moves to make room for (the tables grow past it if there are more); a move's index in
-/// errors and in [`Segment::move_index`] is its position in `moves`.
-pub fn plan_iter(
+/// errors and in [`Segment::move_index`] is its position in `moves`. Each move comes with
+/// what the planner may know of it beyond its axes ([`Along`]).
+pub fn plan_along_iter(
     start: impl Into<Axes>,
-    moves: impl IntoIterator<Item = Move>,
+    moves: impl IntoIterator<Item = (Move, Along)>,
     expected: usize,
     limits: &AxisLimits,
     cfg: &PlannerConfig,
@@ -270,6 +352,7 @@ pub fn plan_iter(
         points,
         mut kin,
         end,
+        blends,
     } = prepare(start, moves.into_iter(), expected, limits, cfg)?;
     let mut timeline = Timeline {
         segments: &mut segments,
@@ -294,6 +377,7 @@ pub fn plan_iter(
         end,
         duration,
         n_axes: cfg.n_axes,
+        blends,
     })
 }
 
@@ -374,7 +458,7 @@ fn validate(start: Axes, limits: &AxisLimits, cfg: &PlannerConfig) -> Result<(),
 #[allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 fn prepare(
     start: Axes,
-    moves: impl Iterator<Item = Move>,
+    moves: impl Iterator<Item = (Move, Along)>,
     expected: usize,
     limits: &AxisLimits,
     cfg: &PlannerConfig,
@@ -390,6 +474,9 @@ fn prepare(
     let mut prev_dir = Axes::ZERO;
     let mut prev_euclidean = true;
     // Centripetal cap (v²) and rounding-circle reach of the previous move's entry corner.
+    let blending = cfg.corners == Corners::Blend;
+    let mut info: Vec<blend::MoveInfo> = Vec::new();
+    let mut prev_along = Along::default();
     let mut prev_corner = junction::Corner::AT_REST;
     let mut prev_d_in = 0.0;
     let mut inv_a = [0.0; MAX_AXES];
@@ -402,7 +489,7 @@ fn prepare(
         path_a: cfg.path_a,
         n_axes,
     };
-    for (index, mv) in moves.enumerate() {
+    for (index, (mv, here)) in moves.enumerate() {
         if u32::try_from(index).is_err() {
             return Err(PlanError::TooManyMoves { count: index + 1 });
         }
@@ -464,6 +551,9 @@ fn prepare(
                 segments.push(skeleton(0.0, mv, index));
                 points.extend_from_slice(&q[..n_axes]);
                 kin.push(Kin::default());
+                if blending {
+                    info.push(blend::MoveInfo::REST);
+                }
                 prev_stop = true;
             }
             continue;
@@ -507,7 +597,13 @@ fn prepare(
         for axis in 0..n_axes {
             dir[axis] = dq[axis] / scale;
         }
+        // Both moves keep the velocity-step model at their corner (`Along::step_corners`).
+        let stepped = here.step_corners && prev_along.step_corners;
         let (entry_cap, corner, d_in) = match kin.last_mut() {
+            // Blended corners are judged once every move is known (`blend::split`).
+            Some(prev) if blending && !prev_stop && !stepped => {
+                (v.min(prev.v), junction::Corner::AT_REST, 0.0)
+            }
             Some(prev) if !prev_stop => {
                 let c = if euclidean && prev_euclidean {
                     corners.corner(&prev_dir, &dir, prev.a, a, prev.len, mv.length)
@@ -537,6 +633,19 @@ fn prepare(
         };
         prev_corner = corner;
         prev_d_in = d_in;
+        if blending {
+            let mut rate = Axes::ZERO;
+            for axis in 0..n_axes {
+                rate[axis] = dq[axis] / mv.length;
+            }
+            info.push(blend::MoveInfo {
+                rate,
+                euclidean,
+                stop_before: prev_stop,
+                part_dir: here.part_dir,
+                stepped_before: stepped && !prev_stop,
+            });
+        }
         segments.push(skeleton(mv.length, mv, index));
         points.extend_from_slice(&q[..n_axes]);
         kin.push(Kin {
@@ -547,15 +656,29 @@ fn prepare(
             cap: entry_cap,
         });
         prev_stop = stop;
+        prev_along = here;
         prev_dir = dir;
         prev_euclidean = euclidean;
         q = mv.target;
     }
-    Ok(Prepared {
+    let prepared = Prepared {
         segments,
         points,
         kin,
         end: q,
+        blends: Vec::new(),
+    };
+    Ok(if blending {
+        blend::split(
+            prepared,
+            &info,
+            start,
+            cfg.junction_deviation,
+            limits,
+            n_axes,
+        )
+    } else {
+        prepared
     })
 }
 
@@ -568,6 +691,8 @@ struct Prepared {
     kin: Vec<Kin>,
     /// The last target.
     end: Axes,
+    /// The corner blends the segments refer to (`Corners::Blend`).
+    blends: Vec<Blend>,
 }
 
 /// Share of the acceleration limit a chord of a curve gives to the centripetal acceleration;
@@ -628,5 +753,6 @@ fn skeleton(length: f64, mv: &Move, index: usize) -> Segment {
         feed: mv.feed,
         tag: mv.tag,
         move_index: index as u32,
+        blend: plan::NO_BLEND,
     }
 }

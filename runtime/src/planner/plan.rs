@@ -1,7 +1,8 @@
 //! The planned timeline: compact per-move segments and exact sampling of them.
 //!
 //! A [`Segment`] stores only what cannot be recomputed cheaply: its start time and path
-//! distance, the three characteristic speeds and the phase durations (112 bytes). Peak
+//! distance, the three characteristic speeds, the phase durations and its corner blend, if any
+//! (120 bytes). Peak
 //! acceleration and jerk follow from those (`a_p = Δv / (t_j + t_a)`, `J = a_p / t_j`), and so
 //! do axis quantities through the move's direction `u = Δq / length` (q(s) = q0 + u·s). The
 //! axis positions live beside the segments in one flat table of the axes in use (a 2-axis plan
@@ -9,6 +10,7 @@
 //! (the plan's end for the last). [`Plan::sample`] finds the segment by binary search on
 //! `t_start` and evaluates the phase polynomials in closed form.
 
+use super::blend::Blend;
 use super::profile::Shape;
 use super::{Axes, MAX_AXES};
 
@@ -50,10 +52,16 @@ pub struct Segment {
     pub tag: u32,
     /// Index of the move in the input slice (zero-length moves are merged, so indices can skip).
     pub move_index: u32,
+    /// The corner blend this segment follows ([`Plan::blend_of`]), or [`NO_BLEND`] for a
+    /// straight piece: `2·index` for the half before the corner, `2·index + 1` after it.
+    pub blend: u32,
 }
 
+/// [`Segment::blend`] of a straight segment.
+pub const NO_BLEND: u32 = u32::MAX;
+
 // The memory budget of a plan (`planner` module doc) counts on it.
-const _: () = assert!(std::mem::size_of::<Segment>() == 112);
+const _: () = assert!(std::mem::size_of::<Segment>() == 120);
 
 impl Segment {
     #[inline]
@@ -167,6 +175,8 @@ pub struct Plan {
     pub(crate) end: Axes,
     pub(crate) duration: f64,
     pub(crate) n_axes: usize,
+    /// The corner blends segments refer to (`Segment::blend`).
+    pub(crate) blends: Vec<Blend>,
 }
 
 impl Plan {
@@ -216,6 +226,20 @@ impl Plan {
     /// Axis positions at the end of segment `i` (clamped to the last segment).
     pub fn segment_target(&self, i: usize) -> Axes {
         self.segment_start((i + 1).min(self.segments.len()))
+    }
+
+    /// The corner blend segment `i` follows, and whether it is the half after the corner.
+    pub fn blend_of(&self, i: usize) -> Option<(&Blend, bool)> {
+        let b = self.segments.get(i)?.blend;
+        if b == NO_BLEND {
+            return None;
+        }
+        Some((self.blends.get((b / 2) as usize)?, b % 2 == 1))
+    }
+
+    /// Every corner blend of the plan, in order.
+    pub fn blends(&self) -> &[Blend] {
+        &self.blends
     }
 
     /// Axis motion per unit path of segment `i`, `u = Δq / length` (zero for a standstill).
@@ -287,7 +311,18 @@ impl Plan {
             jerk: Axes::ZERO,
             dwelling,
         };
-        if seg.length > 0.0 {
+        if let Some((b, after)) = self.blend_of(i) {
+            // x = (σ + ℓ)/(2ℓ): the half before the corner runs σ from −ℓ to 0, the one after
+            // from 0 to ℓ (`blend`).
+            let x = 0.5 * (s / b.reach) + if after { 0.5 } else { 0.0 };
+            let [pos, vel, acc, jerk] = b.state(x, v, a, j);
+            for k in 0..self.n_axes {
+                out.pos[k] = pos[k];
+                out.vel[k] = vel[k];
+                out.acc[k] = acc[k];
+                out.jerk[k] = jerk[k];
+            }
+        } else if seg.length > 0.0 {
             // q(s) = q0 + (s / length)·Δq, exact at both ends of the move.
             let frac = s / seg.length;
             for k in 0..MAX_AXES {

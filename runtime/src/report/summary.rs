@@ -142,7 +142,15 @@ pub fn summarize(job: &Job) -> Summary {
         pulses_moving: moving,
         pulses_standstill: standstill,
         standstill_fire_time_s: round_sig(fire_time),
-        blocks: job.plan.segments().len(),
+        // One block per planned move: a move blended at its corners is up to three segments
+        // (`planner::blend`), all with the move's index.
+        blocks: job
+            .plan
+            .segments()
+            .iter()
+            .enumerate()
+            .filter(|(i, s)| *i == 0 || job.plan.segments()[i - 1].move_index != s.move_index)
+            .count(),
         ops: job.program.ops.len(),
         axes,
     }

@@ -53,6 +53,12 @@ pub struct AxisWorst {
 /// Samples `job` every `period` s over its whole cycle and returns each axis's worst
 /// finite-difference velocity, acceleration and jerk against the job's axis limits.
 pub fn worst_per_axis(job: &Job, period: f64) -> Vec<AxisWorst> {
+    worst_per_axis_outside(job, period, &[])
+}
+
+/// [`worst_per_axis`] without the samples whose differences reach within 4 periods of one of
+/// the job times `skip` (sorted).
+pub fn worst_per_axis_outside(job: &Job, period: f64, skip: &[f64]) -> Vec<AxisWorst> {
     let machine = &job.program.machine;
     let n_axes = machine.axes.len();
     let scurve = job.program.planner.ramp == Ramp::Scurve;
@@ -87,6 +93,13 @@ pub fn worst_per_axis(job: &Job, period: f64) -> Vec<AxisWorst> {
             let v = (x - x0[i]) / period;
             let a = (v - v0[i]) / period;
             let j = (a - a0[i]) / period;
+            let near = skip
+                .get(skip.partition_point(|&s| s < t - 4.0 * period))
+                .is_some_and(|&s| s <= t + 4.0 * period);
+            if near {
+                (x0[i], v0[i], a0[i]) = (x, v, a);
+                continue;
+            }
             w.v.take(ext(v), ext(lim.v), t, s.tag);
             w.a.take(ext(a), ext(lim.a), t, s.tag);
             // Differences before the first sample start from rest, as a job does.
