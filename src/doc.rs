@@ -113,6 +113,7 @@ pub fn topics() -> Vec<&'static str> {
     t.extend(schema::CONSTANTS.iter().map(|c| c.0));
     t.push("scan");
     t.push("machines");
+    t.push("trace");
     t.extend(schema::SCAN_KINDS.iter().map(|k| k.name));
     t.sort_unstable();
     t.dedup();
@@ -500,11 +501,44 @@ pub fn stdlib_topic(topic: &str) -> Option<String> {
             "`machine NAME` selects one; `machine \"file.toml\"` takes your own. stdlib/machines/README.md documents every field.",
             2,
         );
+    } else if topic == "trace" {
+        // The columns of `lase plan --trace` (report::write_trace), issue 15.
+        let _ = writeln!(
+            out,
+            "lase plan FILE --trace OUT.csv [--period 1ms]: one row per period, and one at the cycle's end"
+        );
+        for (col, doc) in TRACE_COLUMNS {
+            let _ = writeln!(out, "  {col:<8} {doc}");
+        }
     } else {
         return None;
     }
     Some(out)
 }
+
+/// The trace's columns and what each holds.
+const TRACE_COLUMNS: &[(&str, &str)] = &[
+    ("t", "job time, s"),
+    (
+        "<axes>",
+        "each machine axis by its name, mm (deg for rotary axes)",
+    ),
+    ("px py pz", "the spot in part coordinates, mm"),
+    ("v a", "path speed (mm/s) and acceleration (mm/s^2)"),
+    (
+        "laser",
+        "1 while a lit move runs (the beam of the path), else 0",
+    ),
+    (
+        "power",
+        "laser power, W (0 when off; P_set * v / F when coupled to speed)",
+    ),
+    (
+        "pulses",
+        "pulses fired at or before t, on the fly and in dot mode alike: a dot-mode window \
+         fires at rest with `laser` 0, so its pulses show here, where the spot stands",
+    ),
+];
 
 /// `lase doc [NAME]`: the language topics of [`render`] and the standard library's.
 pub fn lookup(topic: Option<&str>) -> Option<String> {
@@ -574,7 +608,11 @@ pub fn reference_markdown() -> String {
     let modules: Vec<String> = lase_stdlib::module_names()
         .map(|m| format!("stdlib::{m}"))
         .collect();
-    let tail: &[(&str, &str)] = &[("Process presets", "presets"), ("Machines", "machines")];
+    let tail: &[(&str, &str)] = &[
+        ("Process presets", "presets"),
+        ("Machines", "machines"),
+        ("Trace columns", "trace"),
+    ];
     let sections = sections
         .iter()
         .map(|&(t, k)| (t, k))

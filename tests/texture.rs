@@ -312,10 +312,24 @@ fn dot_mode_fires_n_pulses_at_rest_on_each_spot() {
         // 5 kHz: 0.2 ms apart.
         assert!((trio[1].t - trio[0].t - 2e-4).abs() < 1e-9);
     }
-    let (code, ngc, err) = lase(&["emit", recipe.to_str().unwrap()]);
+    // 5 kHz bursts are over both controllers' pulse budgets (xy_table: LinuxCNC 500 Hz,
+    // GRBL 300 Hz), refused at the scan; at 250 Hz both write every pulse.
+    for dialect in ["linuxcnc", "grbl"] {
+        let (code, _, err) = lase(&["emit", recipe.to_str().unwrap(), "--dialect", dialect]);
+        assert_eq!(code, 1, "{dialect}: {err}");
+        assert!(err.contains("lase::emit::pulse_budget"), "{dialect}: {err}");
+    }
+    let slow = write_file(
+        dir.path(),
+        "dots_250.lase",
+        &std::fs::read_to_string(&recipe)
+            .unwrap()
+            .replace("rate 5 kHz", "rate 250 Hz"),
+    );
+    let (code, ngc, err) = lase(&["emit", slow.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
     assert_eq!(ngc.matches("M64 P1").count(), 36);
-    let (code, nc, err) = lase(&["emit", recipe.to_str().unwrap(), "--dialect", "grbl"]);
+    let (code, nc, err) = lase(&["emit", slow.to_str().unwrap(), "--dialect", "grbl"]);
     assert_eq!(code, 0, "{err}");
     assert_eq!(nc.matches("M3 S").count(), 36);
 }

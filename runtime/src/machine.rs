@@ -129,10 +129,26 @@ pub struct DialectPost {
     /// is on, and no per-pulse lines are written.
     #[serde(default)]
     pub pso: Vec<String>,
+    /// The pulse budget of this controller (issue 15): the fastest pulse rate it can trigger
+    /// as this post writes pulses (`max_pulse_rate`; LinuxCNC: a synchronized output switches
+    /// once per servo period), and the most pulses one job may fire (`max_pulses`). `None`:
+    /// no limit lase knows of. Checked before a program is written (`emit::validate`).
+    #[serde(default)]
+    pub budget: PulseBudget,
     /// Where each template line is written in the machine file, so a diagnostic about one
     /// line points at it (empty for a post not read from a file).
     #[serde(skip)]
     pub spans: PostSpans,
+}
+
+/// A controller's pulse limits (`max_pulse_rate`, `max_pulses` of `[post.<dialect>]`), with
+/// where the machine file states them.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PulseBudget {
+    pub max_rate_hz: Option<f64>,
+    pub max_pulses: Option<u64>,
+    #[serde(skip)]
+    pub spans: [Option<Span>; 2],
 }
 
 /// The machine-file spans of a post's template lines, one per line in the order written.
@@ -338,6 +354,10 @@ struct FilePost {
     pulse_off: Vec<toml::Spanned<String>>,
     #[serde(default)]
     pso: Vec<String>,
+    #[serde(default)]
+    max_pulse_rate: Option<toml::Spanned<String>>,
+    #[serde(default)]
+    max_pulses: Option<toml::Spanned<u64>>,
 }
 
 fn texts(lines: &[toml::Spanned<String>]) -> Vec<String> {
@@ -747,32 +767,46 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
         Some(s) => positive(qty(s, &[Dim::LENGTH], "arc_tolerance")?, s, "arc_tolerance")?,
         None => 0.002,
     };
-    let post = file
-        .post
-        .into_iter()
-        .map(|(k, p)| {
-            (
-                k,
-                DialectPost {
-                    laser_on: texts(&p.laser_on),
-                    laser_off: texts(&p.laser_off),
-                    power: texts(&p.power),
-                    s_max: p.s_max,
-                    laser_switch_stops: p.laser_switch_stops,
-                    pulse_on: texts(&p.pulse_on),
-                    pulse_off: texts(&p.pulse_off),
-                    pso: p.pso,
-                    spans: PostSpans {
-                        laser_on: p.laser_on.iter().map(|l| at(l.span())).collect(),
-                        laser_off: p.laser_off.iter().map(|l| at(l.span())).collect(),
-                        power: p.power.iter().map(|l| at(l.span())).collect(),
-                        pulse_on: p.pulse_on.iter().map(|l| at(l.span())).collect(),
-                        pulse_off: p.pulse_off.iter().map(|l| at(l.span())).collect(),
-                    },
+    let mut post = BTreeMap::new();
+    for (k, p) in file.post {
+        let max_rate_hz = match &p.max_pulse_rate {
+            Some(r) => Some(positive(
+                qty(r, &[Dim::FREQUENCY], "max_pulse_rate")?,
+                r,
+                "max_pulse_rate",
+            )?),
+            None => None,
+        };
+        let budget = PulseBudget {
+            max_rate_hz,
+            max_pulses: p.max_pulses.as_ref().map(|n| *n.get_ref()),
+            spans: [
+                p.max_pulse_rate.as_ref().map(|r| at(r.span())),
+                p.max_pulses.as_ref().map(|n| at(n.span())),
+            ],
+        };
+        post.insert(
+            k,
+            DialectPost {
+                laser_on: texts(&p.laser_on),
+                laser_off: texts(&p.laser_off),
+                power: texts(&p.power),
+                s_max: p.s_max,
+                laser_switch_stops: p.laser_switch_stops,
+                pulse_on: texts(&p.pulse_on),
+                pulse_off: texts(&p.pulse_off),
+                pso: p.pso,
+                budget,
+                spans: PostSpans {
+                    laser_on: p.laser_on.iter().map(|l| at(l.span())).collect(),
+                    laser_off: p.laser_off.iter().map(|l| at(l.span())).collect(),
+                    power: p.power.iter().map(|l| at(l.span())).collect(),
+                    pulse_on: p.pulse_on.iter().map(|l| at(l.span())).collect(),
+                    pulse_off: p.pulse_off.iter().map(|l| at(l.span())).collect(),
                 },
-            )
-        })
-        .collect();
+            },
+        );
+    }
     let mut events = BTreeMap::new();
     for (k, e) in file.events {
         let dwell_s = match &e.dwell {

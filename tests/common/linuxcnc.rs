@@ -9,7 +9,7 @@
 //! As root (CI), LinuxCNC's `rtapi_app` needs `RTAPI_UID`, an unprivileged uid it runs as,
 //! and `RTAPI_FIFO_PATH`, the path of its master socket in a folder that uid can write.
 
-use lase_runtime::link::linuxcnc::config::{self, ConfigOptions};
+use lase_runtime::link::linuxcnc::config::{self, ConfigOptions, ScaleError};
 use lase_runtime::link::linuxcnc::{ProgramStatus, Rsh};
 use lase_runtime::machine::Machine;
 use std::io::{BufRead, BufReader};
@@ -99,6 +99,9 @@ pub struct Sample {
     pub aout: f64,
     /// `motion.program-line`.
     pub line: i32,
+    /// The scales' readings (`motion.analog-in-NN` of X, Y) when started `with_scales`;
+    /// empty otherwise.
+    pub ain: Vec<f64>,
 }
 
 /// A headless LinuxCNC for one machine.
@@ -106,6 +109,8 @@ pub struct Headless {
     dir: PathBuf,
     pub port: u16,
     n_joints: usize,
+    /// Sampled columns after the joints and `SAMPLED_AFTER_JOINTS`.
+    n_extra: usize,
     linuxcnc: Child,
     sampler: Option<Child>,
     samples_path: PathBuf,
@@ -135,6 +140,12 @@ const RTAPI_UID: u32 = 65534;
 impl Headless {
     /// Starts LinuxCNC for `machine` and waits until linuxcncrsh answers.
     pub fn start(machine: &Machine) -> Headless {
+        Headless::with_scales(machine, None)
+    }
+
+    /// As `start`, with X and Y scales reading the joints with the error `scales` on the
+    /// machine's settle inputs (`config::ScaleError`), sampled into `Sample::ain`.
+    pub fn with_scales(machine: &Machine, scales: Option<ScaleError>) -> Headless {
         let lock = Lock::take();
         let port = free_port();
         let dir = std::env::temp_dir().join(format!(
@@ -148,9 +159,11 @@ impl Headless {
             machine,
             &ConfigOptions {
                 port,
+                scales,
                 ..ConfigOptions::default()
             },
         );
+        let cfg_extra = cfg.extra_sampled.len();
         std::fs::write(dir.join("lase.ini"), cfg.ini).unwrap();
         std::fs::write(dir.join("lase.hal"), cfg.hal).unwrap();
         std::fs::write(dir.join("lase.tbl"), "").unwrap();
@@ -171,6 +184,7 @@ impl Headless {
             dir,
             port,
             n_joints: machine.axes.len(),
+            n_extra: cfg_extra,
             linuxcnc,
             sampler: None,
             _lock: lock,
@@ -294,7 +308,7 @@ impl Headless {
         let text = std::fs::read_to_string(&self.samples_path).unwrap_or_default();
         text.lines()
             .rev()
-            .filter(|l| l.split_whitespace().count() == 1 + self.n_joints + 4)
+            .filter(|l| l.split_whitespace().count() == 1 + self.n_joints + 4 + self.n_extra)
             .find_map(|l| l.split_whitespace().next()?.parse().ok())
             .unwrap_or(0)
     }
@@ -313,7 +327,7 @@ impl Headless {
         for line in BufReader::new(f).lines() {
             let Ok(line) = line else { break };
             let w: Vec<&str> = line.split_whitespace().collect();
-            if w.len() != 1 + self.n_joints + 4 {
+            if w.len() != 1 + self.n_joints + 4 + self.n_extra {
                 continue; // a torn last line
             }
             let Ok(n) = w[0].parse::<u64>() else { continue };
@@ -327,6 +341,7 @@ impl Headless {
                 dout: [w[j + 1] == "1", w[j + 2] == "1"],
                 aout: f(w[j + 3]),
                 line: w[j + 4].parse().unwrap_or(-1),
+                ain: w[j + 5..].iter().map(|s| f(s)).collect(),
             });
         }
         out

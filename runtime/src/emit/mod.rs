@@ -262,6 +262,19 @@ pub enum EmitError {
         help: String,
     },
 
+    /// The job fires pulses faster, or more of them, than the controller's pulse budget in
+    /// the machine file allows (`max_pulse_rate`, `max_pulses` of `[post.<dialect>]`).
+    #[error("{message}")]
+    #[diagnostic(code(lase::emit::pulse_budget))]
+    PulseBudget {
+        message: String,
+        #[label("{label}")]
+        span: Span,
+        label: String,
+        #[help]
+        help: String,
+    },
+
     #[error("machine `{machine}` has no post for {dialect}")]
     #[diagnostic(code(lase::emit::no_post))]
     NoPost {
@@ -317,6 +330,7 @@ pub fn emit(
         validate::check_settles(&job.program, dialect)?;
     }
     let checked = validate::validate(job, dialect)?;
+    validate::check_pulse_budget(job, dialect, checked.post)?;
     // Settled rows go out relative to their settled start (`relative`), whether a live link
     // or the control settles them.
     let rows = relative::row_ranges(&job.program);

@@ -674,3 +674,79 @@ pub(super) fn check_settles(
         help,
     })
 }
+
+/// Holds the job's pulses to the controller's pulse budget (`PulseBudget` of the post): no two
+/// planned pulses closer in time than `1 / max_pulse_rate` (the rate the controller has to
+/// trigger, ramps and dot-mode windows included), and at most `max_pulses` in the job. The
+/// diagnostic points at the recipe statement of the first pulse over the budget.
+pub(super) fn check_pulse_budget(
+    job: &Job,
+    dialect: Dialect,
+    post: &DialectPost,
+) -> Result<(), EmitError> {
+    use lase_lang::units::{Dim, format_quantity};
+    let budget = &post.budget;
+    if budget.max_rate_hz.is_none() && budget.max_pulses.is_none() {
+        return Ok(());
+    }
+    let ops = &job.program.ops;
+    let name = &job.program.machine.name;
+    let key = dialect
+        .lookup(&job.program.machine.post)
+        .map_or("…", |(k, _)| k);
+    let min_interval = budget.max_rate_hz.map(|r| 1.0 / r);
+    let mut last_t: Option<f64> = None;
+    let mut count: u64 = 0;
+    for p in crate::report::pulse_events(job) {
+        count += 1;
+        let op = &ops[p.op as usize];
+        if let Some(max) = budget.max_pulses.filter(|&m| count > m) {
+            return Err(EmitError::PulseBudget {
+                message: format!(
+                    "the job fires more than {max} pulses, the most {} takes in one job",
+                    controller(dialect)
+                ),
+                span: op.span,
+                label: format!("pulse {count} is fired here"),
+                help: format!(
+                    "split the job (fewer passes or a smaller array per job); `max_pulses` of \
+                     [post.{key}] in machine `{name}` sets the limit"
+                ),
+            });
+        }
+        if let (Some(min), Some(t0)) = (min_interval, last_t) {
+            let dt = p.t - t0;
+            // A relative margin: a rate computed to equal the limit passes.
+            if dt < min * (1.0 - 1e-9) {
+                let max = budget.max_rate_hz.unwrap_or_default();
+                let slower = match op.laser().and_then(|l| l.pulse.as_ref()).map(|p| p.mode) {
+                    Some(PulseMode::Distance { pitch_mm }) => format!(
+                        "with pulses every {} the fastest speed {} triggers is {}",
+                        format_quantity(pitch_mm, Dim::LENGTH),
+                        controller(dialect),
+                        format_quantity(max * pitch_mm, Dim::SPEED)
+                    ),
+                    _ => format!(
+                        "space the pulses at least {} apart (a lower pulse `rate`)",
+                        format_quantity(1.0 / max, Dim::TIME)
+                    ),
+                };
+                return Err(EmitError::PulseBudget {
+                    message: format!(
+                        "pulses at {} are faster than {} triggers them ({} at most)",
+                        format_quantity(1.0 / dt.max(1e-12), Dim::FREQUENCY),
+                        controller(dialect),
+                        format_quantity(max, Dim::FREQUENCY)
+                    ),
+                    span: op.span,
+                    label: format!("pulse {count} follows the one before it too soon"),
+                    help: format!(
+                        "{slower}; `max_pulse_rate` of [post.{key}] in machine `{name}` sets the limit"
+                    ),
+                });
+            }
+        }
+        last_t = Some(p.t);
+    }
+    Ok(())
+}

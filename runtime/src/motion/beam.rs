@@ -158,6 +158,7 @@ mod tests {
             pulse_on: vec![],
             pulse_off: vec![],
             pso: vec![],
+            budget: Default::default(),
             spans: Default::default(),
         }
     }

@@ -5,6 +5,13 @@
 //! servo period with `sampler`: the joint positions, the beam's digital outputs 0 and 1, its
 //! analog output 0 and the program line. The headless test harness runs it; an integrator
 //! can start from it.
+//!
+//! With `ConfigOptions::scales` the HAL also stands in for the linear scales an NC program
+//! settles its row starts on (issue 15, `emit::writer::settle`): each of X and Y reads its
+//! joint's position through a `sum2` (reading = gain · position + offset, a scale mounted
+//! off by a constant and a scale whose length is off), fed to the analog input the machine
+//! file's `[settle] linuxcnc` names and sampled after the columns above. HAL alone has to
+//! model the error: a program cannot be paused between rows to change it from outside.
 
 use crate::axes::to_external;
 use crate::machine::{AxisKind, Machine};
@@ -25,6 +32,26 @@ pub struct ConfigOptions {
     /// LinuxCNC on a loaded computer misses it (1 start in about 12 ended its first program
     /// early with load 15 on two cores), so the default here is generous.
     pub comm_timeout_s: f64,
+    /// Scales on X and Y with an injected error, wired to the machine's settle inputs.
+    pub scales: Option<ScaleError>,
+}
+
+/// How far the simulated scales' readings are off the joints' positions: for X and Y,
+/// reading = `gain` · position + `offset_mm` (mm).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScaleError {
+    pub offset_mm: [f64; 2],
+    pub gain: [f64; 2],
+}
+
+impl ScaleError {
+    /// What the scales read with the joints at `x`, `y` (mm).
+    pub fn reading(&self, x: f64, y: f64) -> [f64; 2] {
+        [
+            self.gain[0] * x + self.offset_mm[0],
+            self.gain[1] * y + self.offset_mm[1],
+        ]
+    }
 }
 
 impl Default for ConfigOptions {
@@ -34,6 +61,7 @@ impl Default for ConfigOptions {
             servo_period_ns: 1_000_000,
             sampler_depth: 16_000,
             comm_timeout_s: 60.0,
+            scales: None,
         }
     }
 }
@@ -53,6 +81,9 @@ pub const SAMPLED_AFTER_JOINTS: [&str; 4] = [
 pub struct Config {
     pub ini: String,
     pub hal: String,
+    /// The sampled columns after `SAMPLED_AFTER_JOINTS`: the scales' analog inputs (X, Y)
+    /// when `ConfigOptions::scales` asks for them.
+    pub extra_sampled: Vec<String>,
 }
 
 /// The NC letter of each machine axis (its name's first character).
@@ -136,28 +167,65 @@ pub fn generate(machine: &Machine, options: &ConfigOptions) -> Config {
             limits(a.kind, a)
         );
     }
+    // The scales: (joint, analog input) of X and Y.
+    let scales: Vec<(usize, u32)> = match options.scales {
+        Some(_) => {
+            let inputs = machine.settle.linuxcnc_inputs.unwrap_or([0, 1]);
+            ["X", "Y"]
+                .iter()
+                .zip(inputs)
+                .filter_map(|(l, e)| Some((machine.axis_index(l)?, e)))
+                .collect()
+        }
+        None => Vec::new(),
+    };
+    let extra_sampled: Vec<String> = scales
+        .iter()
+        .map(|(_, e)| format!("motion.analog-in-{e:02}"))
+        .collect();
+    // Analog output 0 is the power; the inputs share the count.
+    let num_aio = scales.iter().map(|(_, e)| e + 1).fold(1, u32::max);
     let mut hal = format!(
         "# HAL for lase machine `{name}`: simulated joints, sampled every servo period.\n\
          loadrt [KINS]KINEMATICS\n\
-         loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS num_dio=2 num_aio=1\n\
+         loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS num_dio=2 num_aio={num_aio}\n\
          loadrt sampler depth={depth} cfg={cfg}\n\
          addf motion-command-handler servo-thread\n\
          addf motion-controller servo-thread\n",
         name = machine.name,
         depth = options.sampler_depth,
-        cfg = "f".repeat(n) + "bbfs",
+        cfg = "f".repeat(n) + "bbfs" + "f".repeat(scales.len()).as_str(),
     );
     for j in 0..n {
         hal += &format!(
             "net j{j} joint.{j}.motor-pos-cmd => joint.{j}.motor-pos-fb sampler.0.pin.{j}\n"
         );
     }
+    if let (Some(err), false) = (options.scales, scales.is_empty()) {
+        hal += &format!("loadrt sum2 count={}\n", scales.len());
+        for (k, &(j, e)) in scales.iter().enumerate() {
+            // The joint's net carries its position; the scale reads it through sum2.
+            hal += &format!(
+                "addf sum2.{k} servo-thread\n\
+                 setp sum2.{k}.gain0 {}\nsetp sum2.{k}.offset {}\n\
+                 net j{j} => sum2.{k}.in0\n\
+                 net scale{k} sum2.{k}.out => motion.analog-in-{e:02} sampler.0.pin.{}\n",
+                num(err.gain[k]),
+                num(err.offset_mm[k]),
+                n + SAMPLED_AFTER_JOINTS.len() + k,
+            );
+        }
+    }
     for (k, pin) in SAMPLED_AFTER_JOINTS.iter().enumerate() {
         hal += &format!("net s{k} {pin} => sampler.0.pin.{}\n", n + k);
     }
     hal += "addf sampler.0 servo-thread\n\
             net estop-loop iocontrol.0.user-enable-out => iocontrol.0.emc-enable-in\n";
-    Config { ini, hal }
+    Config {
+        ini,
+        hal,
+        extra_sampled,
+    }
 }
 
 #[cfg(test)]
@@ -184,5 +252,54 @@ mod tests {
             c.hal
                 .contains("net s3 motion.program-line => sampler.0.pin.6")
         );
+    }
+
+    #[test]
+    fn scales_read_x_and_y_through_sum2_on_the_settle_inputs() {
+        let m =
+            crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
+        let c = generate(
+            &m,
+            &ConfigOptions {
+                scales: Some(ScaleError {
+                    offset_mm: [0.0037, -0.0042],
+                    gain: [1.0015, 0.999],
+                }),
+                ..ConfigOptions::default()
+            },
+        );
+        // Two inputs beside the power output; the sampler records them after the program line.
+        assert!(c.hal.contains("num_dio=2 num_aio=2\n"), "{}", c.hal);
+        assert!(c.hal.contains("cfg=ffbbfsff"), "{}", c.hal);
+        assert!(
+            c.hal.contains(
+                "setp sum2.0.gain0 1.0015\nsetp sum2.0.offset 0.0037\nnet j0 => sum2.0.in0\n"
+            ),
+            "{}",
+            c.hal
+        );
+        assert!(
+            c.hal
+                .contains("net scale1 sum2.1.out => motion.analog-in-01 sampler.0.pin.7\n"),
+            "{}",
+            c.hal
+        );
+        assert_eq!(
+            c.extra_sampled,
+            ["motion.analog-in-00", "motion.analog-in-01"]
+        );
+        let r = ScaleError {
+            offset_mm: [0.0037, -0.0042],
+            gain: [1.0015, 0.999],
+        }
+        .reading(2.0, 1.0);
+        assert!(
+            (r[0] - 2.0067).abs() < 1e-12 && (r[1] - 0.9948).abs() < 1e-12,
+            "{r:?}"
+        );
+        // Without scales nothing changes.
+        let plain = generate(&m, &ConfigOptions::default());
+        assert!(plain.hal.contains("num_aio=1\n") && !plain.hal.contains("sum2"));
+        assert!(plain.extra_sampled.is_empty());
     }
 }

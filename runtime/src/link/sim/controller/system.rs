@@ -188,7 +188,12 @@ impl Controller {
                 for b in chords {
                     self.push_block(b);
                 }
-                self.state = St::Jog;
+                // GRBL's jog_execute enters Jog only "if there is a block to execute": a jog
+                // under a step is dropped by the planner, and a Jog state with nothing to run
+                // would never end. The parser's position moves either way.
+                if !self.planner.is_empty() {
+                    self.state = St::Jog;
+                }
                 self.gc.pos = mv.target;
             }
         }
