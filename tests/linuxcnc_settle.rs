@@ -128,7 +128,7 @@ fn linuxcnc_settles_every_row_start_on_scales_with_an_injected_error() {
 
     let m =
         lase_runtime::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
-    let lcnc = Headless::with_scales(&m, Some(SCALES));
+    let mut lcnc = Headless::with_scales(&m, Some(SCALES));
     // On this loaded computer LinuxCNC sometimes reports a program IDLE part-way, without an
     // error, and the table stays where it was (seen once in three runs, at a row start after
     // a settling step): the intermittent early end `common::linuxcnc` describes. Such a run

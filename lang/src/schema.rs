@@ -883,8 +883,8 @@ pub const SCAN_KINDS: &[ScanKind] = &[
 ];
 
 mod image;
-pub use image::{IMAGE_DITHERS, IMAGE_MODES};
 use image::IMAGE_SCAN;
+pub use image::{IMAGE_DITHERS, IMAGE_MODES};
 
 pub fn scan_kind(name: &str) -> Option<&'static ScanKind> {
     SCAN_KINDS.iter().find(|k| k.name == name)

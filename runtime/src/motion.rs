@@ -518,7 +518,15 @@ impl Lowering<'_> {
             } else {
                 planner::Along::default()
             };
-            push_line(&mut low.queue, low.q_prev, q, dist(low.pos, p), feed, tag, along);
+            push_line(
+                &mut low.queue,
+                low.q_prev,
+                q,
+                dist(low.pos, p),
+                feed,
+                tag,
+                along,
+            );
             low.pos = p;
             low.q_prev = q;
             Ok(())

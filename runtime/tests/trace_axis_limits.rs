@@ -236,11 +236,18 @@ fn the_checker_finds_no_violation_where_there_is_none_and_the_corner_step_where_
     // The same two moves, as `motion` lowers them (the job keeps no move list).
     let moves: Vec<planner::Move> = (0..job.op_axes.len())
         .map(|i| {
-            let from = if i == 0 { job.start } else { job.op_axes.get(i - 1) };
+            let from = if i == 0 {
+                job.start
+            } else {
+                job.op_axes.get(i - 1)
+            };
             let to = job.op_axes.get(i);
             planner::Move {
                 target: to,
-                length: (0..2).map(|k| (to[k] - from[k]).powi(2)).sum::<f64>().sqrt(),
+                length: (0..2)
+                    .map(|k| (to[k] - from[k]).powi(2))
+                    .sum::<f64>()
+                    .sqrt(),
                 feed: 20.0,
                 stop_after: false,
                 dwell_after: 0.0,
