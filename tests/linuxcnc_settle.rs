@@ -4,9 +4,9 @@
 //! (`config::ScaleError`). From the HAL samples (1 ms), at each row start: what the scales read
 //! when the approach arrived (open loop) and when the table last stood there before its row
 //! (settled), against the target the program names; and how many corrective moves it took.
-//! Skips, saying so, without LinuxCNC (opt-in: `LASE_LINUXCNC_TESTS=1`).
+//! Skips, saying so, without LinuxCNC (or with `LASE_LINUXCNC_TESTS=0`).
 //!
-//! `LASE_LINUXCNC_TESTS=1 cargo test --test linuxcnc_settle -- --nocapture`
+//! `cargo test --test linuxcnc_settle -- --nocapture`
 
 mod common;
 
