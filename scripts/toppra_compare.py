@@ -22,6 +22,10 @@ C. S-curve: TOPP-RA has no jerk limit, so the fair comparison is lase's S-curve 
    moves of A and B, against the same bounds (ratio <= 1.01), and against lase's own trapezoid
    plan of the same moves (within 1e-4): the S-curve machinery costs nothing when jerk does
    not bind. The S-curve at the xy_table's real jerk (50 m/s^3) is printed for scale only.
+D. S-curve where the jerk binds (50 m/s^3, the xy_table's): lase's plan of A's lines, stopping
+   at each corner, against Ruckig's time-optimal jerk-limited motion per line, rest to rest,
+   with the same per-axis v, a and j (phase-synchronized, so on the straight line): ratio
+   >= 0.999 and <= 1.01.
 
 TOPP-RA's grid is refined until its bound converges: the grid doubles until the bound moves by
 at most 1.5e-4 (relative) between two grids. On B the bound falls with first-order error (each
@@ -35,12 +39,13 @@ gave the same 652 moves and 5.224150 s, ratio 1.0080 against the unconverged 600
 
   TOPP-RA A, grid intervals -> bound: 100: 6.361092 s, 200: 6.361054 s; converged (last change 5.9e-06 <= 1.5e-04), extrapolated bound 6.361017 s
   TOPP-RA B, grid intervals -> bound: 6000: 5.189644 s, 12000: 5.179996 s, 24000: 5.172952 s, 48000: 5.170701 s, 96000: 5.169533 s, 192000: 5.168945 s; converged (last change 1.1e-04 <= 1.5e-04), extrapolated bound 5.168356 s
-  PASS A exact corners (25 lines, stop at each corner): lase 6.361042 s, TOPP-RA bound 6.361017 s, ratio 1.0000 (ratio >= 0.999 and <= 1.01)
-  FAIL B rounded corners (R 5.0 mm, 652 lase moves): lase 5.224150 s, TOPP-RA bound 5.168356 s, ratio 1.0108 (ratio >= 0.999 and <= 1.01)
-  PASS CA S-curve, j 1e+09 mm/s^3 (cannot bind): lase 6.361092 s, TOPP-RA bound 6.361017 s, ratio 1.0000 (ratio >= 0.999 and <= 1.01)
+  PASS A exact corners (25 lines, stop at each corner): lase 6.361042 s, bound 6.361017 s, ratio 1.0000 (ratio >= 0.999 and <= 1.01)
+  FAIL B rounded corners (R 5.0 mm, 652 lase moves): lase 5.224150 s, bound 5.168356 s, ratio 1.0108 (ratio >= 0.999 and <= 1.01)
+  PASS CA S-curve, j 1e+09 mm/s^3 (cannot bind): lase 6.361092 s, bound 6.361017 s, ratio 1.0000 (ratio >= 0.999 and <= 1.01)
   PASS CA S-curve vs lase's trapezoid plan: 6.361092 s vs 6.361042 s, +7.9e-06 (|.| <= 1e-4)
-  FAIL CB S-curve, j 1e+09 mm/s^3 (cannot bind): lase 5.224184 s, TOPP-RA bound 5.168356 s, ratio 1.0108 (ratio >= 0.999 and <= 1.01)
+  FAIL CB S-curve, j 1e+09 mm/s^3 (cannot bind): lase 5.224184 s, bound 5.168356 s, ratio 1.0108 (ratio >= 0.999 and <= 1.01)
   PASS CB S-curve vs lase's trapezoid plan: 5.224184 s vs 5.224150 s, +6.5e-06 (|.| <= 1e-4)
+  PASS D S-curve, j 5e+04 mm/s^3, stop at each corner, vs Ruckig per line: lase 7.420316 s, bound 7.420316 s, ratio 1.0000 (ratio >= 0.999 and <= 1.01)
   info A S-curve, j 5e+04 mm/s^3: lase 7.420316 s, ratio 1.1665 (the jerk limit's cost; TOPP-RA has none)
   info B S-curve, j 5e+04 mm/s^3: lase 6.023892 s, ratio 1.1655 (the jerk limit's cost; TOPP-RA has none)
 
@@ -56,7 +61,7 @@ being reworked (blends); case B reports whatever lase plans.
 lase's time comes from the example binary (`bench_plan --polyline` for A, `--path` for B),
 built with `cargo build --release --example bench_plan -p lase-runtime` (the script builds it).
 
-Usage: pip install toppra && python3 scripts/toppra_compare.py
+Usage: pip install toppra ruckig && python3 scripts/toppra_compare.py
 """
 
 import json
@@ -71,6 +76,7 @@ import numpy as np
 import toppra as ta
 import toppra.algorithm as algo
 import toppra.constraint as constraint
+from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 V, A = 250.0, 2000.0
@@ -262,6 +268,24 @@ def lase_time(flag, write, jd, profile="trapezoid", jerk=None):
     return res["duration_s"], res.get("moves", res["segments"])
 
 
+def ruckig_rest_to_rest(pts, jerk):
+    """Sum over the straight pieces of Ruckig's time-optimal jerk-limited motion, rest to rest,
+    per-axis v, a and j; phase synchronization keeps both axes on the straight line."""
+    total = 0.0
+    for p, q in zip(pts[:-1], pts[1:]):
+        inp = InputParameter(2)
+        inp.current_position, inp.target_position = list(p), list(q)
+        inp.current_velocity = inp.current_acceleration = [0.0, 0.0]
+        inp.target_velocity = inp.target_acceleration = [0.0, 0.0]
+        inp.max_velocity, inp.max_acceleration, inp.max_jerk = [V] * 2, [A] * 2, [jerk] * 2
+        inp.synchronization = Synchronization.Phase
+        traj = Trajectory(2)
+        if Ruckig(2).calculate(inp, traj) != Result.Working:
+            raise RuntimeError(f"Ruckig found no trajectory from {p} to {q}")
+        total += traj.duration
+    return total
+
+
 def write_points(points):
     return lambda f: f.writelines(f"{float(p[0])!r},{float(p[1])!r}\n" for p in points)
 
@@ -272,7 +296,7 @@ def verdict(name, t_lase, bound, upper):
     ratio = t_lase / bound
     ok = ratio >= 1.0 - 1e-3 and (upper is None or ratio <= upper)
     want = "ratio >= 0.999" + (f" and <= {upper}" if upper is not None else "")
-    print(f"{'PASS' if ok else 'FAIL'} {name}: lase {t_lase:.6f} s, TOPP-RA bound {bound:.6f} s, "
+    print(f"{'PASS' if ok else 'FAIL'} {name}: lase {t_lase:.6f} s, bound {bound:.6f} s, "
           f"ratio {ratio:.4f} ({want})")
     return ok
 
@@ -305,6 +329,10 @@ def main():
         ok &= good
         print(f"{'PASS' if good else 'FAIL'} C{name} S-curve vs lase's trapezoid plan: "
               f"{t:.6f} s vs {t_trap:.6f} s, {cost:+.1e} (|.| <= 1e-4)")
+    # D: where the jerk binds, lase's S-curve stop to stop on A's lines against Ruckig.
+    t, _ = lase_time("--polyline", write_points(pts), 0.0, "scurve", JERK)
+    ok &= verdict(f"D S-curve, j {JERK:.0e} mm/s^3, stop at each corner, vs Ruckig per line", t,
+                  ruckig_rest_to_rest(pts, JERK), 1.01)
     # For scale, not asserted: the S-curve at the xy_table's own jerk, which TOPP-RA ignores.
     for name, flag, write, jd, bound in [
             ("A", "--polyline", write_points(pts), 0.0, bound_a),
