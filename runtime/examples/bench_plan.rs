@@ -6,6 +6,7 @@
 //! cargo run --release --example bench_plan -- --sweep
 //! cargo run --release --example bench_plan -- --polyline path.csv [--jd 0.01] [--v 250]
 //!     [--a 2000] [--j 50000] [--profile trapezoid|scurve]
+//! cargo run --release --example bench_plan -- --path pieces.txt [--arc-tol 0.002] [...]
 //! ```
 //!
 //! The first form (`--profile` picks one profile) generates an N-segment cornered 2-axis path (chords of 0.2–2 mm turning by
@@ -21,7 +22,15 @@
 //!
 //! The second form plans the polyline in a CSV file (one `x,y` point in mm per line, the first
 //! is the start) and prints `{"segments": n, "duration_s": t, ...}` as JSON.
+//!
+//! The third form reads a path of lines and circular arcs (`start x y`, then `line x y` and
+//! `arc x y cx cy ccw|cw` pieces, one a line, mm) and lowers it as `lase plan` does for a
+//! Cartesian machine before planning it: lines whole, every arc through lase's own
+//! [`arc_points`] at the machine's arc tolerance (`--arc-tol`, default 0.002 mm as a machine
+//! file without `arc_tolerance`). So `scripts/toppra_compare.py` times lase's plan of lase's
+//! own chords, not a Python imitation of them. It prints the same JSON, with `"moves"`.
 
+use lase_runtime::motion::arc_points;
 use lase_runtime::planner::{
     AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind, Segment, plan,
 };
@@ -46,6 +55,7 @@ struct Options {
     a: f64,
     j: f64,
     jd: f64,
+    arc_tol: f64,
     profile: Option<ProfileKind>,
 }
 
@@ -56,10 +66,12 @@ fn main() {
         a: 2000.0,
         j: 50_000.0,
         jd: 0.01,
+        arc_tol: 0.002,
         profile: None,
     };
     let mut n = 1_000_000usize;
     let mut polyline: Option<String> = None;
+    let mut pieces: Option<String> = None;
     let mut sweep = false;
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -73,6 +85,7 @@ fn main() {
             "--a" => opts.a = value("--a"),
             "--j" => opts.j = value("--j"),
             "--jd" => opts.jd = value("--jd"),
+            "--arc-tol" => opts.arc_tol = value("--arc-tol"),
             "--profile" => {
                 opts.profile = match it.next().map(String::as_str) {
                     Some("trapezoid") => Some(ProfileKind::Trapezoid),
@@ -81,6 +94,7 @@ fn main() {
                 }
             }
             "--polyline" => polyline = it.next().cloned(),
+            "--path" => pieces = it.next().cloned(),
             "--sweep" => sweep = true,
             s => {
                 n = s
@@ -88,6 +102,9 @@ fn main() {
                     .unwrap_or_else(|_| fail(&format!("unknown argument `{s}`")))
             }
         }
+    }
+    if let Some(path) = pieces {
+        return plan_pieces(&path, &opts);
     }
     match polyline {
         Some(path) => plan_polyline(&path, &opts),
@@ -324,14 +341,20 @@ fn plan_polyline(path: &str, o: &Options) {
         .windows(2)
         .map(|w| Move::linear(w[0], w[1], f64::INFINITY))
         .collect();
+    report(start, &moves, o);
+}
+
+/// Plans `moves` from `start` and prints the JSON line the comparison script reads.
+fn report(start: [f64; MAX_AXES], moves: &[Move], o: &Options) {
     let profile = o.profile.unwrap_or(ProfileKind::Trapezoid);
     let t0 = Instant::now();
-    let p = plan(start, &moves, &limits(o), &config(profile, o.jd))
+    let p = plan(start, moves, &limits(o), &config(profile, o.jd))
         .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
     let dt = t0.elapsed().as_secs_f64();
     println!(
-        "{{\"segments\": {}, \"duration_s\": {}, \"profile\": \"{}\", \"junction_deviation\": {}, \
-         \"plan_seconds\": {}}}",
+        "{{\"moves\": {}, \"segments\": {}, \"duration_s\": {}, \"profile\": \"{}\", \
+         \"junction_deviation\": {}, \"plan_seconds\": {}}}",
+        moves.len(),
         p.segments().len(),
         p.duration(),
         if profile == ProfileKind::SCurve {
@@ -342,4 +365,61 @@ fn plan_polyline(path: &str, o: &Options) {
         o.jd,
         dt
     );
+}
+
+/// Lines and arcs lowered to planner moves as `lase plan` lowers them on a Cartesian machine
+/// (`motion::plan_program`: a line is one move, an arc its [`arc_points`] chords; feed
+/// unbounded, so the axis limits alone bound the speed, as they bound TOPP-RA's).
+fn plan_pieces(path: &str, o: &Options) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| fail(&format!("{path}: {e}")));
+    let mut start: Option<[f64; 3]> = None;
+    let mut pos = [0.0; 3];
+    let mut moves = Vec::new();
+    let axes = |p: [f64; 3]| {
+        let mut q = [0.0; MAX_AXES];
+        q[..3].copy_from_slice(&p);
+        q
+    };
+    for (i, line) in text.lines().enumerate() {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let at = |msg: &str| -> ! { fail(&format!("{path}:{}: {msg}", i + 1)) };
+        let num = |k: usize| -> f64 {
+            words
+                .get(k)
+                .and_then(|w| w.parse().ok())
+                .unwrap_or_else(|| at("expected a number"))
+        };
+        let to = [num(1), num(2), 0.0];
+        match (words[0], start.is_some()) {
+            ("start", false) => {
+                start = Some(to);
+                pos = to;
+                continue;
+            }
+            (_, false) => at("the path begins with `start x y`"),
+            ("line", true) => moves.push(Move::linear(axes(pos), axes(to), f64::INFINITY)),
+            ("arc", true) => {
+                let ccw = match words.get(5) {
+                    Some(&"ccw") => true,
+                    Some(&"cw") => false,
+                    _ => at("an arc ends with ccw or cw"),
+                };
+                let mut from = pos;
+                for p in arc_points(pos, to, [num(3), num(4)], ccw, o.arc_tol) {
+                    moves.push(Move::linear(axes(from), axes(p), f64::INFINITY));
+                    from = p;
+                }
+            }
+            (w, true) => at(&format!("unknown piece `{w}` (line, arc)")),
+        }
+        pos = to;
+    }
+    let Some(start) = start else {
+        fail("the path is empty")
+    };
+    report(axes(start), &moves, o);
 }
