@@ -67,22 +67,7 @@ fn current_origin_streams_the_job_at_the_controllers_position() {
     // the machine, the streamed lines' own coordinates.
     let runs = executed_lit_runs(&rec);
     assert_eq!(runs.len(), 1, "{runs:?}");
-    let mut b = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for blk in rec.blocks.iter().filter(|blk| blk.laser_s > 0.0) {
-        for p in [blk.from, blk.to] {
-            b = [
-                b[0].min(p[0]),
-                b[1].min(p[1]),
-                b[2].max(p[0]),
-                b[3].max(p[1]),
-            ];
-        }
-    }
+    let b = lit_extent(&rec);
     for (got, want) in b.iter().zip([25.0, 15.0, 55.0, 35.0]) {
         assert!((got - want).abs() < 1e-3, "lit extent {b:?}");
     }

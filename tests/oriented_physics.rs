@@ -864,26 +864,6 @@ fn a_surface_speed_the_plan_cannot_hold_is_refused_with_the_speed_it_can() {
     // should count that rounding (issue 13 item 4, left open).
 }
 
-/// r(θ) and dr/dθ of the harmonic cam above: base 20 mm, lift 10 mm, s(u) = (1 − cos πu)/2,
-/// rise 0–60°, top dwell 60–120°, return 120–180°.
-fn harmonic_cam_radius(theta: f64) -> (f64, f64) {
-    let deg = theta.rem_euclid(TAU).to_degrees();
-    let beta = PI / 3.0;
-    let rise = |u: f64| {
-        (
-            5.0 * (1.0 - (PI * u).cos()),
-            5.0 * PI * (PI * u).sin() / beta,
-        )
-    };
-    let (lift, d) = if deg < 60.0 {
-        rise(deg / 60.0)
-    } else if deg < 120.0 {
-        (10.0, 0.0)
-    } else if deg < 180.0 {
-        let (l, d) = rise((deg - 120.0) / 60.0);
-        (10.0 - l, -d)
-    } else {
-        (0.0, 0.0)
-    };
-    (20.0 + lift, d)
-}
+#[path = "../runtime/tests/support/harmonic_cam.rs"]
+mod harmonic_cam;
+use harmonic_cam::radius as harmonic_cam_radius;

@@ -219,22 +219,7 @@ fn run_reads_g55_from_the_controller_and_the_job_runs_there() {
     );
     // The lit rectangle, (5, 5) to (35, 25) in the recipe, ran at (105, 55) to (135, 75) in
     // machine coordinates: the executed blocks' own.
-    let mut b = [
-        f64::INFINITY,
-        f64::INFINITY,
-        f64::NEG_INFINITY,
-        f64::NEG_INFINITY,
-    ];
-    for blk in rec.blocks.iter().filter(|blk| blk.laser_s > 0.0) {
-        for p in [blk.from, blk.to] {
-            b = [
-                b[0].min(p[0]),
-                b[1].min(p[1]),
-                b[2].max(p[0]),
-                b[3].max(p[1]),
-            ];
-        }
-    }
+    let b = lit_extent(&rec);
     for (got, want) in b.iter().zip([105.0, 55.0, 135.0, 75.0]) {
         assert!((got - want).abs() < 1e-3, "lit extent {b:?}");
     }

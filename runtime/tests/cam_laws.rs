@@ -9,7 +9,6 @@
 
 use lase_runtime::geometry::toolpath::{Normals, ToolpathError, oriented_stations};
 use lase_runtime::geometry::{CamLaw, CamSegment, CamSegmentKind, Profile, V2};
-use std::f64::consts::PI;
 
 fn harmonic_cam() -> Profile {
     let seg = |kind, deg| CamSegment {
@@ -31,28 +30,9 @@ fn harmonic_cam() -> Profile {
     .unwrap()
 }
 
-/// r(θ) and dr/dθ of the cam above, from the harmonic law s(u) = (1 − cos πu)/2.
-fn law(theta: f64) -> (f64, f64) {
-    let deg = theta.rem_euclid(2.0 * PI).to_degrees();
-    let beta = PI / 3.0;
-    let rise = |u: f64| {
-        (
-            5.0 * (1.0 - (PI * u).cos()),
-            5.0 * PI * (PI * u).sin() / beta,
-        )
-    };
-    let (lift, d) = if deg < 60.0 {
-        rise(deg / 60.0)
-    } else if deg < 120.0 {
-        (10.0, 0.0)
-    } else if deg < 180.0 {
-        let (l, d) = rise((deg - 120.0) / 60.0);
-        (10.0 - l, -d)
-    } else {
-        (0.0, 0.0)
-    };
-    (20.0 + lift, d)
-}
+#[path = "support/harmonic_cam.rs"]
+mod harmonic_cam;
+use harmonic_cam::radius as law;
 
 /// Every 0.01 mm of contour: the profile point lies on r(θ) of the law (radial error), and its
 /// tangent is the law's, to well within any tolerance a recipe can set.

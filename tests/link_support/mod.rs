@@ -107,6 +107,28 @@ pub fn gcode_lines(rec: &Recording) -> Vec<String> {
         .collect()
 }
 
+/// The extent of what the controller executed lit, `[min x, min y, max x, max y]` of its lit
+/// blocks' ends (machine coordinates).
+pub fn lit_extent(rec: &Recording) -> [f64; 4] {
+    let mut b = [
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NEG_INFINITY,
+    ];
+    for blk in rec.blocks.iter().filter(|blk| blk.laser_s > 0.0) {
+        for p in [blk.from, blk.to] {
+            b = [
+                b[0].min(p[0]),
+                b[1].min(p[1]),
+                b[2].max(p[0]),
+                b[3].max(p[1]),
+            ];
+        }
+    }
+    b
+}
+
 /// Planned end position of every motion op (in the controller's axes), by op index.
 pub fn planned_op_ends(job: &Job) -> Vec<(usize, AxisPos)> {
     let map = to_controller(&job.program.machine);
