@@ -387,7 +387,13 @@ fn cmd_plan(
         job.program.machine.name,
         job.program.planner.ramp
     );
-    outln!("  cycle time      {:.4} s", s.cycle_time_s);
+    // lase's own plan (corners blended within `corner` so every axis keeps its limits, issue
+    // 13; lit-to-lit corners not yet). A controller runs the program its own way: the lines
+    // below say how long each would take, by a model of its planner.
+    outln!(
+        "  cycle time      {:.4} s (lase's own plan)",
+        s.cycle_time_s
+    );
     // What the controller that streams the program will take, by its own planner.
     match lase_runtime::link::sim::motion::controller_time(&job) {
         Some(Ok(c)) => outln!(
