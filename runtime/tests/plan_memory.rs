@@ -22,12 +22,12 @@ static ALLOC: Cap<System> = Cap::new(System, usize::MAX);
 mod short_moves;
 
 /// Peak live heap per move while compiling and emitting, above what was live before, bytes.
-/// Corner blends (issue 13, `planner::blend`) cost about 120 B a move on top of the 356 B
-/// above: the planner keeps what each move tells the blends (`blend::MoveInfo`, 80 B: its
-/// axis rate, part-space direction and stop flags) until every corner is judged, a segment
-/// carries its blend index, and the entry caps are recomputed in one pass (477 B measured;
-/// before the blends' junctions were computed where needed instead of tabled, 829 B).
-const CAP_PER_MOVE: f64 = 490.0;
+/// Corner blends (issue 13, `planner::blend`) cost about 60 B a move on top of the 356 B
+/// above: the planner keeps what each move tells the blends (`blend::MoveInfo`: its
+/// part-space direction and stop flags, 32 B) until every corner is judged, a segment carries
+/// its blend index, and the entry caps are recomputed in one pass (414 B measured; as first
+/// merged, with a table of junctions and a copy of the plan, 829 B).
+const CAP_PER_MOVE: f64 = 430.0;
 
 #[test]
 fn short_moves_from_a_loop_compile_and_emit_within_a_fixed_budget_per_move() {

@@ -304,8 +304,6 @@ pub(crate) fn limits_along(
 /// What `split` needs to know of each segment `prepare` made.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct MoveInfo {
-    /// `Δq / length`.
-    pub rate: Axes,
     /// The length is the axis-space length.
     pub euclidean: bool,
     /// A stop point lies before the move.
@@ -320,7 +318,6 @@ pub(crate) struct MoveInfo {
 impl MoveInfo {
     /// A standstill (a dwell before any motion).
     pub(crate) const REST: MoveInfo = MoveInfo {
-        rate: Axes::ZERO,
         euclidean: true,
         stop_before: true,
         part_dir: [0.0; 3],
@@ -363,13 +360,32 @@ pub(super) fn split(
         if info[i + 1].stepped_before {
             return Junction::Stepped;
         }
-        let side = |k: usize| Side {
-            dir: &info[k].rate,
+        // `Δq / length` of move k, from the points (as `prepare` computed it: not kept, it
+        // would be 48 bytes a move).
+        let rate = |k: usize| -> Axes {
+            let (a, b) = (point(k), point(k + 1));
+            let mut r = Axes::ZERO;
+            for axis in 0..n {
+                r[axis] = (b[axis] - a[axis]) / p.kin[k].len;
+            }
+            r
+        };
+        let (rate_i, rate_next) = (rate(i), rate(i + 1));
+        let side = |k: usize, dir| Side {
+            dir,
             kin: &p.kin[k],
             euclidean: info[k].euclidean,
         };
         let turn = part_turn(&info[i].part_dir, &info[i + 1].part_dir);
-        junction(&point(i + 1), side(i), side(i + 1), delta, turn, limits, n)
+        junction(
+            &point(i + 1),
+            side(i, &rate_i),
+            side(i + 1, &rate_next),
+            delta,
+            turn,
+            limits,
+            n,
+        )
     };
     let extra = (0..count)
         .filter(|&i| matches!(junction_at(i), Junction::Blend { .. }))

@@ -634,12 +634,7 @@ fn prepare(
         prev_corner = corner;
         prev_d_in = d_in;
         if blending {
-            let mut rate = Axes::ZERO;
-            for axis in 0..n_axes {
-                rate[axis] = dq[axis] / mv.length;
-            }
             info.push(blend::MoveInfo {
-                rate,
                 euclidean,
                 stop_before: prev_stop,
                 part_dir: here.part_dir,
