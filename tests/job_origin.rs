@@ -5,7 +5,6 @@
 
 mod link_support;
 
-use lase_runtime::link::sim::{SimOptions, TimeScale};
 use link_support::*;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -15,11 +14,12 @@ use std::time::Duration;
 fn setup(tag: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lase-origin-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let stock = std::fs::read_to_string(root().join("stdlib/machines/xy_table.toml")).unwrap();
-    let bed = stock
-        .replace("[\"-150 mm\", \"150 mm\"]", "[\"20 mm\", \"320 mm\"]")
-        .replace("[\"-100 mm\", \"100 mm\"]", "[\"10 mm\", \"210 mm\"]");
-    std::fs::write(dir.join("bed.toml"), bed).unwrap();
+    write_bed(
+        &dir,
+        "[\"20 mm\", \"320 mm\"]",
+        "[\"10 mm\", \"210 mm\"]",
+        "",
+    );
     let recipe = |w: &str, at: &str| {
         format!(
             "machine \"bed.toml\"\nlaser {{ power 20 W }}\n\
@@ -37,21 +37,10 @@ fn setup(tag: &str) -> PathBuf {
     dir
 }
 
-/// The simulator of the bed, over a socket.
-fn bed_sim(dir: &std::path::Path) -> lase_runtime::link::sim::SimHandle {
-    let text = std::fs::read_to_string(dir.join("bed.toml")).unwrap();
-    let machine = lase_runtime::machine::parse_machine(&text, 0).unwrap();
-    let opts = SimOptions {
-        time_scale: TimeScale::Max,
-        ..SimOptions::default()
-    };
-    lase_runtime::link::sim::serve(&machine, "127.0.0.1:0".parse().unwrap(), opts).unwrap()
-}
-
 #[test]
 fn current_origin_streams_the_job_at_the_controllers_position() {
     let dir = setup("ok");
-    let sim = bed_sim(&dir);
+    let sim = bed_sim(&dir, [[0.0; 6]; 6]);
     let square = dir.join("square.lase");
     let square = square.to_str().unwrap();
     // Absolute, the rectangle at (5, 5) lies outside the travel.
@@ -88,7 +77,7 @@ fn current_origin_streams_the_job_at_the_controllers_position() {
 #[test]
 fn current_origin_refuses_a_job_that_would_leave_the_travel_before_sending() {
     let dir = setup("wide");
-    let sim = bed_sim(&dir);
+    let sim = bed_sim(&dir, [[0.0; 6]; 6]);
     let wide = dir.join("wide.lase");
     let (code, _, err) = lase(&[
         "run",
@@ -197,7 +186,7 @@ fn the_recipe_chooses_the_origin_and_the_command_line_overrides_it() {
     let (code, _, err) = lase(&["emit", placed, "--origin", "absolute"]);
     assert_eq!(code, 1, "absolute, (5, 5) lies outside X [20, 320]: {err}");
     assert!(err.contains("lase::plan::travel"), "{err}");
-    let sim = bed_sim(&dir);
+    let sim = bed_sim(&dir, [[0.0; 6]; 6]);
     let (code, _, err) = lase(&["run", placed, "--link", &url(&sim)]);
     assert_eq!(code, 0, "{err}");
     assert!(err.contains("position X20 Y10"), "{err}");

@@ -6,7 +6,6 @@
 
 mod link_support;
 
-use lase_runtime::link::sim::{SimOptions, TimeScale};
 use link_support::*;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -19,13 +18,13 @@ mod rs274;
 fn setup(tag: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("lase-offsets-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let stock = std::fs::read_to_string(root().join("stdlib/machines/xy_table.toml")).unwrap();
-    let bed = stock
-        .replace("[\"-150 mm\", \"150 mm\"]", "[\"0 mm\", \"300 mm\"]")
-        .replace("[\"-100 mm\", \"100 mm\"]", "[\"0 mm\", \"200 mm\"]")
-        + "\n[work_offsets]\ng55 = { X = \"100 mm\", Y = \"50 mm\" }\n\
-           g56 = { X = \"280 mm\", Y = \"50 mm\" }\n";
-    std::fs::write(dir.join("bed.toml"), bed).unwrap();
+    write_bed(
+        &dir,
+        "[\"0 mm\", \"300 mm\"]",
+        "[\"0 mm\", \"200 mm\"]",
+        "\n[work_offsets]\ng55 = { X = \"100 mm\", Y = \"50 mm\" }\n\
+         g56 = { X = \"280 mm\", Y = \"50 mm\" }\n",
+    );
     std::fs::write(
         dir.join("square.lase"),
         "machine \"bed.toml\"\nlaser { power 20 W }\n\
@@ -174,18 +173,11 @@ fn emit_without_the_offset_warns_and_set_origin_writes_g10_l20_p2() {
 }
 
 /// The simulator of the bed, holding G55 at X100 Y50 and G56 at X280 Y50 (as `$#` reports).
-fn bed_sim(dir: &std::path::Path) -> lase_runtime::link::sim::SimHandle {
-    let text = std::fs::read_to_string(dir.join("bed.toml")).unwrap();
-    let machine = lase_runtime::machine::parse_machine(&text, 0).unwrap();
+fn offsets_sim(dir: &std::path::Path) -> lase_runtime::link::sim::SimHandle {
     let mut work_offsets = [[0.0; 6]; 6];
     work_offsets[1][..2].copy_from_slice(&[100.0, 50.0]);
     work_offsets[2][..2].copy_from_slice(&[280.0, 50.0]);
-    let opts = SimOptions {
-        time_scale: TimeScale::Max,
-        work_offsets,
-        ..SimOptions::default()
-    };
-    lase_runtime::link::sim::serve(&machine, "127.0.0.1:0".parse().unwrap(), opts).unwrap()
+    bed_sim(dir, work_offsets)
 }
 
 #[test]
@@ -199,7 +191,7 @@ fn run_reads_g55_from_the_controller_and_the_job_runs_there() {
         text.replace("g55 = { X = \"100 mm\"", "g55 = { X = \"1 mm\""),
     )
     .unwrap();
-    let sim = bed_sim(&dir);
+    let sim = offsets_sim(&dir);
     let square = dir.join("square.lase");
     let (code, _, err) = lase(&[
         "run",
@@ -228,7 +220,7 @@ fn run_reads_g55_from_the_controller_and_the_job_runs_there() {
 #[test]
 fn run_refuses_a_job_the_controllers_offset_puts_outside_the_travel_before_sending() {
     let dir = setup("run-refuse");
-    let sim = bed_sim(&dir);
+    let sim = offsets_sim(&dir);
     let square = dir.join("square.lase");
     let (code, _, err) = lase(&[
         "run",

@@ -107,6 +107,30 @@ pub fn gcode_lines(rec: &Recording) -> Vec<String> {
         .collect()
 }
 
+/// `bed.toml` in `dir`: the stock `xy_table` with X travel `x` and Y travel `y` (two lengths
+/// each, as the file writes them, e.g. `["20 mm", "320 mm"]`), and `extra` appended.
+pub fn write_bed(dir: &Path, x: &str, y: &str, extra: &str) {
+    let stock = std::fs::read_to_string(root().join("stdlib/machines/xy_table.toml")).unwrap();
+    let bed = stock
+        .replace("[\"-150 mm\", \"150 mm\"]", x)
+        .replace("[\"-100 mm\", \"100 mm\"]", y)
+        + extra;
+    std::fs::write(dir.join("bed.toml"), bed).unwrap();
+}
+
+/// The simulator of `dir`'s `bed.toml` over a socket, at the fastest time scale, holding
+/// the work offsets `work_offsets` (G54…G59, as `$#` reports them).
+pub fn bed_sim(dir: &Path, work_offsets: [[f64; 6]; 6]) -> SimHandle {
+    let text = std::fs::read_to_string(dir.join("bed.toml")).unwrap();
+    let machine = lase_runtime::machine::parse_machine(&text, 0).unwrap();
+    let opts = SimOptions {
+        time_scale: sim::TimeScale::Max,
+        work_offsets,
+        ..SimOptions::default()
+    };
+    sim::serve(&machine, "127.0.0.1:0".parse().unwrap(), opts).unwrap()
+}
+
 /// The extent of what the controller executed lit, `[min x, min y, max x, max y]` of its lit
 /// blocks' ends (machine coordinates).
 pub fn lit_extent(rec: &Recording) -> [f64; 4] {

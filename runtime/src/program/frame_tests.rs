@@ -4,7 +4,6 @@ use super::*;
 
 #[test]
 fn a_frame_bounds_arcs_by_their_extreme_points_and_returns_to_the_start() {
-    let m = crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
     let laser = Laser {
         power_w: 10.0,
         spot_mm: 0.1,
@@ -30,25 +29,7 @@ fn a_frame_bounds_arcs_by_their_extreme_points_and_returns_to_the_start() {
         span: Span::default(),
     };
     // A circle of radius 5 about (10, 0) in two half turns: its ends alone span y = 0.
-    let p = ProcessProgram {
-        recipe: "t".into(),
-        limits: AxisLimit::of_machine(&m),
-        path_limits: PathLimits::default(),
-        planner: PlannerSettings {
-            ramp: m.ramp,
-            junction_deviation_mm: m.junction_deviation_mm,
-            arc_tolerance_mm: m.arc_tolerance_mm,
-            lookahead: None,
-            leadin: LeadIn::Auto,
-            order: CutOrder::Source,
-            origin: JobOrigin::Absolute,
-        },
-        start: [0.0; 3],
-        ops: vec![rapid, arc([5.0, 0.0, 0.0]), arc([15.0, 0.0, 0.0])],
-        settles: Vec::new(),
-        ordering: None,
-        machine: m,
-    };
+    let p = super::tests::program(vec![rapid, arc([5.0, 0.0, 0.0]), arc([15.0, 0.0, 0.0])]);
     let f = p.frame(20.0, None).unwrap();
     // The box, without the rapid back to the start.
     let pts: Vec<P3> = f.ops[..f.ops.len() - 1]

@@ -2,7 +2,8 @@
 
 use super::*;
 
-fn program(ops: Vec<Op>) -> ProcessProgram {
+/// A program of `ops` on the stock `xy_table`, with its default settings.
+pub(super) fn program(ops: Vec<Op>) -> ProcessProgram {
     let m = crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
     ProcessProgram {
         recipe: "t".into(),
