@@ -521,16 +521,14 @@ fn synchronized_word(code: u32) -> Option<u32> {
 /// whose switch needs rest, a dwell, an M-code) immediate words are fine.
 fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(), EmitError> {
     let ops = &job.program.ops;
-    // Planned speed where each op starts and ends (None: the op plans no motion).
-    let mut v_in: Vec<Option<f64>> = vec![None; ops.len()];
-    let mut v_out: Vec<f64> = vec![0.0; ops.len()];
-    for s in job.plan.segments() {
-        let t = s.tag as usize;
-        if t < ops.len() {
-            v_in[t].get_or_insert(s.v_entry);
-            v_out[t] = s.v_exit;
-        }
-    }
+    // Planned speed where op `i` starts and ends (None: the op plans no motion), found in the
+    // plan, whose segments are in op order: a table of them would be 24 bytes an op, the most
+    // emitting a long job held (issue 18).
+    let speeds = |i: usize| -> Option<(f64, f64)> {
+        let r = crate::motion::power::op_segments(job, i);
+        let segs = job.plan.segments();
+        (!r.is_empty()).then(|| (segs[r.start].v_entry, segs[r.end - 1].v_exit))
+    };
     let spans = &post.spans;
     let lines = |what: &'static str| -> (&[String], &[Span]) {
         match what {
@@ -575,7 +573,7 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
     let mut on = false;
     let mut power_w = 0.0;
     for (i, op) in ops.iter().enumerate() {
-        let Some(v0) = v_in[i] else { continue };
+        let Some((v0, v1)) = speeds(i) else { continue };
         if op.target().is_none() {
             continue;
         }
@@ -598,13 +596,11 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
             check("pulse_on", v0, op)?;
             check("pulse_off", v0, op)?;
         }
-        let next_lit = ops[i + 1..]
-            .iter()
-            .zip(&v_in[i + 1..])
-            .find(|(o, v)| o.target().is_some() && v.is_some())
-            .is_some_and(|(o, _)| o.laser().is_some());
+        let next_lit = (i + 1..ops.len())
+            .find(|&k| ops[k].target().is_some() && speeds(k).is_some())
+            .is_some_and(|k| ops[k].laser().is_some());
         if !next_lit {
-            check("laser_off", v_out[i], op)?;
+            check("laser_off", v1, op)?;
             on = false;
         }
     }
