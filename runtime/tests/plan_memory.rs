@@ -19,10 +19,9 @@
 use cap::Cap;
 use lase_runtime::compile::{self, MemFiles};
 use lase_runtime::emit::{self, Dialect, EmitOptions, NcLine};
-use lase_runtime::planner::{Blend, Segment};
 use lase_runtime::program::Op;
 use std::alloc::System;
-use std::mem::size_of;
+use std::mem::{size_of, size_of_val};
 
 #[global_allocator]
 static ALLOC: Cap<System> = Cap::new(System, usize::MAX);
@@ -83,9 +82,9 @@ fn short_moves_from_a_loop_compile_and_emit_within_a_fixed_budget_per_move() {
     let tables = [
         ("program ops", ops * size_of::<Op>()),
         ("op axes", job.op_axes.len() * n_axes * 8),
-        ("plan segments", moves * size_of::<Segment>()),
+        ("plan segments", size_of_val(job.plan.segments())),
         ("plan points", moves * n_axes * 8),
-        ("plan blends", job.plan.blends().len() * size_of::<Blend>()),
+        ("plan blends", size_of_val(job.plan.blends())),
     ];
     let tables: Vec<String> = tables
         .iter()
