@@ -182,7 +182,7 @@ fn check(ex: &Path, dialect: Dialect) {
                 ..
             } => Some(Laser {
                 power_w: row.power_w(row.runs[seen.1].1),
-                ..l.clone()
+                ..(**l).clone()
             }),
             _ => None,
         };

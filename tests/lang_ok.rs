@@ -58,7 +58,7 @@ fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
                     "line  {} feed {}{}",
                     p3(*to),
                     n(*feed_mm_s),
-                    laser(l.as_ref())
+                    laser(l.as_deref())
                 )
             }
             OpKind::Arc {
@@ -74,7 +74,7 @@ fn dump(map: &SourceMap, p: &ProcessProgram) -> String {
                 n(center[1]),
                 if *ccw { "ccw" } else { "cw" },
                 n(*feed_mm_s),
-                laser(l.as_ref())
+                laser(l.as_deref())
             ),
             OpKind::Dwell { seconds } => format!("dwell {}", n(*seconds)),
             OpKind::MCode { code, comment } => format!("mcode {code} {comment:?}"),

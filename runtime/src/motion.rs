@@ -312,16 +312,21 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
             enabled: program.planner.leadin == LeadIn::Auto,
         },
     )?;
-    program.ops = led.ops;
+    let leadin::Leads {
+        ops,
+        index,
+        sections,
+        leads,
+    } = led;
+    program.ops = ops;
     for s in &mut program.settles {
-        s.op = led.index[s.op] as usize;
+        s.op = index[s.op] as usize;
         // The row's end follows the op after it (a lead inserted before that op, the next
         // row's lead-in, then runs relative too: the next row settles again anyway).
-        s.end = led
-            .index
-            .get(s.end)
-            .map_or(program.ops.len(), |&i| i as usize);
+        s.end = index.get(s.end).map_or(program.ops.len(), |&i| i as usize);
     }
+    // Not held through planning (4 bytes an op, issue 18).
+    drop(index);
     // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
     let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;
     let expected = program.ops.iter().filter(|o| o.target().is_some()).count();
@@ -367,8 +372,8 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         op_axes,
         initial_dwell_s,
         plan,
-        sections: led.sections,
-        leads: led.leads,
+        sections,
+        leads,
     };
     held::check_held(&job)?;
     Ok(job)

@@ -12,6 +12,7 @@ use lase_lang::Span;
 use lase_lang::units::{self, Dim, format_quantity};
 use miette::Diagnostic;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// A point in part coordinates, mm.
 pub type P3 = [f64; 3];
@@ -104,22 +105,28 @@ pub struct Orient {
     pub standoff_mm: f64,
 }
 
+/// What one op does. A program holds one per move of the recipe (a million short moves from a
+/// `for` loop are a million ops), so its size is a job's largest cost per move (issue 18):
+/// what every lit op carries but few differ in (the laser, 80 bytes) is shared (`Arc`, one per
+/// laser setting, `eval::Evaluator::shared_laser`), and what only some machines use (a beam
+/// orientation, 32 bytes) is boxed: 64 bytes, not 160.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum OpKind {
     /// Positioning at the machine's top speed, laser off.
     Rapid {
         to: P3,
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        orient: Option<Orient>,
+        orient: Option<Box<Orient>>,
     },
     /// A straight move at a programmed feed (a straight line of the spot in part coordinates;
     /// on an oriented machine the beam direction turns uniformly along it).
     Line {
         to: P3,
         feed_mm_s: f64,
-        laser: Option<Laser>,
+        #[serde(default, with = "shared")]
+        laser: Option<Arc<Laser>>,
         #[serde(default, skip_serializing_if = "Option::is_none")]
-        orient: Option<Orient>,
+        orient: Option<Box<Orient>>,
         /// An image row's pixel runs along this line (`scan image`): planned as one straight
         /// lit move, written as one block per run (see [`PixelRow`]).
         #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -131,7 +138,8 @@ pub enum OpKind {
         center: [f64; 2],
         ccw: bool,
         feed_mm_s: f64,
-        laser: Option<Laser>,
+        #[serde(default, with = "shared")]
+        laser: Option<Arc<Laser>>,
     },
     /// Standstill.
     Dwell { seconds: f64 },
@@ -149,7 +157,8 @@ pub enum OpKind {
         count: u32,
         period_s: f64,
         window_s: f64,
-        laser: Laser,
+        #[serde(with = "shared::one")]
+        laser: Arc<Laser>,
     },
 }
 
@@ -228,6 +237,12 @@ pub struct Op {
 
 impl Op {
     pub fn laser(&self) -> Option<&Laser> {
+        self.shared_laser().map(|l| &**l)
+    }
+
+    /// [`Op::laser`] as the op holds it, shared with the ops that carry the same laser: a
+    /// stage that makes ops from ops (leads, kerf offsets) shares it on.
+    pub fn shared_laser(&self) -> Option<&Arc<Laser>> {
         match &self.kind {
             OpKind::Line { laser, .. } | OpKind::Arc { laser, .. } => laser.as_ref(),
             _ => None,
@@ -237,7 +252,9 @@ impl Op {
     /// The orientation a motion op ends in, if it sets one.
     pub fn orient(&self) -> Option<Orient> {
         match &self.kind {
-            OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } => *orient,
+            OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } => {
+                orient.as_deref().copied()
+            }
             _ => None,
         }
     }
@@ -300,6 +317,37 @@ impl Op {
             (Some((r, _, sweep)), Some(to)) => (r * sweep).hypot(to[2] - from[2]),
             (None, Some(to)) => dist(from, to),
             _ => 0.0,
+        }
+    }
+}
+
+// The memory budget per move (`runtime/tests/plan_memory.rs`) counts on it.
+const _: () = assert!(std::mem::size_of::<Op>() <= 72);
+
+/// Serde for a shared laser: written as the laser itself, as before it was shared (a program's
+/// JSON does not change), and read back into a new `Arc` per op.
+mod shared {
+    use super::{Arc, Laser};
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(l: &Option<Arc<Laser>>, s: S) -> Result<S::Ok, S::Error> {
+        l.as_deref().serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<Arc<Laser>>, D::Error> {
+        Ok(Option::<Laser>::deserialize(d)?.map(Arc::new))
+    }
+
+    /// The same for a laser that is always there (`OpKind::Fire`).
+    pub mod one {
+        use super::{Arc, Deserialize, Deserializer, Laser, Serialize, Serializer};
+
+        pub fn serialize<S: Serializer>(l: &Arc<Laser>, s: S) -> Result<S::Ok, S::Error> {
+            (**l).serialize(s)
+        }
+
+        pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Arc<Laser>, D::Error> {
+            Laser::deserialize(d).map(Arc::new)
         }
     }
 }
@@ -567,12 +615,14 @@ impl ProcessProgram {
                 kind: OpKind::Line {
                     to: corners[(k0 + k) % 4],
                     feed_mm_s,
-                    laser: pointer_w.map(|w| Laser {
-                        power_w: w,
-                        spot_mm: 0.0,
-                        pulse: None,
-                        couple: Coupling::None,
-                        kerf_mm: 0.0,
+                    laser: pointer_w.map(|w| {
+                        Arc::new(Laser {
+                            power_w: w,
+                            spot_mm: 0.0,
+                            pulse: None,
+                            couple: Coupling::None,
+                            kerf_mm: 0.0,
+                        })
                     }),
                     row: None,
                     orient: None,

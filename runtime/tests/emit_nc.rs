@@ -46,7 +46,7 @@ fn line(line: usize, to: P3, feed_mm_s: f64, laser: Option<Laser>) -> Op {
         OpKind::Line {
             to,
             feed_mm_s,
-            laser,
+            laser: laser.map(std::sync::Arc::new),
             orient: None,
             row: None,
         },
@@ -68,7 +68,7 @@ fn arc(
             center,
             ccw,
             feed_mm_s,
-            laser,
+            laser: laser.map(std::sync::Arc::new),
         },
     )
 }
@@ -862,7 +862,7 @@ fn oriented(mut ops: Vec<Op>) -> Vec<Op> {
     });
     for op in &mut ops {
         if let OpKind::Rapid { orient, .. } | OpKind::Line { orient, .. } = &mut op.kind {
-            *orient = o;
+            *orient = o.map(Box::new);
         }
     }
     ops

@@ -41,7 +41,7 @@ fn line(to: P3, feed_mm_s: f64, laser: Option<Laser>) -> Op {
     op(OpKind::Line {
         to,
         feed_mm_s,
-        laser,
+        laser: laser.map(std::sync::Arc::new),
         orient: None,
         row: None,
     })
@@ -337,7 +337,7 @@ fn plot_is_an_svg_with_paths_and_speeds() {
                 center: [30.0, 20.0],
                 ccw: true,
                 feed_mm_s: 10.0,
-                laser: laser(50.0, None),
+                laser: laser(50.0, None).map(std::sync::Arc::new),
             }),
             line([0.0, 20.0, 0.0], 40.0, None),
         ],

@@ -323,11 +323,12 @@ impl Session {
                 Some(Amount::Factor(k)) => *feed *= k,
                 None => {}
             }
-            if let Some(l) = laser {
-                match self.overrides.power {
-                    Some(Amount::Value(v)) => l.power_w = v,
-                    Some(Amount::Factor(k)) => l.power_w *= k,
-                    None => {}
+            if let (Some(l), Some(power)) = (laser, &self.overrides.power) {
+                // Ops share their laser (issue 18): this op's becomes its own.
+                let l = std::sync::Arc::make_mut(l);
+                match power {
+                    Amount::Value(v) => l.power_w = *v,
+                    Amount::Factor(k) => l.power_w *= *k,
                 }
             }
         }

@@ -521,16 +521,7 @@ fn synchronized_word(code: u32) -> Option<u32> {
 /// whose switch needs rest, a dwell, an M-code) immediate words are fine.
 fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(), EmitError> {
     let ops = &job.program.ops;
-    // Planned speed where each op starts and ends (None: the op plans no motion).
-    let mut v_in: Vec<Option<f64>> = vec![None; ops.len()];
-    let mut v_out: Vec<f64> = vec![0.0; ops.len()];
-    for s in job.plan.segments() {
-        let t = s.tag as usize;
-        if t < ops.len() {
-            v_in[t].get_or_insert(s.v_entry);
-            v_out[t] = s.v_exit;
-        }
-    }
+    let segs = job.plan.segments();
     let spans = &post.spans;
     let lines = |what: &'static str| -> (&[String], &[Span]) {
         match what {
@@ -574,10 +565,30 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
     };
     let mut on = false;
     let mut power_w = 0.0;
+    // The planned speeds where each op starts and ends are read off the plan in one walk with
+    // the ops (its segments are in op order, tagged with their op): a table of them was 24
+    // bytes an op, the most emitting a long job held (issue 18). A lit op's section ends unless
+    // the next op that plans motion is lit too, so its `laser_off` is checked on reaching that
+    // op (or the end), before anything of it: the checks run in op order, as ever.
+    let mut next_seg = 0;
+    let mut lit_before: Option<(&Op, f64)> = None;
     for (i, op) in ops.iter().enumerate() {
-        let Some(v0) = v_in[i] else { continue };
-        if op.target().is_none() {
+        while segs.get(next_seg).is_some_and(|s| (s.tag as usize) < i) {
+            next_seg += 1;
+        }
+        let first = next_seg;
+        while segs.get(next_seg).is_some_and(|s| s.tag as usize == i) {
+            next_seg += 1;
+        }
+        if first == next_seg || op.target().is_none() {
             continue;
+        }
+        let (v0, v1) = (segs[first].v_entry, segs[next_seg - 1].v_exit);
+        if let Some((before, v_out)) = lit_before.take()
+            && op.laser().is_none()
+        {
+            check("laser_off", v_out, before)?;
+            on = false;
         }
         let Some(laser) = op.laser() else { continue };
         if !on {
@@ -598,15 +609,10 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
             check("pulse_on", v0, op)?;
             check("pulse_off", v0, op)?;
         }
-        let next_lit = ops[i + 1..]
-            .iter()
-            .zip(&v_in[i + 1..])
-            .find(|(o, v)| o.target().is_some() && v.is_some())
-            .is_some_and(|(o, _)| o.laser().is_some());
-        if !next_lit {
-            check("laser_off", v_out[i], op)?;
-            on = false;
-        }
+        lit_before = Some((op, v1));
+    }
+    if let Some((last, v_out)) = lit_before {
+        check("laser_off", v_out, last)?;
     }
     Ok(())
 }

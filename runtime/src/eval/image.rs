@@ -20,6 +20,7 @@ use crate::raster::{Frame, Order};
 use lase_lang::Span;
 use lase_lang::ast::*;
 use lase_lang::units::{Dim, format_quantity};
+use std::sync::Arc;
 
 /// The settings of one `scan image` statement, bound and converted.
 struct ImageSet {
@@ -307,7 +308,7 @@ impl Evaluator {
                         OpKind::Line {
                             to: at(to),
                             feed_mm_s: speed,
-                            laser: Some(laser),
+                            laser: Some(Arc::new(laser)),
                             orient: None,
                             row: Some(Box::new(row)),
                         },

@@ -33,6 +33,7 @@ use lase_lang::units::{Dim, format_quantity};
 use lase_lang::{Program, SourceMap, Span, schema};
 use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
+use std::sync::Arc;
 
 pub use crate::host::{Host, StdlibOnly};
 
@@ -101,6 +102,9 @@ pub struct Evaluator {
     planner: Option<PlannerSettings>,
     laser: LaserState,
     pulse: Option<Pulse>,
+    /// The laser the last lit op carries, shared by every op after it that carries the same
+    /// ([`Evaluator::share_laser`]).
+    shared_laser: Option<Arc<Laser>>,
     /// Default scan step of `follow` on oriented machines (`planner { step }`).
     scan_step_mm: Option<f64>,
     /// The beam orientation the last move left (oriented machines), kept by `move`.
@@ -152,6 +156,7 @@ impl Evaluator {
                 on: false,
             },
             pulse: None,
+            shared_laser: None,
             scan_step_mm: None,
             orient: None,
             pos: [0.0; 3],

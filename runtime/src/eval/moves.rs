@@ -10,6 +10,7 @@ use lase_lang::Span;
 use lase_lang::ast::*;
 use lase_lang::units::{Dim, format_quantity};
 use std::rc::Rc;
+use std::sync::Arc;
 
 impl Evaluator {
     pub(super) fn move_stmt(
@@ -30,7 +31,7 @@ impl Evaluator {
                 MoveKind::By => self.pos[k] + p[k],
             };
         }
-        let orient = self.move_orient(span)?;
+        let orient = self.move_orient(span)?.map(Box::new);
         match speed {
             MoveSpeed::Rapid => self.push(OpKind::Rapid { to, orient }, span),
             MoveSpeed::At(e) => {
@@ -39,7 +40,7 @@ impl Evaluator {
                 let laser = if self.laser.on {
                     let l = self.current_laser(span, &LaserSet::default())?;
                     self.check_pulse_rate(&l, feed, e.span)?;
-                    Some(l)
+                    Some(self.share_laser(l))
                 } else {
                     None
                 };
@@ -138,6 +139,7 @@ impl Evaluator {
         self.need_machine(span)?;
         let laser = self.current_laser(span, &set)?;
         self.check_pulse_rate(&laser, feed, speed.span)?;
+        let laser = self.share_laser(laser);
         if self.oriented() {
             for profile in &pieces {
                 self.follow_oriented(profile, feed, laser.clone(), &set, span)?;
@@ -244,7 +246,7 @@ impl Evaluator {
         &mut self,
         profile: &Profile,
         feed: f64,
-        laser: Laser,
+        laser: Arc<Laser>,
         set: &LaserSet,
         span: Span,
     ) -> R<()> {
@@ -351,7 +353,7 @@ impl Evaluator {
             self.push(
                 OpKind::Rapid {
                     to: p0,
-                    orient: Some(o0),
+                    orient: Some(Box::new(o0)),
                 },
                 span,
             );
@@ -366,7 +368,7 @@ impl Evaluator {
                     to: p,
                     feed_mm_s: feed,
                     laser: Some(laser.clone()),
-                    orient: Some(o),
+                    orient: Some(Box::new(o)),
                     row: None,
                 },
                 span,

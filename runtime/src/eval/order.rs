@@ -15,6 +15,7 @@ use crate::geometry::order::{PathShape, Visit, containment, order, ring};
 use crate::geometry::{Profile, Seg, V2};
 use crate::program::{CutOrder, Laser, Op, OpKind, OrderReport, P3, dist};
 use lase_lang::Span;
+use std::sync::Arc;
 
 /// A path whose end is nearer its start than this share of its length still bounds a region
 /// (a closed profile cut in pieces between tabs leaves its last gap open); a gap this size is
@@ -293,7 +294,7 @@ fn reversed(op: &Op, to: P3) -> Op {
             to,
             feed_mm_s: *feed_mm_s,
             laser: laser.clone(),
-            orient: *orient,
+            orient: orient.clone(),
             // Paths with image rows are kept as scanned (`has_row`), never reversed.
             row: None,
         },
@@ -321,7 +322,7 @@ fn reversed(op: &Op, to: P3) -> Op {
 /// Moves a closed path half its kerf outward (an outline: inside an even number of closed
 /// paths) or inward (a hole), so the part comes out at its drawn size.
 fn kerf(path: &mut Path, shape: &PathShape, depth: usize, tol_mm: f64) -> R<()> {
-    let Some(laser) = path.feeds.iter().find_map(Op::laser).cloned() else {
+    let Some(laser) = path.feeds.iter().find_map(Op::shared_laser).cloned() else {
         return Ok(());
     };
     // An open path has no inside or outside to move toward: a kerf leaves it as drawn.
@@ -336,7 +337,7 @@ fn kerf(path: &mut Path, shape: &PathShape, depth: usize, tol_mm: f64) -> R<()> 
     let z = shape.ends[0][2];
     let uniform = shape.closed
         && path.feeds.iter().all(|o| {
-            o.lit_feed().is_some_and(|(f, l)| f == feed && *l == laser)
+            o.lit_feed().is_some_and(|(f, l)| f == feed && *l == *laser)
                 && o.target().is_some_and(|t| t[2] == z)
         });
     if !uniform {
@@ -402,7 +403,7 @@ fn kerf(path: &mut Path, shape: &PathShape, depth: usize, tol_mm: f64) -> R<()> 
 
 /// The feed moves that cut `profile` at height `z`: one per line, arcs longer than a half turn
 /// split so every dialect reads them unambiguously.
-pub(super) fn profile_ops(profile: &Profile, z: f64, feed: f64, laser: &Laser) -> Vec<OpKind> {
+pub(super) fn profile_ops(profile: &Profile, z: f64, feed: f64, laser: &Arc<Laser>) -> Vec<OpKind> {
     let mut out = Vec::with_capacity(profile.segs.len());
     for seg in &profile.segs {
         match seg {

@@ -20,6 +20,7 @@ use crate::raster::{
 use lase_lang::Span;
 use lase_lang::ast::*;
 use lase_lang::units::{Dim, format_quantity};
+use std::sync::Arc;
 
 /// Dot mode needs two ops per spot and pass, so the op budget allows half as many stops (on
 /// the fly needs a few ops per row).
@@ -409,8 +410,13 @@ impl Evaluator {
         let rows_per_pass = rows.max(1) as u32;
         let mut row_starts = 0u32;
         let z = self.pos[2];
-        let hatch_laser = laser.clone();
-        let mut dot_laser: Option<(f64, Laser)> = None;
+        // One laser per kind of op, shared by all of them (issue 18: an op's size).
+        let hatch_laser = self.share_laser(laser.clone());
+        let fire_laser = Arc::new(Laser {
+            pulse: None,
+            ..laser.clone()
+        });
+        let mut dot_laser: Option<(f64, Arc<Laser>)> = None;
         // A row ends where the scan leaves it: at a travel, or at the entry move of the next
         // row (the move just before its `RowStart`); its settle then learns its end op.
         let close_row = |settles: &mut Vec<Settle>, open: &mut Option<usize>, end: usize| {
@@ -447,13 +453,13 @@ impl Evaluator {
                 Step::Lit { to, pitch } => {
                     let l = match pitch {
                         Some(p) => match &dot_laser {
-                            Some((q, l)) if *q == p => l.clone(),
+                            Some((q, l)) if *q == p => Arc::clone(l),
                             _ => {
-                                let l = Laser {
+                                let l = Arc::new(Laser {
                                     pulse: Some(pulse_for(p)),
                                     ..laser.clone()
-                                };
-                                dot_laser = Some((p, l.clone()));
+                                });
+                                dot_laser = Some((p, Arc::clone(&l)));
                                 l
                             }
                         },
@@ -489,10 +495,7 @@ impl Evaluator {
                         count: pulses,
                         period_s: period_nc,
                         window_s: f64::from(pulses) * period_nc,
-                        laser: Laser {
-                            pulse: None,
-                            ..laser.clone()
-                        },
+                        laser: Arc::clone(&fire_laser),
                     },
                     span,
                 ),

@@ -11,6 +11,7 @@ use lase_lang::Span;
 use lase_lang::ast::*;
 use lase_lang::diag::did_you_mean;
 use lase_lang::units::{Dim, format_quantity};
+use std::sync::Arc;
 
 impl Evaluator {
     pub(super) fn select_machine(&mut self, m: &MachineRef, span: Span, cx: &mut Cx) -> R<()> {
@@ -517,6 +518,20 @@ impl Evaluator {
             couple: set.couple.unwrap_or(self.laser.couple),
             kerf_mm: self.laser.kerf_mm,
         })
+    }
+
+    /// `laser` as an op carries it: the one `Arc` of the lit ops before, if it is the same
+    /// laser. A loop of a million lit moves then holds one laser, not a million (80 bytes an
+    /// op; issue 18).
+    pub(super) fn share_laser(&mut self, laser: Laser) -> Arc<Laser> {
+        match &self.shared_laser {
+            Some(l) if **l == laser => Arc::clone(l),
+            _ => {
+                let l = Arc::new(laser);
+                self.shared_laser = Some(Arc::clone(&l));
+                l
+            }
+        }
     }
 
     /// Pulses by distance at `feed`, held to the laser's maximum rate at the speed's span

@@ -321,7 +321,7 @@ impl Evaluator {
             orient: Some(o), ..
         } = &kind
         {
-            self.orient = Some(*o);
+            self.orient = Some(**o);
         }
         self.ops.push(Op { kind, span });
     }

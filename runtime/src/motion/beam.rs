@@ -169,12 +169,14 @@ mod tests {
                 to: [x, 0.0, 0.0],
                 feed_mm_s: 10.0,
                 orient: None,
-                laser: couple.map(|couple| Laser {
-                    power_w: 10.0,
-                    spot_mm: 0.1,
-                    pulse: None,
-                    couple,
-                    kerf_mm: 0.0,
+                laser: couple.map(|couple| {
+                    std::sync::Arc::new(Laser {
+                        power_w: 10.0,
+                        spot_mm: 0.1,
+                        pulse: None,
+                        couple,
+                        kerf_mm: 0.0,
+                    })
                 }),
                 row: None,
             },

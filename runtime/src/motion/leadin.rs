@@ -44,6 +44,7 @@ use crate::planner::{self, AxisLimits, PlannerConfig};
 use crate::program::{Laser, Op, OpKind, Orient, P3};
 use lase_lang::units::format_number;
 use std::collections::BTreeMap;
+use std::sync::Arc;
 
 use crate::program::PULSE_CRUISE_MARGIN_S;
 
@@ -236,7 +237,7 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
                     to: p0,
                     feed_mm_s: feed,
                     laser: lit_lead.clone(),
-                    orient: o_in,
+                    orient: o_in.map(Box::new),
                     row: None,
                 },
                 span: op.span,
@@ -288,7 +289,7 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
                     to: p_out,
                     feed_mm_s: feed,
                     laser: lit_lead,
-                    orient: o_out,
+                    orient: o_out.map(Box::new),
                     row: None,
                 },
                 span: op.span,
@@ -328,7 +329,7 @@ fn apply(mut ops: Vec<Op>, starts: &[P3], runs: &[(usize, usize)], mut ed: Edits
             OpKind::Rapid { to, orient } | OpKind::Line { to, orient, .. } => {
                 *to = p;
                 if o.is_some() {
-                    *orient = o;
+                    *orient = o.map(Box::new);
                 }
             }
             _ => {}
@@ -483,7 +484,7 @@ fn feed_of(op: &Op) -> f64 {
 
 /// The laser of a lit lead (style a): the section's, without pulses, so that pulse trains
 /// still start at the programmed first lit point.
-fn lead_laser(l: Option<&Laser>) -> Laser {
+fn lead_laser(l: Option<&Laser>) -> Arc<Laser> {
     let mut l = l.cloned().unwrap_or(Laser {
         power_w: 0.0,
         spot_mm: 0.0,
@@ -492,12 +493,15 @@ fn lead_laser(l: Option<&Laser>) -> Laser {
         kerf_mm: 0.0,
     });
     l.pulse = None;
-    l
+    Arc::new(l)
 }
 
 fn rapid(to: P3, like: &Op, orient: Option<Orient>) -> Op {
     Op {
-        kind: OpKind::Rapid { to, orient },
+        kind: OpKind::Rapid {
+            to,
+            orient: orient.map(Box::new),
+        },
         span: like.span,
     }
 }

@@ -325,13 +325,80 @@ impl MoveInfo {
     };
 }
 
+/// The [`MoveInfo`] of every segment `prepare` made, a byte a move where every length is the
+/// axis-space length (every Cartesian job; a `MoveInfo` is 32 bytes, issue 18): a move's
+/// part-space direction only counts at a junction where a length is not (`junction`'s
+/// `part_turn`), so directions are kept from the move before the first such move on.
+#[derive(Default)]
+pub(crate) struct MoveInfos {
+    /// `EUCLIDEAN | STOP_BEFORE | STEPPED_BEFORE` of each move.
+    flags: Vec<u8>,
+    /// Each move's `part_dir` from `dirs_from` on (empty until a length is not Euclidean).
+    dirs: Vec<[f64; 3]>,
+    dirs_from: usize,
+    /// The last move's `part_dir`, for the move after it.
+    last_dir: [f64; 3],
+}
+
+const EUCLIDEAN: u8 = 1;
+const STOP_BEFORE: u8 = 2;
+const STEPPED_BEFORE: u8 = 4;
+
+impl MoveInfos {
+    /// Room for `moves` moves' flags.
+    pub(crate) fn with_capacity(moves: usize) -> MoveInfos {
+        MoveInfos {
+            flags: Vec::with_capacity(moves),
+            ..MoveInfos::default()
+        }
+    }
+
+    pub(crate) fn push(&mut self, m: MoveInfo) {
+        let i = self.flags.len();
+        if self.dirs.is_empty() && !m.euclidean {
+            // From the move before this one: the first junction that may read a direction.
+            self.dirs_from = i.saturating_sub(1);
+            if i > 0 {
+                self.dirs.push(self.last_dir);
+            }
+        }
+        if !self.dirs.is_empty() || !m.euclidean {
+            self.dirs.push(m.part_dir);
+        }
+        self.last_dir = m.part_dir;
+        let bit = |on: bool, b: u8| if on { b } else { 0 };
+        self.flags.push(
+            bit(m.euclidean, EUCLIDEAN)
+                | bit(m.stop_before, STOP_BEFORE)
+                | bit(m.stepped_before, STEPPED_BEFORE),
+        );
+    }
+
+    /// Move `i`'s info (`part_dir` zero where no junction reads it).
+    #[inline]
+    pub(crate) fn get(&self, i: usize) -> MoveInfo {
+        let f = self.flags[i];
+        let part_dir = i
+            .checked_sub(self.dirs_from)
+            .and_then(|k| self.dirs.get(k))
+            .copied()
+            .unwrap_or([0.0; 3]);
+        MoveInfo {
+            euclidean: f & EUCLIDEAN != 0,
+            stop_before: f & STOP_BEFORE != 0,
+            part_dir,
+            stepped_before: f & STEPPED_BEFORE != 0,
+        }
+    }
+}
+
 /// Splits every move of `p` at the blends of its corners (module doc): the second half of the
 /// blend at its start, its straight middle, the first half of the blend at its end, each with
 /// its limits and entry cap; corners that cannot be rounded get entry cap 0 (a stop).
 #[allow(clippy::needless_range_loop)] // one index over parallel per-segment arrays
 pub(super) fn split(
-    p: Prepared,
-    info: &[MoveInfo],
+    mut p: Prepared,
+    info: &MoveInfos,
     start: Axes,
     delta: f64,
     limits: &AxisLimits,
@@ -339,7 +406,7 @@ pub(super) fn split(
 ) -> Prepared {
     let n = n_axes;
     let count = p.segments.len();
-    let point = |i: usize| -> Axes {
+    let point = |p: &Prepared, i: usize| -> Axes {
         if i >= count {
             return p.end;
         }
@@ -349,38 +416,45 @@ pub(super) fn split(
     };
     // The junction after each segment. Computed where it is needed instead of kept in a
     // table: a `Junction` with its blend is about 220 bytes, more than the plan's own segment,
-    // kin and point of a move together (issue 18's memory per move).
-    let junction_at = |i: usize| -> Junction {
-        if i + 1 >= count || p.kin[i].len == 0.0 || p.kin[i + 1].len == 0.0 {
+    // kin and point of a move together (issue 18's memory per move). The segments hold each
+    // move's look-ahead data (`Segment::kin`).
+    let junction_at = |p: &Prepared, i: usize| -> Junction {
+        let kin = |k: usize| p.segments[k].kin();
+        if i + 1 >= count || kin(i).len == 0.0 || kin(i + 1).len == 0.0 {
             return Junction::Stop;
         }
-        if info[i + 1].stop_before {
+        let (info_i, info_next) = (info.get(i), info.get(i + 1));
+        if info_next.stop_before {
             return Junction::Stop;
         }
-        if info[i + 1].stepped_before {
+        if info_next.stepped_before {
             return Junction::Stepped;
         }
         // `Δq / length` of move k, from the points (as `prepare` computed it: not kept, it
         // would be 48 bytes a move).
         let rate = |k: usize| -> Axes {
-            let (a, b) = (point(k), point(k + 1));
+            let (a, b) = (point(p, k), point(p, k + 1));
             let mut r = Axes::ZERO;
             for axis in 0..n {
-                r[axis] = (b[axis] - a[axis]) / p.kin[k].len;
+                r[axis] = (b[axis] - a[axis]) / kin(k).len;
             }
             r
         };
         let (rate_i, rate_next) = (rate(i), rate(i + 1));
-        let side = |k: usize, dir| Side {
-            dir,
-            kin: &p.kin[k],
-            euclidean: info[k].euclidean,
-        };
-        let turn = part_turn(&info[i].part_dir, &info[i + 1].part_dir);
+        let (kin_i, kin_next) = (kin(i), kin(i + 1));
+        let turn = part_turn(&info_i.part_dir, &info_next.part_dir);
         junction(
-            &point(i + 1),
-            side(i, &rate_i),
-            side(i + 1, &rate_next),
+            &point(p, i + 1),
+            Side {
+                dir: &rate_i,
+                kin: &kin_i,
+                euclidean: info_i.euclidean,
+            },
+            Side {
+                dir: &rate_next,
+                kin: &kin_next,
+                euclidean: info_next.euclidean,
+            },
             delta,
             turn,
             limits,
@@ -388,38 +462,34 @@ pub(super) fn split(
         )
     };
     let extra = (0..count)
-        .filter(|&i| matches!(junction_at(i), Junction::Blend { .. }))
+        .filter(|&i| matches!(junction_at(&p, i), Junction::Blend { .. }))
         .count();
     if extra == 0 {
         // Nothing to round: only the entry caps change, in place (no second copy of the plan).
-        let mut caps = Vec::with_capacity(count);
+        // A move's cap is written after the junction before it is judged, and a junction reads
+        // no cap.
         let mut prev_v = 0.0f64;
         let mut before = Junction::Stop;
         for i in 0..count {
-            let k = &p.kin[i];
+            let k = p.segments[i].kin();
             if k.len == 0.0 {
-                caps.push(k.cap);
                 prev_v = 0.0;
             } else {
-                caps.push(match (i > 0).then_some(before) {
+                let cap = match (i > 0).then_some(before) {
                     Some(Junction::Straight) => k.v.min(prev_v),
                     Some(Junction::Stepped) => k.cap.min(prev_v),
                     _ => 0.0,
-                });
+                };
+                p.segments[i].set_kin(&Kin { cap, ..k });
                 prev_v = k.v;
             }
-            before = junction_at(i);
-        }
-        let mut p = p;
-        for (k, cap) in p.kin.iter_mut().zip(caps) {
-            k.cap = cap;
+            before = junction_at(&p, i);
         }
         return p;
     }
     let mut out = Prepared {
         segments: Vec::with_capacity(count + 2 * extra),
         points: Vec::with_capacity((count + 2 * extra) * n),
-        kin: Vec::with_capacity(count + 2 * extra),
         end: p.end,
         blends: Vec::with_capacity(extra),
     };
@@ -429,17 +499,16 @@ pub(super) fn split(
     let mut blend_in: Option<(usize, f64, f64, f64)> = None;
     // The junctions before and after move `i`.
     let mut before = Junction::Stop;
-    let mut after = junction_at(0);
+    let mut after = junction_at(&p, 0);
     for i in 0..count {
         if i > 0 {
             before = after;
-            after = junction_at(i);
+            after = junction_at(&p, i);
         }
-        let (seg, k) = (p.segments[i], p.kin[i]);
+        let (seg, k) = (p.segments[i], p.segments[i].kin());
         if k.len == 0.0 {
             out.segments.push(seg);
-            out.points.extend_from_slice(&point(i)[..n]);
-            out.kin.push(k);
+            out.points.extend_from_slice(&point(&p, i)[..n]);
             prev_v = 0.0;
             blend_in = None;
             continue;
@@ -448,13 +517,12 @@ pub(super) fn split(
         let push =
             |out: &mut Prepared, len: f64, lim: (f64, f64, f64), cap: f64, blend: u32, at: Axes| {
                 let mut s = seg;
-                s.length = len;
+                let (v, a, j) = lim;
+                s.set_kin(&Kin { len, v, a, j, cap });
                 s.dwell = 0.0;
                 s.blend = blend;
                 out.segments.push(s);
                 out.points.extend_from_slice(&at[..n]);
-                let (v, a, j) = lim;
-                out.kin.push(Kin { len, v, a, j, cap });
             };
         let l_in = blend_in.map_or(0.0, |(b, ..)| out.blends[b].reach);
         let (l_out, out_limits) = match after {
@@ -478,7 +546,7 @@ pub(super) fn split(
         if mid > 1e-9 * k.len {
             let (cap, at) = match blend_in {
                 Some((b, ..)) => (k.v.min(prev_v), out.blends[b].point(1.0)),
-                None => (cap_before, point(i)),
+                None => (cap_before, point(&p, i)),
             };
             push(&mut out, mid, (k.v, k.a, k.j), cap, NO_BLEND, at);
             prev_v = k.v;

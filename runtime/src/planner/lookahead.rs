@@ -40,27 +40,59 @@ pub(crate) struct Kin {
     pub cap: f64,
 }
 
-// The memory budget of a plan (`planner` module doc) counts on it.
+// The tests' tables and `Segment::kin` count on it.
 const _: () = assert!(std::mem::size_of::<Kin>() == 40);
 
-/// Offline look-ahead over the whole program. `commit(k, move, v_in, v_out)` receives each
-/// move's entry and exit speed, in order.
-pub(crate) fn offline(kin: &mut [Kin], mut commit: impl FnMut(usize, &Kin, f64, f64)) {
-    let n = kin.len();
+/// Where the passes read each move's [`Kin`] and keep its entry cap. The plan's own segments
+/// are one (`plan::Segment::kin`: until the look-ahead times a segment, its timing fields hold
+/// its `Kin`), so planning needs no scratch table of 40 bytes a move (issue 18); a plain
+/// `[Kin]` is another (the tests). A pass never reads a move after committing it.
+pub(crate) trait KinTable {
+    fn count(&self) -> usize;
+    fn kin(&self, i: usize) -> Kin;
+    fn set_cap(&mut self, i: usize, cap: f64);
+}
+
+impl KinTable for [Kin] {
+    #[inline]
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn kin(&self, i: usize) -> Kin {
+        self[i]
+    }
+
+    #[inline]
+    fn set_cap(&mut self, i: usize, cap: f64) {
+        self[i].cap = cap;
+    }
+}
+
+/// Offline look-ahead over the whole program. `commit(table, k, move, v_in, v_out)` receives
+/// each move's entry and exit speed, in order, and may overwrite move k in the table.
+pub(crate) fn offline<T: KinTable + ?Sized>(
+    kin: &mut T,
+    mut commit: impl FnMut(&mut T, usize, &Kin, f64, f64),
+) {
+    let n = kin.count();
     let mut next_entry = 0.0;
-    for m in kin.iter_mut().rev() {
-        m.cap = m.cap.min(entry_limit(next_entry, m.len, m.a, m.j));
-        next_entry = m.cap;
+    for i in (0..n).rev() {
+        let m = kin.kin(i);
+        let cap = m.cap.min(entry_limit(next_entry, m.len, m.a, m.j));
+        kin.set_cap(i, cap);
+        next_entry = cap;
     }
     // Forward pass: from rest, each move accelerates as far as its length allows, capped by
     // the exit cap the backward pass left (the next move's entry limit, 0 at the end).
     let mut v = 0.0f64;
     for k in 0..n {
-        let exit_cap = if k + 1 == n { 0.0 } else { kin[k + 1].cap };
-        let m = &kin[k];
+        let exit_cap = if k + 1 == n { 0.0 } else { kin.kin(k + 1).cap };
+        let m = kin.kin(k);
         let v_in = v.min(m.cap);
         let v_out = exit_speed(v_in, exit_cap.min(m.v), m.len, m.a, m.j);
-        commit(k, m, v_in, v_out);
+        commit(kin, k, &m, v_in, v_out);
         v = v_out;
     }
 }
@@ -70,12 +102,12 @@ pub(crate) fn offline(kin: &mut [Kin], mut commit: impl FnMut(usize, &Kin, f64, 
 ///
 /// The entry limits of the moves in the window live in a ring of `window + 1` slots: at move k
 /// only k..=k+window are ever read or written.
-pub(crate) fn streaming(
-    kin: &mut [Kin],
+pub(crate) fn streaming<T: KinTable + ?Sized>(
+    kin: &mut T,
     window: usize,
-    mut commit: impl FnMut(usize, &Kin, f64, f64),
+    mut commit: impl FnMut(&mut T, usize, &Kin, f64, f64),
 ) {
-    let n = kin.len();
+    let n = kin.count();
     if n == 0 {
         return;
     }
@@ -96,7 +128,7 @@ pub(crate) fn streaming(
             let mut i = m;
             let mut exit_cap = 0.0;
             loop {
-                let mi = &kin[i];
+                let mi = kin.kin(i);
                 let new = mi.cap.min(entry_limit(exit_cap, mi.len, mi.a, mi.j));
                 let slot = &mut entry_max[i % slots];
                 if i < m && new == *slot {
@@ -116,10 +148,10 @@ pub(crate) fn streaming(
         } else {
             entry_max[(k + 1) % slots]
         };
-        let m = &kin[k];
+        let m = kin.kin(k);
         let v_in = v.min(m.cap);
         let v_out = exit_speed(v_in, exit_cap.min(m.v), m.len, m.a, m.j);
-        commit(k, m, v_in, v_out);
+        commit(kin, k, &m, v_in, v_out);
         v = v_out;
     }
 }
@@ -143,10 +175,10 @@ mod tests {
     /// (v_in, v_out) of every move.
     fn speeds(
         kin: &mut [Kin],
-        pass: impl FnOnce(&mut [Kin], &mut dyn FnMut(usize, &Kin, f64, f64)),
+        pass: impl FnOnce(&mut [Kin], &mut dyn FnMut(&mut [Kin], usize, &Kin, f64, f64)),
     ) -> Vec<(f64, f64)> {
         let mut out = vec![(f64::NAN, f64::NAN); kin.len()];
-        pass(kin, &mut |k, _, v_in, v_out| out[k] = (v_in, v_out));
+        pass(kin, &mut |_, k, _, v_in, v_out| out[k] = (v_in, v_out));
         out
     }
 

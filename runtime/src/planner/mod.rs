@@ -32,8 +32,10 @@
 //!    table of the axes in use; [`Plan::sample`] evaluates it exactly (on a blend, along the
 //!    blend curve).
 //!
-//! Memory: 120 bytes of segment, `8 · n_axes` of points and 40 of look-ahead scratch per move
-//! (176 bytes for two axes, 208 for six), and nothing else per move; a blended corner adds two
+//! Memory: 120 bytes of segment and `8 · n_axes` of points per move (136 bytes for two axes,
+//! 168 for six), and nothing else per move: the look-ahead reads each move's limits from its
+//! segment before timing it (`lookahead::KinTable`), and the corner blends' per-move input is
+//! a byte of flags (`blend::MoveInfos`) while the corners are judged. A blended corner adds two
 //! segments and a 152-byte [`Blend`].
 //!
 //! Known limit: every S-curve move starts and ends at zero path acceleration, so acceleration
@@ -276,8 +278,9 @@ const EUCLIDEAN_TOL: f64 = 1e-9;
 /// Plans `moves` from `start` (at rest) to the last target (at rest).
 ///
 /// Validates everything first and fails without a partial plan. Allocates the output (segments
-/// and their start points) and one compact scratch vector (`lookahead::Kin`, 40 bytes a move);
-/// nothing per move.
+/// and their start points; the look-ahead works in the segments themselves) and nothing else
+/// per move, but for the corner blends' byte of flags a move (`blend::MoveInfos`) while
+/// `Corners::Blend` judges the corners.
 pub fn plan(
     start: impl Into<Axes>,
     moves: &[Move],
@@ -350,23 +353,20 @@ pub fn plan_along_iter(
     let Prepared {
         mut segments,
         points,
-        mut kin,
         end,
         blends,
     } = prepare(start, moves.into_iter(), expected, limits, cfg)?;
-    let mut timeline = Timeline {
-        segments: &mut segments,
-        t: 0.0,
-        s: 0.0,
-    };
+    // The passes read each move's limits from its segment and time it in place.
+    let mut timeline = Timeline { t: 0.0, s: 0.0 };
+    let table: &mut [Segment] = &mut segments;
     match cfg.lookahead {
-        Some(window) if window.saturating_add(1) < kin.len() => {
-            lookahead::streaming(&mut kin, window, |k, m, v_in, v_out| {
-                timeline.commit(k, m, v_in, v_out)
+        Some(window) if window.saturating_add(1) < table.len() => {
+            lookahead::streaming(table, window, |segs, k, m, v_in, v_out| {
+                timeline.commit(&mut segs[k], m, v_in, v_out)
             })
         }
-        _ => lookahead::offline(&mut kin, |k, m, v_in, v_out| {
-            timeline.commit(k, m, v_in, v_out)
+        _ => lookahead::offline(table, |segs, k, m, v_in, v_out| {
+            timeline.commit(&mut segs[k], m, v_in, v_out)
         }),
     }
     let duration = timeline.t;
@@ -382,19 +382,18 @@ pub fn plan_along_iter(
 }
 
 /// Fills in the segments' timing in order, as the look-ahead commits each move's end speeds.
-struct Timeline<'a> {
-    segments: &'a mut [Segment],
+struct Timeline {
     /// Start time of the next segment.
     t: f64,
     /// Path distance at the start of the next segment.
     s: f64,
 }
 
-impl Timeline<'_> {
+impl Timeline {
+    /// Times `seg` (its move `m`, read before: this overwrites the `Kin` the segment held).
     #[inline]
-    fn commit(&mut self, k: usize, m: &Kin, v_in: f64, v_out: f64) {
+    fn commit(&mut self, seg: &mut Segment, m: &Kin, v_in: f64, v_out: f64) {
         let sh = profile::shape(m.len, v_in, v_out, m.v, m.a, m.j);
-        let seg = &mut self.segments[k];
         seg.t_start = self.t;
         seg.s_start = self.s;
         seg.v_entry = sh.v0;
@@ -467,7 +466,6 @@ fn prepare(
     let scurve = cfg.profile == ProfileKind::SCurve;
     let mut segments: Vec<Segment> = Vec::with_capacity(expected);
     let mut points: Vec<f64> = Vec::with_capacity(expected * n_axes);
-    let mut kin: Vec<Kin> = Vec::with_capacity(expected);
     let mut q = start;
     // The previous move ends at a stop point (or there is none yet).
     let mut prev_stop = true;
@@ -475,7 +473,7 @@ fn prepare(
     let mut prev_euclidean = true;
     // Centripetal cap (v²) and rounding-circle reach of the previous move's entry corner.
     let blending = cfg.corners == Corners::Blend;
-    let mut info: Vec<blend::MoveInfo> = Vec::new();
+    let mut info = blend::MoveInfos::with_capacity(if blending { expected } else { 0 });
     let mut prev_along = Along::default();
     let mut prev_corner = junction::Corner::AT_REST;
     let mut prev_d_in = 0.0;
@@ -550,7 +548,6 @@ fn prepare(
             } else if mv.dwell_after > 0.0 {
                 segments.push(skeleton(0.0, mv, index));
                 points.extend_from_slice(&q[..n_axes]);
-                kin.push(Kin::default());
                 if blending {
                     info.push(blend::MoveInfo::REST);
                 }
@@ -599,7 +596,9 @@ fn prepare(
         }
         // Both moves keep the velocity-step model at their corner (`Along::step_corners`).
         let stepped = here.step_corners && prev_along.step_corners;
-        let (entry_cap, corner, d_in) = match kin.last_mut() {
+        // The previous move's look-ahead data, kept in its segment until it is timed.
+        let mut prev_kin = segments.last().map(Segment::kin);
+        let (entry_cap, corner, d_in) = match prev_kin.as_mut() {
             // Blended corners are judged once every move is known (`blend::split`).
             Some(prev) if blending && !prev_stop && !stepped => {
                 (v.min(prev.v), junction::Corner::AT_REST, 0.0)
@@ -626,6 +625,9 @@ fn prepare(
                 };
                 if prev_d_in > 0.0 && d > 0.0 && prev_d_in + d >= prev.len * (1.0 - CURVED_TOL) {
                     curve_limits(prev, &prev_corner, &c);
+                    if let Some(seg) = segments.last_mut() {
+                        seg.set_kin(prev);
+                    }
                 }
                 (c.v2.sqrt().min(v).min(prev.v), c, d)
             }
@@ -641,15 +643,16 @@ fn prepare(
                 stepped_before: stepped && !prev_stop,
             });
         }
-        segments.push(skeleton(mv.length, mv, index));
-        points.extend_from_slice(&q[..n_axes]);
-        kin.push(Kin {
+        let mut seg = skeleton(mv.length, mv, index);
+        seg.set_kin(&Kin {
             len: mv.length,
             v,
             a,
             j,
             cap: entry_cap,
         });
+        segments.push(seg);
+        points.extend_from_slice(&q[..n_axes]);
         prev_stop = stop;
         prev_along = here;
         prev_dir = dir;
@@ -659,7 +662,6 @@ fn prepare(
     let prepared = Prepared {
         segments,
         points,
-        kin,
         end: q,
         blends: Vec::new(),
     };
@@ -679,11 +681,11 @@ fn prepare(
 
 /// What `prepare` hands to the look-ahead.
 struct Prepared {
-    /// Segment skeletons, timing still empty.
+    /// Segment skeletons, not yet timed: each holds its move's look-ahead data
+    /// (`Segment::kin`).
     segments: Vec<Segment>,
     /// Their start points, `n_axes` values each.
     points: Vec<f64>,
-    kin: Vec<Kin>,
     /// The last target.
     end: Axes,
     /// The corner blends the segments refer to (`Corners::Blend`).

@@ -11,6 +11,7 @@
 //! `t_start` and evaluates the phase polynomials in closed form.
 
 use super::blend::Blend;
+use super::lookahead::{Kin, KinTable};
 use super::profile::Shape;
 use super::{Axes, MAX_AXES};
 
@@ -63,7 +64,50 @@ pub const NO_BLEND: u32 = u32::MAX;
 // The memory budget of a plan (`planner` module doc) counts on it.
 const _: () = assert!(std::mem::size_of::<Segment>() == 120);
 
+/// Until the look-ahead times a segment, its timing fields hold what the passes need of its
+/// move ([`Kin`]: speed, acceleration and jerk limits and entry cap, with `length` its path
+/// length); committing the segment overwrites them with its timing. A plan is planned in its
+/// own table, with no scratch table beside it (issue 18: 40 bytes a move).
+impl KinTable for [Segment] {
+    #[inline]
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    #[inline]
+    fn kin(&self, i: usize) -> Kin {
+        self[i].kin()
+    }
+
+    #[inline]
+    fn set_cap(&mut self, i: usize, cap: f64) {
+        self[i].v_entry = cap;
+    }
+}
+
 impl Segment {
+    /// The look-ahead's data of a segment not yet timed ([`KinTable`] for segments).
+    #[inline]
+    pub(crate) fn kin(&self) -> Kin {
+        Kin {
+            len: self.length,
+            v: self.v_peak,
+            a: self.t_a1,
+            j: self.t_j1,
+            cap: self.v_entry,
+        }
+    }
+
+    /// Keeps `k` in a segment not yet timed: its length becomes `k.len`.
+    #[inline]
+    pub(crate) fn set_kin(&mut self, k: &Kin) {
+        self.length = k.len;
+        self.v_peak = k.v;
+        self.t_a1 = k.a;
+        self.t_j1 = k.j;
+        self.v_entry = k.cap;
+    }
+
     #[inline]
     pub(crate) fn shape(&self) -> Shape {
         Shape {

@@ -17,7 +17,7 @@ fn a_frame_bounds_arcs_by_their_extreme_points_and_returns_to_the_start() {
             center: [10.0, 0.0],
             ccw: true,
             feed_mm_s: 5.0,
-            laser: Some(laser.clone()),
+            laser: Some(std::sync::Arc::new(laser.clone())),
         },
         span: Span::default(),
     };

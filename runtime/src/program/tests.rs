@@ -31,7 +31,7 @@ fn lit(power_w: f64, mode: PulseMode, feed_mm_s: f64, at: usize) -> Op {
         kind: OpKind::Line {
             to: [1.0, 0.0, 0.0],
             feed_mm_s,
-            laser: Some(Laser {
+            laser: Some(Arc::new(Laser {
                 power_w,
                 spot_mm: 0.05,
                 pulse: Some(Pulse {
@@ -41,7 +41,7 @@ fn lit(power_w: f64, mode: PulseMode, feed_mm_s: f64, at: usize) -> Op {
                 }),
                 couple: Coupling::None,
                 kerf_mm: 0.0,
-            }),
+            })),
             orient: None,
             row: None,
         },

@@ -68,7 +68,7 @@ pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -
             run_axes(
                 job,
                 p,
-                *orient,
+                orient.as_deref().copied(),
                 &q_prev,
                 &from_q,
                 &job.op_axes.get(i),
@@ -96,11 +96,11 @@ pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -
                 kind: OpKind::Line {
                     to: p,
                     feed_mm_s: *feed_mm_s,
-                    laser: Some(Laser {
+                    laser: Some(std::sync::Arc::new(Laser {
                         power_w,
-                        ..laser.clone()
-                    }),
-                    orient: *orient,
+                        ..(**laser).clone()
+                    })),
+                    orient: orient.clone(),
                     row: None,
                 },
                 span: op.span,
