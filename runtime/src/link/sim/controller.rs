@@ -76,7 +76,11 @@ enum Work {
     LaserAtRest(f64),
     Coolant(bool, bool),
     /// `begun`: the protocol loop has reached it (its wait for the bytes before it added).
-    Dwell { left: f64, total: f64, begun: bool },
+    Dwell {
+        left: f64,
+        total: f64,
+        begun: bool,
+    },
     Blocks(VecDeque<PBlock>),
     ProgramEnd,
     Pause,
@@ -119,6 +123,8 @@ pub struct Controller {
     /// `protocol_auto_cycle_start` came while the loop was still reading: the queued blocks
     /// start at this simulated time.
     start_at: Option<f64>,
+    /// The last `run…` was `run_while_blocked` (the client streams on).
+    streaming: bool,
     mpos: AxisPos,
     state: St,
     now: f64,
@@ -179,6 +185,7 @@ impl Controller {
             resume_asked: false,
             reading: Some(0.0),
             start_at: None,
+            streaming: false,
             mpos,
             state: St::Idle,
             now: 0.0,
@@ -442,6 +449,7 @@ impl Controller {
     }
 
     fn run_until(&mut self, mut dt: f64, only_blocked: bool) {
+        self.streaming = only_blocked;
         for _ in 0..10_000_000 {
             self.protocol_turn(only_blocked);
             self.start_front();

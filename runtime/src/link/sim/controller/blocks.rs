@@ -159,11 +159,7 @@ impl Controller {
                     let _ = (f, m);
                     p.work.pop_front();
                 }
-                Work::Dwell {
-                    left,
-                    total,
-                    begun,
-                } => {
+                Work::Dwell { left, total, begun } => {
                     if !*begun {
                         // `mc_dwell`: it begins once the loop has read the bytes before it.
                         *begun = true;
