@@ -20,9 +20,9 @@
 //!   slot frees only when the running block ends;
 //! - trapezoids at the block's acceleration (GRBL has no jerk limit);
 //! - arcs split into chords by `$12` as `mc_arc` does;
-//! - syncs (the planner empties, the machine stops): `G4` (then the dwell), every spindle
-//!   state change (`M3`/`M4`/`M5`, even in laser mode), `S` changes without motion, coolant —
-//!   exactly the steps the simulator's G-code interpreter ([`super::gcode`]) asks for; `S`
+//! - syncs (the planner empties, the machine stops): `G4` (then the dwell, in whole 50 ms
+//!   steps as `delay_sec` waits, [`gcode::dwell_s`]), every spindle state change
+//!   (`M3`/`M4`/`M5`, even in laser mode), `S` changes without motion, coolant — exactly the steps the simulator's G-code interpreter ([`super::gcode`]) asks for; `S`
 //!   changes carried on moves in laser mode do not stop;
 //! - the restart after a stop (`protocol.c`, `motion_control.c`): blocks queued while the
 //!   machine stands do not start until the protocol loop calls `protocol_auto_cycle_start` —
