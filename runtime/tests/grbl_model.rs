@@ -134,6 +134,36 @@ fn conrod_notch() {
     );
 }
 
+/// After a stop nothing moves until GRBL's protocol loop has read up to its next cycle start,
+/// 50 µs a byte (grbl-sim): at a sync (the `M3` line's own bytes count before the first
+/// start), and when a line finds the planner full (the 16th after the stop, 15 queued).
+#[test]
+fn restart_waits_for_the_bytes_read() {
+    let (_, cfg) = program("frame_marking");
+    let limits = cfg.firmware.limits(&cfg.settings, cfg.planner_blocks);
+    let moves: String = (1..=20).map(|k| format!("X{k}\n")).collect();
+    let nc = format!("G1 X0.5 F600\nM3 S100\n{moves}M5\n");
+    let t = run_program(&nc, &limits, cfg.home()).unwrap();
+    let waits: Vec<(f64, f64)> = t
+        .spans
+        .iter()
+        .filter(|s| s.activity == Activity::Rest && s.duration > 0.0)
+        .map(|s| (s.t0, s.duration))
+        .collect();
+    // "G1 X0.5 F600\n" and "M3 S100\n": 21 bytes before the lead-in starts.
+    assert_eq!(waits[0].0, 0.0);
+    assert!((waits[0].1 - 21.0 * 50e-6).abs() < 1e-12, "{waits:?}");
+    // After the M3 stop: X1 … X9 (3 bytes each), X10 … X16 (4 each).
+    let first_move_after = t.spans.iter().find(|s| s.line == 3).unwrap();
+    assert_eq!(waits.len(), 2, "{waits:?}");
+    assert!(
+        (waits[1].1 - (9.0 * 3.0 + 7.0 * 4.0) * 50e-6).abs() < 1e-12,
+        "{waits:?}"
+    );
+    assert!((first_move_after.t0 - (waits[1].0 + waits[1].1)).abs() < 1e-12);
+    assert_eq!(t.syncs, 2);
+}
+
 /// The simulator executes with the model: streamed like lase streams, its executed time and
 /// blocks are the model's (the model assumes a slot is refilled the moment it frees; the
 /// stream refills it when the protocol loop next reads, which changes nothing here).
