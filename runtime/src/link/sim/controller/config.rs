@@ -72,8 +72,10 @@ impl Firmware {
     /// runs it: grbl-sim's `serial_read()` (its serial.c) calls `platform_sleep(0)` before
     /// every byte, a zero `nanosleep` (platform_LINUX.c) that Linux ends no sooner than the
     /// thread's timer slack, 50 µs by default (`/proc/self/timerslack_ns` = 50000), and the
-    /// simulated clock follows the wall clock (`sim_loop`, `-t 1`). grblHAL's simulator was
-    /// not measured: 0, no cost.
+    /// simulated clock follows the wall clock (`sim_loop`, `-t 1`). Its serial line is faster
+    /// than that (a byte every `2·UBRR0+1`, doubled with U2X0: 66 ticks, 4.1 µs, whenever the
+    /// 128-byte ring has room), so the loop, not the line, sets the pace. grblHAL's simulator
+    /// was not measured: 0, no cost.
     pub fn byte_s(self) -> f64 {
         match self {
             Firmware::Grbl => 50e-6,
