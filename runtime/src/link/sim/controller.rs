@@ -40,7 +40,7 @@ pub use record::{
 };
 
 use super::gcode::Gc;
-use super::motion::{self, Limits, Planner};
+use super::motion::{self, Planner};
 use crate::link::grbl::codes::realtime_of;
 use crate::link::{AxisPos, OverrideStep, Realtime};
 use std::collections::{BTreeMap, VecDeque};
@@ -75,7 +75,12 @@ enum Work {
     Sync,
     LaserAtRest(f64),
     Coolant(bool, bool),
-    Dwell { left: f64, total: f64 },
+    /// `begun`: the protocol loop has reached it (its wait for the bytes before it added).
+    Dwell {
+        left: f64,
+        total: f64,
+        begun: bool,
+    },
     Blocks(VecDeque<PBlock>),
     ProgramEnd,
     Pause,
@@ -112,6 +117,14 @@ pub struct Controller {
     v: f64,
     /// `~` arrived while a hold was still decelerating.
     resume_asked: bool,
+    /// While the machine stands: when the protocol loop will have read every byte it took
+    /// since the stop (GRBL's restart, [`motion`]'s module doc); `None` while it moves.
+    reading: Option<f64>,
+    /// `protocol_auto_cycle_start` came while the loop was still reading: the queued blocks
+    /// start at this simulated time.
+    start_at: Option<f64>,
+    /// The last `run…` was `run_while_blocked` (the client streams on).
+    streaming: bool,
     mpos: AxisPos,
     state: St,
     now: f64,
@@ -141,7 +154,7 @@ impl Controller {
             Some(k) => Recording::bounded(k),
             None => Recording::default(),
         };
-        let limits = Limits::from_settings(&settings, cfg.firmware.axes(), cfg.planner_blocks);
+        let limits = cfg.firmware.limits(&settings, cfg.planner_blocks);
         // The simulator starts homed at the origin (clamped into the travel).
         let mpos = cfg.home();
         let axes = cfg.firmware.axes();
@@ -170,6 +183,9 @@ impl Controller {
             exec: None,
             v: 0.0,
             resume_asked: false,
+            reading: Some(0.0),
+            start_at: None,
+            streaming: false,
             mpos,
             state: St::Idle,
             now: 0.0,
@@ -305,11 +321,13 @@ impl Controller {
                 if self.state == (St::Hold { complete: false }) {
                     self.resume_asked = true;
                 } else if let St::Hold { .. } = self.state {
-                    self.state = if self.planner.is_empty() {
-                        St::Idle
+                    if self.planner.is_empty() {
+                        self.come_to_rest();
                     } else {
-                        St::Cycle
-                    };
+                        self.state = St::Cycle;
+                        self.reading = None;
+                        self.start_at = None;
+                    }
                 }
             }
             Realtime::SoftReset => self.reset(),
@@ -398,12 +416,42 @@ impl Controller {
         self.rx.is_empty() && self.pending.is_none()
     }
 
+    /// The machine stands with nothing to run: the protocol loop reads on from now.
+    pub(super) fn come_to_rest(&mut self) {
+        self.state = St::Idle;
+        self.reading = Some(self.now);
+        self.start_at = None;
+    }
+
+    /// GRBL's `protocol_auto_cycle_start` (a line found the planner full, a sync, or the RX
+    /// buffer ran dry): what stands queued starts once the loop has read what it took.
+    pub(super) fn auto_cycle_start(&mut self) {
+        if self.state == St::Idle && !self.planner.is_empty() && self.start_at.is_none() {
+            let ready = self.reading.take().unwrap_or(self.now);
+            self.start_at = Some(ready.max(self.now));
+        }
+    }
+
+    /// The protocol loop's turn: read what it can; with nothing left to read (and the client
+    /// not streaming on, `only_blocked`) start what is queued; start it when it is due.
+    fn protocol_turn(&mut self, only_blocked: bool) {
+        self.service();
+        if !only_blocked && self.rx.is_empty() && self.pending.is_none() {
+            self.auto_cycle_start();
+        }
+        if self.state == St::Idle && self.start_at.is_some_and(|t| t <= self.now + 1e-9) {
+            self.start_at = None;
+            self.state = St::Cycle;
+        }
+        if self.state == St::Cycle && self.planner.is_empty() {
+            self.come_to_rest();
+        }
+    }
+
     fn run_until(&mut self, mut dt: f64, only_blocked: bool) {
+        self.streaming = only_blocked;
         for _ in 0..10_000_000 {
-            self.service();
-            if self.state == St::Cycle && self.planner.is_empty() {
-                self.state = St::Idle;
-            }
+            self.protocol_turn(only_blocked);
             self.start_front();
             if self.state == (St::Hold { complete: false }) && self.exec.is_none() {
                 // Nothing was moving: the hold is complete at once.
@@ -425,10 +473,7 @@ impl Controller {
             self.elapse(te);
             dt -= te;
         }
-        self.service();
-        if self.state == St::Cycle && self.planner.is_empty() {
-            self.state = St::Idle;
-        }
+        self.protocol_turn(only_blocked);
         self.note_laser();
         if self.status_request {
             self.status_request = false;
@@ -440,10 +485,16 @@ impl Controller {
     fn time_to_event(&self) -> f64 {
         match self.state {
             St::Cycle | St::Jog | St::Hold { complete: false } => self.motion_event(),
-            St::Idle => match self.pending.as_ref().and_then(|p| p.work.front()) {
-                Some(Work::Dwell { left, .. }) if self.planner.is_empty() => left.max(0.0),
-                _ => f64::INFINITY,
-            },
+            St::Idle => {
+                let dwell = match self.pending.as_ref().and_then(|p| p.work.front()) {
+                    Some(Work::Dwell { left, .. }) if self.planner.is_empty() => left.max(0.0),
+                    _ => f64::INFINITY,
+                };
+                let start = self
+                    .start_at
+                    .map_or(f64::INFINITY, |t| (t - self.now).max(0.0));
+                dwell.min(start)
+            }
             _ => f64::INFINITY,
         }
     }
@@ -505,6 +556,10 @@ impl Controller {
             let Some(c) = self.rx.pop_front() else {
                 return;
             };
+            if let Some(t) = self.reading {
+                // `serial_read`: each byte read while the machine stands takes its time.
+                self.reading = Some(t.max(self.now) + self.pl.limits.byte_s);
+            }
             self.line_conn = self.rx_conn.pop_front().unwrap_or(self.connection);
             self.protocol_char(c);
         }

@@ -571,7 +571,7 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
     }
     if non_modal == Some(4) {
         steps.push(Step::Sync);
-        steps.push(Step::Dwell(v(b'P').unwrap_or(0.0)));
+        steps.push(Step::Dwell(dwell_s(v(b'P').unwrap_or(0.0))));
     }
     if let Some(mut mv) = mv {
         mv.laser_s = if laser_mode {
@@ -613,6 +613,15 @@ pub fn execute(line: &[u8], gc: &Gc, laser_mode: bool) -> Result<Block, u32> {
         None => {}
     }
     Ok(Block { next, steps })
+}
+
+/// How long `G4 P…` dwells: GRBL's `delay_sec` (nuts_bolts.c; grblHAL's the same) waits
+/// `ceil(1000/DWELL_TIME_STEP * P)` steps of `DWELL_TIME_STEP` = 50 ms (config.h), in single
+/// precision as the firmware computes it.
+pub fn dwell_s(p: f64) -> f64 {
+    const DWELL_TIME_STEP_MS: f32 = 50.0;
+    let steps = ((1000.0 / DWELL_TIME_STEP_MS) * p as f32).ceil().max(0.0);
+    f64::from(steps) * f64::from(DWELL_TIME_STEP_MS) / 1000.0
 }
 
 #[cfg(test)]
@@ -753,5 +762,21 @@ mod tests {
         // Switching on synchronizes.
         let b = execute(b"M3S250", &Gc::new([0.0; 6], 3), true).unwrap();
         assert_eq!(b.steps[0], Step::Sync);
+    }
+
+    /// `G4` dwells whole 50 ms steps, rounded up.
+    #[test]
+    fn dwells_in_50_ms_steps() {
+        for (p, dwelt) in [
+            ("0", 0.0),
+            ("0.0005", 0.05),
+            ("0.05", 0.05),
+            ("0.16", 0.2),
+            ("0.5", 0.5),
+            ("1.26", 1.3),
+        ] {
+            let b = execute(format!("G4P{p}").as_bytes(), &Gc::new([0.0; 6], 3), true).unwrap();
+            assert_eq!(b.steps[..], [Step::Sync, Step::Dwell(dwelt)], "G4 P{p}");
+        }
     }
 }

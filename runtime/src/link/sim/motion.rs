@@ -20,10 +20,27 @@
 //!   slot frees only when the running block ends;
 //! - trapezoids at the block's acceleration (GRBL has no jerk limit);
 //! - arcs split into chords by `$12` as `mc_arc` does;
-//! - syncs (the planner empties, the machine stops): `G4` (then the dwell), every spindle
-//!   state change (`M3`/`M4`/`M5`, even in laser mode), `S` changes without motion, coolant —
-//!   exactly the steps the simulator's G-code interpreter ([`super::gcode`]) asks for; `S`
-//!   changes carried on moves in laser mode do not stop.
+//! - syncs (the planner empties, the machine stops): `G4` (then the dwell, in whole 50 ms
+//!   steps as `delay_sec` waits, [`gcode::dwell_s`]), every spindle state change
+//!   (`M3`/`M4`/`M5`, even in laser mode), `S` changes without motion, coolant — exactly the steps the simulator's G-code interpreter ([`super::gcode`]) asks for; `S`
+//!   changes carried on moves in laser mode do not stop;
+//! - the restart after a stop (`protocol.c`, `motion_control.c`): blocks queued while the
+//!   machine stands do not start until the protocol loop calls `protocol_auto_cycle_start` —
+//!   when a line finds the planner full (`mc_line`), at the next sync
+//!   (`protocol_buffer_synchronize`), or when the RX buffer runs dry (the end of a streamed
+//!   program). Until then the machine stands while the loop reads the bytes of the lines in
+//!   between (comments, spaces and newlines too), each at [`Limits::byte_s`]; the same wait
+//!   comes before the first motion and before a dwell the loop reaches at rest. While the
+//!   machine moves, reading is assumed to keep ahead of it.
+//!
+//! What it leaves out, each well under a millisecond per stop: the stepper's first interrupt
+//! after `st_wake_up` waits for Timer1's compare value left from the last segment (at most one
+//! step period of the deceleration's last segment), the step timing inside a segment (the
+//! segment generator keeps each segment's time exact, `dt_remainder`), and Timer1's CTC period
+//! of `OCR1A + 1` ticks (0.06 % at 20 mm/s and 250 steps/mm). `$1` (the stepper idle lock,
+//! 25 ms by default, `st_go_idle`'s `delay_ms` inside the stepper interrupt) holds the cycle
+//! stop on the firmware, but grbl-sim's simulated clock stands still while its interrupt
+//! sleeps, so the measured times do not contain it; the model leaves it out too.
 //!
 //! Speeds here are mm/s and accelerations mm/s² (degrees for rotary axes, as grblHAL counts
 //! them); GRBL's own units (mm/min, mm/min²) are converted where settings are read.
@@ -59,6 +76,9 @@ pub struct Limits {
     pub planner_blocks: usize,
     /// `$32`.
     pub laser_mode: bool,
+    /// Seconds the protocol loop spends per byte it reads while the machine stands
+    /// ([`super::Firmware::byte_s`]); 0 from settings alone.
+    pub byte_s: f64,
 }
 
 impl Limits {
@@ -74,6 +94,7 @@ impl Limits {
             arc_tolerance: get(12, 0.002).max(1e-6),
             planner_blocks: planner_blocks.max(1),
             laser_mode: get(32, 0.0) == 1.0,
+            byte_s: 0.0,
         }
     }
 
@@ -518,6 +539,39 @@ enum Item {
     Dwell(f64),
     /// The beam at rest changes.
     Rest(f64),
+    /// The machine stands while the protocol loop reads up to the cycle start (or a dwell).
+    Wait(f64),
+}
+
+/// GRBL's protocol loop while the machine stands (protocol.c): the bytes it has read since the
+/// stop and the blocks it has queued, which start only at `protocol_auto_cycle_start`.
+struct Gate {
+    open: bool,
+    bytes: u64,
+    queued: usize,
+    /// Where the wait before the first queued block goes in the items.
+    wait_at: Option<usize>,
+}
+
+impl Gate {
+    fn at_rest() -> Gate {
+        Gate {
+            open: true,
+            bytes: 0,
+            queued: 0,
+            wait_at: None,
+        }
+    }
+
+    /// `protocol_auto_cycle_start`: the queued blocks start once the bytes read so far are.
+    fn start(&mut self, items: &mut [Item], byte_s: f64) {
+        if self.open
+            && let Some(k) = self.wait_at
+        {
+            items[k] = Item::Wait(self.bytes as f64 * byte_s);
+        }
+        self.open = false;
+    }
 }
 
 /// Runs a G-code program (as lase streams it) through the model from `start`: each line
@@ -528,8 +582,14 @@ pub fn run_program(program: &str, limits: &Limits, start: AxisPos) -> Result<Tim
     let mut planner = Planner::new(limits.clone(), start);
     let mut items = Vec::new();
     let mut pending_blocks = 0usize;
+    // The machine stands at the start: nothing moves before the first cycle start.
+    let mut gate = Gate::at_rest();
     for (i, raw) in program.lines().enumerate() {
         let line_no = i as u64 + 1;
+        if gate.open {
+            // Every byte of the line, its newline too, goes through `serial_read`.
+            gate.bytes += raw.len() as u64 + 1;
+        }
         let line = strip(raw);
         if line.is_empty() || line.starts_with(b"$") {
             continue;
@@ -543,17 +603,40 @@ pub fn run_program(program: &str, limits: &Limits, start: AxisPos) -> Result<Tim
             match step {
                 Step::Sync => {
                     if pending_blocks > 0 {
+                        // `protocol_buffer_synchronize` starts what is queued, then waits.
+                        gate.start(&mut items, limits.byte_s);
                         items.push(Item::Sync);
+                        gate = Gate::at_rest();
                     }
                     pending_blocks = 0;
                 }
                 Step::LaserAtRest(s) => items.push(Item::Rest(*s)),
-                Step::Dwell(t) => items.push(Item::Dwell(*t)),
+                Step::Dwell(t) => {
+                    // `mc_dwell` (after its sync): the dwell begins once the loop has read
+                    // the bytes before it; the loop reads on from its end.
+                    if gate.open && gate.bytes > 0 {
+                        items.push(Item::Wait(gate.bytes as f64 * limits.byte_s));
+                    }
+                    items.push(Item::Dwell(*t));
+                    gate = Gate::at_rest();
+                }
                 Step::Move(mv) => {
                     for seg in planner.segments(mv) {
                         if let Some(b) =
                             planner.block(line_no, &seg, pending_blocks == 0, 100.0, 100.0)
                         {
+                            if gate.open {
+                                if gate.queued == limits.planner_blocks {
+                                    // `mc_line` finds the planner full: cycle start.
+                                    gate.start(&mut items, limits.byte_s);
+                                } else {
+                                    if gate.queued == 0 {
+                                        gate.wait_at = Some(items.len());
+                                        items.push(Item::Wait(0.0));
+                                    }
+                                    gate.queued += 1;
+                                }
+                            }
                             pending_blocks += 1;
                             items.push(Item::Block(b));
                         }
@@ -567,6 +650,8 @@ pub fn run_program(program: &str, limits: &Limits, start: AxisPos) -> Result<Tim
         items.push(Item::Rest(rest));
         gc = block.next;
     }
+    // The RX buffer runs dry after the last line: what is queued starts.
+    gate.start(&mut items, limits.byte_s);
     Ok(execute(&items, limits.planner_blocks, start))
 }
 
@@ -625,6 +710,20 @@ fn execute(items: &[Item], window: usize, start: AxisPos) -> Timeline {
                     line: 0,
                 });
                 t += d;
+            }
+            Item::Wait(d) => {
+                if *d > 0.0 {
+                    tl.push(Span {
+                        t0: t,
+                        duration: *d,
+                        from: pos,
+                        to: pos,
+                        activity: Activity::Rest,
+                        laser_s: rest_s,
+                        line: 0,
+                    });
+                    t += d;
+                }
             }
             Item::Rest(s) => {
                 if *s != rest_s && v == 0.0 {
@@ -703,7 +802,7 @@ pub fn controller_time(job: &crate::motion::Job) -> Option<Result<ControllerTime
     Some((|| {
         let nc = crate::emit::emit_to_string(job, dialect).map_err(|e| e.to_string())?;
         let cfg = super::ControllerConfig::for_machine(machine);
-        let limits = Limits::from_settings(&cfg.settings, cfg.firmware.axes(), cfg.planner_blocks);
+        let limits = cfg.firmware.limits(&cfg.settings, cfg.planner_blocks);
         let timeline = run_program(&nc, &limits, cfg.home()).map_err(|e| e.to_string())?;
         Ok(ControllerTime {
             model: model_name(cfg.firmware),

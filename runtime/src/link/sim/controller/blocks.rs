@@ -6,7 +6,6 @@
 use super::record::{LineResult, MotionEffect, effect_of};
 use super::{Controller, PBlock, Pending, St, Work};
 use crate::link::sim::gcode::{self, Step};
-use crate::link::sim::motion::Limits;
 use crate::link::{AxisPos, MAX_AXES};
 use std::collections::VecDeque;
 
@@ -20,11 +19,10 @@ impl Controller {
         rest_after: f64,
     ) -> VecDeque<PBlock> {
         // Settings may have changed since the last line (`$120=…`).
-        let limits = Limits::from_settings(
-            &self.settings,
-            self.cfg.firmware.axes(),
-            self.cfg.planner_blocks,
-        );
+        let limits = self
+            .cfg
+            .firmware
+            .limits(&self.settings, self.cfg.planner_blocks);
         if limits != self.pl.limits {
             self.pl.limits = limits;
         }
@@ -83,6 +81,7 @@ impl Controller {
                     Work::Dwell {
                         left: *t,
                         total: *t,
+                        begun: false,
                     }
                 }
                 Step::Move(mv) => {
@@ -144,6 +143,8 @@ impl Controller {
             match w {
                 Work::Sync => {
                     if !self.planner.is_empty() || matches!(self.state, St::Hold { .. }) {
+                        // `protocol_buffer_synchronize` starts what is queued, then waits.
+                        self.auto_cycle_start();
                         self.pending = Some(p);
                         return false;
                     }
@@ -158,25 +159,40 @@ impl Controller {
                     let _ = (f, m);
                     p.work.pop_front();
                 }
-                Work::Dwell { left, total } => {
+                Work::Dwell { left, total, begun } => {
+                    if !*begun {
+                        // `mc_dwell`: it begins once the loop has read the bytes before it.
+                        *begun = true;
+                        if let Some(r) = self.reading.take() {
+                            *left += (r - self.now).max(0.0);
+                        }
+                    }
                     if *left > 0.0 {
                         self.pending = Some(p);
                         return false;
                     }
                     self.rec.dwells.push((p.seq, *total));
                     self.rec.executed_s = self.now;
+                    // The loop reads on from the dwell's end.
+                    self.reading = Some(self.now);
                     p.work.pop_front();
                 }
                 Work::Blocks(q) => {
                     while self.planner.len() < self.cfg.planner_blocks {
                         let Some(b) = q.pop_front() else { break };
                         self.push_block(b);
-                        if self.state == St::Idle {
+                        // Blocks queued at rest wait for the cycle start.
+                        if self.state == St::Idle
+                            && self.reading.is_none()
+                            && self.start_at.is_none()
+                        {
                             self.state = St::Cycle;
                         }
                     }
                     self.rec.max_planner_fill = self.rec.max_planner_fill.max(self.planner.len());
                     if !q.is_empty() {
+                        // `mc_line` finds the planner full: cycle start.
+                        self.auto_cycle_start();
                         self.pending = Some(p);
                         return false;
                     }

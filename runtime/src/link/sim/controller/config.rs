@@ -67,6 +67,34 @@ impl Firmware {
         }
     }
 
+    /// Simulated seconds GRBL's protocol loop spends on each byte it reads while the machine
+    /// stands (see [`crate::link::sim::motion`]'s restart after a stop). GRBL as grbl-sim
+    /// runs it: grbl-sim's `serial_read()` (its serial.c) calls `platform_sleep(0)` before
+    /// every byte, a zero `nanosleep` (platform_LINUX.c) that Linux ends no sooner than the
+    /// thread's timer slack, 50 µs by default (`/proc/self/timerslack_ns` = 50000), and the
+    /// simulated clock follows the wall clock (`sim_loop`, `-t 1`). Its serial line is faster
+    /// than that (a byte every `2·UBRR0+1`, doubled with U2X0: 66 ticks, 4.1 µs, whenever the
+    /// 128-byte ring has room), so the loop, not the line, sets the pace. grblHAL's simulator
+    /// was not measured: 0, no cost.
+    pub fn byte_s(self) -> f64 {
+        match self {
+            Firmware::Grbl => 50e-6,
+            Firmware::GrblHal { .. } => 0.0,
+        }
+    }
+
+    /// The motion model's limits from `$` settings on this firmware.
+    pub fn limits(
+        self,
+        settings: &BTreeMap<u32, f64>,
+        planner_blocks: usize,
+    ) -> crate::link::sim::motion::Limits {
+        crate::link::sim::motion::Limits {
+            byte_s: self.byte_s(),
+            ..crate::link::sim::motion::Limits::from_settings(settings, self.axes(), planner_blocks)
+        }
+    }
+
     pub fn banner(self) -> &'static str {
         match self {
             Firmware::Grbl => BANNER,

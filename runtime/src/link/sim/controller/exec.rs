@@ -239,10 +239,10 @@ impl Controller {
         }
         if self.planner.is_empty() || (e.hold && self.v <= 1e-9) {
             self.v = 0.0;
-            self.state = match self.state {
-                St::Hold { .. } => St::Hold { complete: true },
-                _ => St::Idle,
-            };
+            match self.state {
+                St::Hold { .. } => self.state = St::Hold { complete: true },
+                _ => self.come_to_rest(),
+            }
             self.resume_if_asked();
         }
     }
@@ -254,17 +254,21 @@ impl Controller {
         self.exec = None;
         self.v = 0.0;
         self.resume_asked = false;
+        self.reading = Some(self.now);
+        self.start_at = None;
         self.pl.sync_position(self.mpos);
     }
 
     /// A cycle start that came during the deceleration takes effect once the hold is complete.
     pub(super) fn resume_if_asked(&mut self) {
         if self.state == (St::Hold { complete: true }) && std::mem::take(&mut self.resume_asked) {
-            self.state = if self.planner.is_empty() {
-                St::Idle
+            if self.planner.is_empty() {
+                self.come_to_rest();
             } else {
-                St::Cycle
-            };
+                self.state = St::Cycle;
+                self.reading = None;
+                self.start_at = None;
+            }
         }
     }
 }

@@ -202,6 +202,10 @@ impl Controller {
 
     pub(super) fn status_report(&mut self) -> String {
         let state = match self.state {
+            // Blocks queued at rest while the client streams on as fast as possible: time
+            // stands still until the protocol loop blocks, and a firmware fed that fast runs
+            // them (its RX buffer never runs dry, `run_while_blocked`).
+            St::Idle if self.streaming && !self.planner.is_empty() => "Run".into(),
             St::Idle => "Idle".to_string(),
             St::Cycle => "Run".into(),
             St::Hold { complete } => format!("Hold:{}", if complete { 0 } else { 1 }),
