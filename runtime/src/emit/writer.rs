@@ -135,6 +135,10 @@ impl Last {
     }
 }
 
+/// The least motion of a linear axis a program to 1 nm writes (`Modal::fine`): half the
+/// 0.1 µm step of the other programs, so no axis moves in a block where it did not before.
+const FINE_MIN_MOVE_MM: f64 = 5e-5;
+
 /// The modal state of the controller as the program leaves it.
 struct Modal {
     /// Current motion mode (G0, G1, G2, G3).
@@ -653,6 +657,18 @@ fn motion_line(
     for (k, axis) in machine.axes.iter().enumerate() {
         let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
         if !forced && m.words[k].is_number(q[k]) {
+            continue;
+        }
+        // To 1 nm, but an axis moves only where it moves by the old 0.1 µm resolution: below
+        // that, what changes is the kinematics' rounding noise (a few nm), and a block that
+        // carried it would turn a rotary-only move into an X Y Z one, which controllers time
+        // by its X Y Z length. The axis stays within 0.05 µm of its planned position.
+        if m.fine
+            && !forced
+            && axis.kind == AxisKind::Linear
+            && m.words[k].written
+            && (q[k] - f64::from_bits(m.words[k].value)).abs() < FINE_MIN_MOVE_MM
+        {
             continue;
         }
         v.clear();
