@@ -455,18 +455,19 @@ fn stream_run(
 ) -> Result<(), Failure> {
     let total = lines.len();
     let summary = lase_runtime::report::summarize(lines.job());
+    let (cycle_s, cycle) = output::controller_cycle(lines.job(), lines.dialect());
     let journal_name = started.journal_path().map(|j| j.display().to_string());
     eprintln!(
-        "{name}: {} lines to {} — planned cycle time {:.3} s{}",
+        "{name}: {} lines to {} — {cycle}{}",
         total - started.from(),
         link.describe(),
-        summary.cycle_time_s,
         journal_name
             .as_ref()
             .map(|p| format!(", journal {p}"))
             .unwrap_or_default()
     );
-    let eta = lase_runtime::link::eta::Eta::from_runs(lines.job(), lines.runs(), total);
+    let eta = lase_runtime::link::eta::Eta::from_runs(lines.job(), lines.runs(), total)
+        .counted_in(cycle_s);
     // Ctrl-C is a feed hold from here until the job has ended, as in the REPL: the machine
     // stops on the path with the laser off, and a second Ctrl-C (or `a`) aborts.
     let sig = SigGuard::new();
@@ -527,8 +528,7 @@ fn stream_run(
         link.status(&lines.letters())
     );
     outln!(
-        "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
-        summary.cycle_time_s,
+        "  {cycle}, laser on {:.3} mm / {:.3} s, {} pulses",
         summary.laser_on_length_mm,
         summary.laser_on_time_s,
         summary.pulses

@@ -40,9 +40,10 @@ enum Command {
         /// Write the NC program to this file (atomically) instead of stdout.
         #[arg(short, long)]
         output: Option<PathBuf>,
-        /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso.
-        #[arg(long, default_value = "linuxcnc")]
-        dialect: String,
+        /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso
+        /// (default: the machine file's `dialect`, else linuxcnc).
+        #[arg(long)]
+        dialect: Option<String>,
         /// Where the recipe's zero is: absolute (machine coordinates) or current (the
         /// program is written in a work frame the operator sets by jogging to the job's zero:
         /// its header sets G54 there with G10 L20 P1); default: the recipe's
@@ -78,6 +79,11 @@ enum Command {
         /// Trace sampling period, with a unit (e.g. 1ms, 500us).
         #[arg(long, default_value = "1ms")]
         period: String,
+        /// The controller that runs the program, by its NC dialect (linuxcnc, grbl, grblhal,
+        /// iso): its planner's model gives the first cycle time (default: the machine file's
+        /// `dialect`, else linuxcnc).
+        #[arg(long)]
+        dialect: Option<String>,
     },
     /// Draw the toolpath (laser state, speed, every pulse) and the speed, limits, power and
     /// events over time, as SVG or PNG.
@@ -147,7 +153,7 @@ fn main() -> ExitCode {
         } => cmd_emit(
             &file,
             output.as_deref(),
-            &dialect,
+            dialect.as_deref(),
             origin,
             (work_offset.as_deref(), set_origin),
         ),
@@ -157,12 +163,13 @@ fn main() -> ExitCode {
             trace,
             pulses,
             period,
+            dialect,
         } => cmd_plan(
             &file,
             summary.as_deref(),
             trace.as_deref(),
             pulses.as_deref(),
-            &period,
+            (&period, dialect.as_deref()),
         ),
         Command::Plot {
             file,
@@ -208,11 +215,12 @@ fn parse_dialect(d: &str) -> Result<Dialect, (SourceMap, Failure)> {
 fn cmd_emit(
     file: &Path,
     output: Option<&Path>,
-    dialect: &str,
+    dialect: Option<&str>,
     origin: Option<origin::JobOrigin>,
     (work_offset, set_origin): (Option<&str>, bool),
 ) -> CmdResult {
-    let dialect = parse_dialect(dialect)?;
+    // A bad --dialect is refused before the recipe is compiled; without one, the machine's.
+    let given_dialect = dialect.map(parse_dialect).transpose()?;
     // No spinner over NC text printed on the terminal itself.
     let busy = if output.is_none() && std::io::stdout().is_terminal() {
         output::Busy::off()
@@ -220,6 +228,8 @@ fn cmd_emit(
         output::Busy::start(&format!("compiling {}", file.display()))
     };
     let (recipe, mut program) = driver::program(file)?;
+    let dialect = given_dialect
+        .unwrap_or_else(|| lase_runtime::link::estimate::default_dialect(&program.machine));
     let chosen = origin::chosen(origin, &program);
     program.planner.origin = chosen.into();
     if set_origin && chosen.work().is_none() {
@@ -360,11 +370,18 @@ fn cmd_plan(
     summary: Option<&Path>,
     trace: Option<&Path>,
     pulses: Option<&Path>,
-    period: &str,
+    (period, dialect): (&str, Option<&str>),
 ) -> CmdResult {
+    use lase_runtime::link::estimate;
     let period = parse_period(period)?;
+    let given_dialect = dialect.map(parse_dialect).transpose()?;
     let (recipe, job) = driver::compile(file)?;
-    let s = lase_runtime::report::summarize(&job);
+    let dialect = given_dialect.unwrap_or_else(|| estimate::default_dialect(&job.program.machine));
+    let mut s = lase_runtime::report::summarize(&job);
+    // The controller that runs the program, first: lase's own plan is ideal, the machine
+    // runs its controller's planner (issue 13).
+    let controller = estimate::controller_cycle(&job, dialect);
+    s.controller = Some(controller.clone());
     if let Some(path) = summary {
         output::write_atomic(path, |w| {
             serde_json::to_writer_pretty(&mut *w, &s).map_err(|e| io_fail(e.to_string()))?;
@@ -387,40 +404,27 @@ fn cmd_plan(
         job.program.machine.name,
         job.program.planner.ramp
     );
-    // lase's own plan (corners blended within `corner` so every axis keeps its limits, issue
-    // 13; lit-to-lit corners not yet). A controller runs the program its own way: the lines
-    // below say how long each would take, by a model of its planner.
-    outln!(
-        "  cycle time      {:.4} s (lase's own plan)",
-        s.cycle_time_s
-    );
-    // What the controller that streams the program will take, by its own planner.
-    match lase_runtime::link::sim::motion::controller_time(&job) {
-        Some(Ok(c)) => outln!(
-            "  controller      {:.4} s ({}: {} blocks, {} stop{})",
-            c.timeline.total_s,
-            c.model,
-            c.timeline.blocks,
-            c.timeline.syncs,
-            if c.timeline.syncs == 1 { "" } else { "s" }
-        ),
-        Some(Err(why)) => outln!("  controller      not modelled: {why}"),
-        None => {}
+    outln!("{}", cycle_line("cycle time", &controller));
+    if controller.note.is_none() {
+        // lase's own plan: what places lead-ins, overscan and power coupling, with every axis
+        // within its limits at every instant (corners blended within `corner`).
+        outln!(
+            "  lase's plan     {:.4} s ({}, which places lead-ins, overscan and power coupling)",
+            s.cycle_time_s,
+            estimate::OWN_PLAN
+        );
     }
-    // What a LinuxCNC 2.9 machine takes for the file lase writes for it, by its own
-    // trajectory planner (trapezoids, its corner rules), and how long its beam is on.
-    match lase_runtime::link::linuxcnc::tp::controller_time(&job) {
-        Some(Ok(t)) => outln!(
-            "  controller      {:.4} s, beam on {:.4} s ({}: {} segments, {} stop{})",
-            t.total_s,
-            t.beam_on_s,
-            lase_runtime::link::linuxcnc::tp::MODEL,
-            t.segments,
-            t.stops,
-            if t.stops == 1 { "" } else { "s" }
-        ),
-        Some(Err(why)) => outln!("  controller      LinuxCNC not modelled: {why}"),
-        None => {}
+    // The other controllers this machine has posts for, by their models.
+    for d in estimate::other_dialects(&job.program.machine, dialect) {
+        let c = estimate::controller_cycle(&job, d);
+        if c.note.is_none() {
+            outln!("{}", cycle_line("controller", &c));
+        } else {
+            outln!(
+                "  controller      {d} not modelled: {}",
+                c.note.unwrap_or_default()
+            );
+        }
     }
     outln!(
         "  path length     {:.4} mm ({:.4} mm rapid)",
@@ -491,6 +495,23 @@ fn cmd_plan(
         );
     }
     Ok(())
+}
+
+/// `  cycle time      6.3400 s on linuxcnc, beam on … s (MODEL: DETAIL)`, or lase's own plan's
+/// time with the reason it stands in for the controller.
+fn cycle_line(label: &str, c: &lase_runtime::report::ControllerCycle) -> String {
+    let beam = c
+        .beam_on_s
+        .map(|b| format!(", beam on {b:.4} s"))
+        .unwrap_or_default();
+    let what = match &c.note {
+        Some(note) => format!("{}: {note}", c.model),
+        None => format!("{}: {}", c.model, c.detail),
+    };
+    format!(
+        "  {label:<15} {:.4} s on {}{beam} ({what})",
+        c.cycle_time_s, c.dialect
+    )
 }
 
 /// Where the cycle goes: lit, unlit at a feed (overscan, lead-ins), rapid, standing still; and

@@ -329,6 +329,27 @@ pub(crate) fn ops_count(job: &lase_runtime::motion::Job) -> String {
     }
 }
 
+/// The job's cycle time on the controller that runs it in `dialect`, by that controller's
+/// model (issue 13: lase's own plan is ideal, the machine runs its controller's planner), and
+/// the words for it with lase's plan beside it: `cycle time 19.794 s by the GRBL 1.1 planner
+/// model (lase's plan 20.681 s)`. `lase run`, the REPL's `:plan` and `:run` say it so.
+pub(crate) fn controller_cycle(
+    job: &lase_runtime::motion::Job,
+    dialect: lase_runtime::emit::Dialect,
+) -> (f64, String) {
+    let c = lase_runtime::link::estimate::controller_cycle(job, dialect);
+    let words = match &c.note {
+        None => format!(
+            "cycle time {:.3} s by the {} (lase's plan {:.3} s)",
+            c.cycle_time_s,
+            c.model,
+            job.cycle_time()
+        ),
+        Some(note) => format!("cycle time {:.3} s by {} ({note})", c.cycle_time_s, c.model),
+    };
+    (c.cycle_time_s, words)
+}
+
 /// A sign of life on the terminal while a command works: a spinner on stderr with what it is
 /// doing, drawn within 100 ms of the start (texturing jobs take seconds to compile and
 /// write), and nothing at all when stderr is not a terminal, so logs and goldens stay clean.

@@ -390,7 +390,7 @@ fn the_material_test_labels_read_the_grids_numbers() {
     let (code, out, err) = lase(&["plan", r.to_str().unwrap()]);
     assert_eq!(code, 0, "{err}");
     assert!(
-        out.contains("cycle time      1.0000 s"),
+        out.contains("lase's plan     1.0000 s"),
         "the labels' numbers: {out}"
     );
 }

@@ -858,10 +858,15 @@ fn a_surface_speed_the_plan_cannot_hold_is_refused_with_the_speed_it_can() {
     );
     assert!(w.angle_deg <= 0.01, "beam {}° off the normal", w.angle_deg);
     assert!(w.speed_rel <= 1e-3, "surface speed off by {}", w.speed_rel);
-    // Not yet asserted: inside the shortest blocks (near the 16 mm concave radius, where the
-    // steps were halved most) the speed measures 0.108 %, the NC text's 0.1 µm rounding of X
-    // on a few-hundredths-of-a-mm block added to the 0.085 % ripple budget. The step choice
-    // should count that rounding (issue 13 item 4, left open).
+    // Inside the shortest blocks too (near the 16 mm concave radius, where the steps were
+    // halved most): the speed measured 0.108 % when X was written to 0.1 µm, whose rounding
+    // on a block a few hundredths of a mm long, whose time G93 fixes, added to the 0.085 %
+    // ripple budget of the step choice; inverse-time programs now write linear axes to 1 nm.
+    assert!(
+        w.interior_speed_rel <= 1e-3,
+        "surface speed inside blocks off by {}",
+        w.interior_speed_rel
+    );
 }
 
 #[path = "../runtime/tests/support/harmonic_cam.rs"]

@@ -226,6 +226,11 @@ pub struct Machine {
     /// How an NC program settles a row start on this machine (`[settle]`).
     #[serde(default)]
     pub settle: SettlePost,
+    /// The dialect of the controller that runs this machine (`dialect = "grbl"`): `lase
+    /// emit`'s default `--dialect` and the controller whose cycle time `lase plan` reports
+    /// first (issue 13). `None`: LinuxCNC, emit's own default.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dialect: Option<String>,
 }
 
 /// Row-start settling written into an NC program (`scan … { settle }`, issue 15): where a
@@ -275,6 +280,7 @@ struct FileMachine {
     work_offsets: BTreeMap<String, BTreeMap<String, toml::Spanned<String>>>,
     #[serde(default)]
     settle: FileSettle,
+    dialect: Option<toml::Spanned<String>>,
 }
 
 /// `[settle]`: `linuxcnc = { x_input = 0, y_input = 1 }`, `iso = { call = "G65 P9100 …" }`.
@@ -845,6 +851,33 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             help: Some("write `kinematics = \"rotary\"`, or remove `[rotary]`".into()),
         });
     }
+    // The controller's dialect must be one lase writes and one this file has a post for
+    // (grblHAL runs GRBL's lines), or `lase emit` without `--dialect` would fail later.
+    if let Some(d) = &file.dialect {
+        let name = d.get_ref().as_str();
+        let keys: &[&str] = match name {
+            "linuxcnc" | "grbl" | "iso" => &[name],
+            "grblhal" => &["grblhal", "grbl"],
+            _ => {
+                return Err(MachineError::Invalid {
+                    message: format!("unknown dialect `{name}`"),
+                    span: at(d.span()),
+                    label: "not a dialect".into(),
+                    help: Some("the dialects are linuxcnc, grbl, grblhal and iso".into()),
+                });
+            }
+        };
+        if !keys.iter().any(|k| post.contains_key(*k)) {
+            return Err(MachineError::Invalid {
+                message: format!("the machine's dialect `{name}` has no `[post.{name}]`"),
+                span: at(d.span()),
+                label: "no post for it".into(),
+                help: Some(format!(
+                    "add `[post.{name}]` with the lines that switch the laser, or name a dialect the file has a post for"
+                )),
+            });
+        }
+    }
     let mut work_offsets = BTreeMap::new();
     for (key, values) in &file.work_offsets {
         let n = key
@@ -903,5 +936,6 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
             linuxcnc_inputs: file.settle.linuxcnc.map(|l| [l.x_input, l.y_input]),
             iso_call: file.settle.iso.map(|i| i.call),
         },
+        dialect: file.dialect.map(|d| d.into_inner()),
     })
 }

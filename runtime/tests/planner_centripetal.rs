@@ -4,7 +4,9 @@
 //! together within the acceleration limit, and it still gets close to the circle's own limit
 //! `v = √(a R)`.
 
-use lase_runtime::planner::{AxisLimits, MAX_AXES, Move, PlannerConfig, ProfileKind, plan};
+use lase_runtime::planner::{
+    AxisLimits, CURVE_SHARE, MAX_AXES, Move, PlannerConfig, ProfileKind, plan,
+};
 use std::f64::consts::TAU;
 
 const INF: f64 = f64::INFINITY;
@@ -90,18 +92,18 @@ fn chords_of_a_circle_keep_centripetal_acceleration_within_the_limit() {
         assert!(at <= a * (1.0 + 1e-9), "{profile:?}: tangential {at}");
         assert!(ac <= a * (1.0 + 1e-9), "{profile:?}: centripetal {ac}");
         assert!(total <= a * (1.0 + 1e-9), "{profile:?}: total {total}");
-        // The circle's own limit is v² = a R; the chords keep 95 % of it for the centripetal
-        // acceleration (the rest is for speed changes), within the model's cos(φ/2)
+        // The circle's own limit is v² = a R; the chords keep CURVE_SHARE (95 %) of it for the
+        // centripetal acceleration (the rest is for speed changes), within the model's cos(φ/2)
         // (φ = 0.057 rad here: 4e-4 in v²). The trapezoid gets there; the S-curve stays
         // well below on 0.28 mm chords: every S-curve move starts and ends at zero
         // acceleration (the planner module's known limit).
-        let v_curve = (0.95 * a * r).sqrt();
+        let v_curve = (CURVE_SHARE * a * r).sqrt();
         assert!(
             v <= v_curve,
-            "{profile:?}: {v} above √(0.95 aR) = {v_curve}"
+            "{profile:?}: {v} above √(share · aR) = {v_curve}"
         );
         if profile == ProfileKind::Trapezoid {
-            assert!(v >= v_curve * (1.0 - 1e-3), "{v} far below √(0.95 aR)");
+            assert!(v >= v_curve * (1.0 - 1e-3), "{v} far below √(share · aR)");
         }
     }
 }
@@ -110,7 +112,8 @@ fn chords_of_a_circle_keep_centripetal_acceleration_within_the_limit() {
 fn coarse_chords_are_capped_too() {
     // A 24-gon with 0.2 mm junction deviation: junction deviation alone allows
     // v² = a δ sin(θ/2)/(1 − sin(θ/2)) ≈ 4.6e4 here; the centripetal cap holds the chords to
-    // v² = 0.95 · a R cos(φ/2) = 0.95 · 9915 (0.95: the planner's centripetal share on curves).
+    // v² = share · a R cos(φ/2) = share · 9915 (`CURVE_SHARE`: the planner's centripetal share
+    // on curves).
     let (r, a) = (5.0, 2000.0);
     let (moves, start, phi) = polygon(r, 24, 3);
     let c = PlannerConfig {
@@ -123,7 +126,7 @@ fn coarse_chords_are_capped_too() {
         "{at} {ac}"
     );
     assert!(total <= a * (1.0 + 1e-9), "{total}");
-    let want = (0.95 * a * r * (0.5 * phi).cos()).sqrt();
+    let want = (CURVE_SHARE * a * r * (0.5 * phi).cos()).sqrt();
     assert!(v <= want * (1.0 + 1e-12), "{v} vs {want}");
     let limits = AxisLimits {
         v: [INF; MAX_AXES],

@@ -139,18 +139,19 @@ pub(super) fn run(
         }
     };
     let summary = lase_runtime::report::summarize(&job);
+    let (cycle_s, cycle) = crate::output::controller_cycle(&job, Dialect::LinuxCnc);
     let journal_name = journal.as_ref().map(|j| j.path().display().to_string());
     eprintln!(
-        "{name}: {} running {} — planned cycle time {:.3} s{}",
+        "{name}: {} running {} — {cycle}{}",
         rsh.describe(),
         lc.placement.remote,
-        summary.cycle_time_s,
         journal_name
             .as_ref()
             .map(|p| format!(", journal {p}"))
             .unwrap_or_default()
     );
-    let eta = lase_runtime::link::eta::Eta::from_runs(&job, lines.runs(), lines.len());
+    let eta = lase_runtime::link::eta::Eta::from_runs(&job, lines.runs(), lines.len())
+        .counted_in(cycle_s);
     let mut display = Display::new(text.len(), 0, eta);
     let keys = Keys::for_terminal();
     let report = lcjob::follow(&mut rsh, &lc, journal.as_mut(), &mut |p: &Progress| {
@@ -178,8 +179,8 @@ pub(super) fn run(
         report.elapsed.as_secs_f64()
     );
     println!(
-        "  cycle time {:.3} s planned, laser on {:.3} mm / {:.3} s, {} pulses",
-        summary.cycle_time_s, summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
+        "  {cycle}, laser on {:.3} mm / {:.3} s, {} pulses",
+        summary.laser_on_length_mm, summary.laser_on_time_s, summary.pulses
     );
     Ok(())
 }

@@ -36,7 +36,7 @@ pub const COMMANDS: &[Command] = &[
     cmd(
         ":plan",
         "",
-        "plan what would run now: ops, cycle time, path and lit length",
+        "plan what would run now: ops, the controller's cycle time, path and lit length",
     ),
     cmd(
         ":plot",
@@ -374,10 +374,12 @@ impl Session {
 
     fn summary_line(&self, job: &Job) -> String {
         let s = lase_runtime::report::summarize(job);
+        // The time of the controller the REPL streams to (a GRBL-family link), by its model.
+        let dialect = lase_runtime::link::live_dialect(&job.program.machine);
         let mut line = format!(
-            "{}, cycle time {:.4} s, path {:.4} mm, laser on {:.4} mm",
+            "{}, {}, path {:.4} mm, laser on {:.4} mm",
             crate::output::ops_count(job),
-            s.cycle_time_s,
+            crate::output::controller_cycle(job, dialect).1,
             s.path_length_mm,
             s.laser_on_length_mm
         );

@@ -506,17 +506,17 @@ impl Station {
         let from = started.from();
         let total = lines.len();
         let letters = lines.letters();
-        let summary = lase_runtime::report::summarize(lines.job());
-        let eta = lase_runtime::link::eta::Eta::from_runs(lines.job(), lines.runs(), total);
+        let (cycle_s, cycle) = crate::output::controller_cycle(lines.job(), lines.dialect());
+        let eta = lase_runtime::link::eta::Eta::from_runs(lines.job(), lines.runs(), total)
+            .counted_in(cycle_s);
         // Ctrl-C is ours from here until the job has ended.
         let sig = SigGuard::new();
         let keys = interactive.then(Keys::start);
         let mut display = Display::new(total, from, eta);
         let header = format!(
-            "{name}: {} lines to {}, planned cycle time {:.3} s",
+            "{name}: {} lines to {}, {cycle}",
             total - from,
-            link.describe(),
-            summary.cycle_time_s
+            link.describe()
         );
         if interactive {
             display.println(&header);

@@ -32,6 +32,13 @@ fn trimmed(mut s: String) -> String {
     if s == "-0" { "0".to_string() } else { s }
 }
 
+/// A linear axis position in mm to 6 decimals (1 nm), for programs in inverse time (G93),
+/// where a block's time is fixed by its F and a coordinate rounded to 0.1 µm would change a
+/// short block's speed by as much as 0.1 µm over its length.
+pub fn fine_number(x: f64) -> String {
+    trimmed(format!("{x:.6}"))
+}
+
 /// A rotary axis position in degrees: 6 decimals, since an angle is multiplied by the lever it
 /// turns (1e-6° on a 500 mm arm is 9 nm, where 1e-4° would be 0.9 µm).
 pub fn degrees(x: f64) -> String {

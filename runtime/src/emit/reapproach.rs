@@ -4,7 +4,7 @@
 //! needs after it. `link::resume` decides where a job stands and when these lines go out;
 //! what they say is written here, because `emit` is the only code that writes NC text.
 
-use super::format::{degrees, number};
+use super::format::{degrees, fine_number, number};
 use super::modal::{ModalState, MotionMode, Spindle};
 
 /// A re-approach in two parts.
@@ -34,11 +34,12 @@ pub fn grbl_reapproach(state: &ModalState, letters: &[char], position: &[f64]) -
         .iter()
         .zip(position)
         .filter(|(l, _)| "XYZABC".contains(l.to_ascii_uppercase()))
-        // A, B, C to the job's own precision (1e-6°), so the re-approach ends exactly
-        // where the job's next line starts from.
+        // To the job's own precision (1e-6°; 1 nm, as inverse-time programs write linear
+        // axes: a position read from a 0.1 µm program writes the same), so the re-approach
+        // ends exactly where the job's next line starts from.
         .map(|(l, v)| match l {
             'A' | 'B' | 'C' => format!("{l}{}", degrees(*v)),
-            _ => format!("{l}{}", number(*v)),
+            _ => format!("{l}{}", fine_number(*v)),
         })
         .collect();
     if !axes.is_empty() {
@@ -162,7 +163,7 @@ pub fn linuxcnc_reapproach(
         .zip(position)
         .map(|(l, v)| match l {
             'A' | 'B' | 'C' => format!("{l}{}", degrees(*v)),
-            _ => format!("{l}{}", number(*v)),
+            _ => format!("{l}{}", fine_number(*v)),
         })
         .collect();
     if !axes.is_empty() {

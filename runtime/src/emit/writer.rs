@@ -135,6 +135,10 @@ impl Last {
     }
 }
 
+/// The least motion of a linear axis a program to 1 nm writes (`Modal::fine`): half the
+/// 0.1 µm step of the other programs, so no axis moves in a block where it did not before.
+const FINE_MIN_MOVE_MM: f64 = 5e-5;
+
 /// The modal state of the controller as the program leaves it.
 struct Modal {
     /// Current motion mode (G0, G1, G2, G3).
@@ -158,6 +162,11 @@ struct Modal {
     /// Feed moves are in inverse time (G93): on machines whose moves mix linear and rotary
     /// axes, F is 1 / block time, so the controller holds the spot's surface speed.
     inverse_time: bool,
+    /// Linear axis words to 1 nm (`format::fine_number`) instead of 0.1 µm: on a machine
+    /// whose feed moves are in inverse time the block's time is fixed by F, so a coordinate's
+    /// rounding becomes a speed error of its size over the block's length, which on the
+    /// shortest oriented blocks (a few hundredths of a mm) was 0.02 % of the surface speed.
+    fine: bool,
 }
 
 pub(super) fn write(
@@ -253,6 +262,7 @@ pub(super) fn write(
         s: header_arm.map(|_| s_word(0.0)),
         location: String::new(),
         inverse_time: false,
+        fine: job.kin.inverse_time(),
     };
     let inverse_time = job.kin.inverse_time();
     let arc_axes = validate::arc_axes(machine);
@@ -649,8 +659,21 @@ fn motion_line(
         if !forced && m.words[k].is_number(q[k]) {
             continue;
         }
+        // To 1 nm, but an axis moves only where it moves by the old 0.1 µm resolution: below
+        // that, what changes is the kinematics' rounding noise (a few nm), and a block that
+        // carried it would turn a rotary-only move into an X Y Z one, which controllers time
+        // by its X Y Z length. The axis stays within 0.05 µm of its planned position.
+        if m.fine
+            && !forced
+            && axis.kind == AxisKind::Linear
+            && m.words[k].written
+            && (q[k] - f64::from_bits(m.words[k].value)).abs() < FINE_MIN_MOVE_MM
+        {
+            continue;
+        }
         v.clear();
         match axis.kind {
+            AxisKind::Linear if m.fine => v.push_str(&format::fine_number(q[k])),
             AxisKind::Linear => format::number_into(&mut v, q[k]),
             AxisKind::Rotary => v.push_str(&format::degrees(axes::to_external(axis.kind, q[k]))),
         }

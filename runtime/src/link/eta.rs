@@ -32,6 +32,8 @@ pub struct Eta {
     pulses: u64,
     /// The machine's axis letters, as status lines show them.
     letters: Vec<char>,
+    /// Controller seconds per planned second ([`Eta::counted_in`]); 1 on lase's own plan.
+    scale: f64,
 }
 
 impl Eta {
@@ -104,7 +106,19 @@ impl Eta {
             pulses_by,
             pulses,
             letters: axes.letters().to_vec(),
+            scale: 1.0,
         }
+    }
+
+    /// The same progress counted in the time of the controller that runs the job
+    /// (`estimate::controller_cycle`, `total_s`): the plan still says where in the job the
+    /// machine is, and each planned second counts as `total_s` over the planned cycle time,
+    /// so the ETA ends when the controller's model says the job ends.
+    pub fn counted_in(mut self, total_s: f64) -> Eta {
+        if self.total > 0.0 && total_s.is_finite() && total_s > 0.0 {
+            self.scale = total_s / self.total;
+        }
+        self
     }
 
     /// Pulses the job fires in all.
@@ -112,9 +126,10 @@ impl Eta {
         self.pulses
     }
 
-    /// Pulses fired by job time `t` (planned), within the segment then running counted in
+    /// Pulses fired by job time `t` (as [`Eta::done`] counts it), within the segment then running counted in
     /// proportion to its time.
     pub fn pulses_done(&self, t: f64) -> u64 {
+        let t = t / self.scale;
         let k = self.segs.partition_point(|s| s.1 < t);
         let Some(&(ta, tb, _, _)) = self.segs.get(k) else {
             return self.pulses;
@@ -134,15 +149,20 @@ impl Eta {
         &self.letters
     }
 
-    /// The planned cycle time, s.
+    /// The cycle time, s (the controller's after [`Eta::counted_in`]).
     pub fn total(&self) -> f64 {
-        self.total
+        self.total * self.scale
     }
 
     /// Planned job time done: at most what the acknowledged lines account for, placed by the
     /// controller's position (work coordinates X Y Z A B C) when it is known. Degrees count
     /// as mm in the distance to a segment, as a GRBL-family controller counts them.
     pub fn done(&self, acked: usize, pos: Option<&[f64]>) -> f64 {
+        self.done_planned(acked, pos) * self.scale
+    }
+
+    /// [`Eta::done`] on lase's own plan's clock.
+    fn done_planned(&self, acked: usize, pos: Option<&[f64]>) -> f64 {
         let upper = match acked.checked_sub(1).filter(|&i| i < self.lines) {
             Some(i) => {
                 let k = self.line_end.partition_point(|r| r.0 <= i);

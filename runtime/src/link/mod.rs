@@ -25,6 +25,7 @@
 //! journal records the acknowledgement. An `error:N` comes back as [`Event::Rejected`] for the
 //! same line, and the caller maps the line to its op and the op to its recipe span.
 
+pub mod estimate;
 pub mod eta;
 pub mod grbl;
 pub mod job;

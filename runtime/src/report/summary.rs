@@ -16,8 +16,13 @@ pub struct Summary {
     pub recipe: String,
     pub machine: String,
     pub ramp: Ramp,
-    /// Job time including the standstill before the first move, s.
+    /// Job time including the standstill before the first move, s: lase's own plan, the
+    /// one that places lead-ins, overscan and power coupling.
     pub cycle_time_s: f64,
+    /// The cycle time of the controller that runs the program, by the model of its planner
+    /// (`link::estimate`); `lase plan` fills it in, [`summarize`] alone does not.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub controller: Option<ControllerCycle>,
     /// All motion, rapids included (the plan's path length), mm.
     pub path_length_mm: f64,
     pub rapid_length_mm: f64,
@@ -37,6 +42,28 @@ pub struct Summary {
     pub ops: usize,
     /// Peaks reached per machine axis, by axis name.
     pub axes: BTreeMap<String, AxisPeaks>,
+}
+
+/// How long the controller that runs a job takes for it (issue 13): lase's plan is ideal, the
+/// controller plans the NC program its own way.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ControllerCycle {
+    /// The NC dialect the program is written in for it (`linuxcnc`, `grbl`, …).
+    pub dialect: String,
+    /// The model the time comes from, or `lase's own plan` where there is none.
+    pub model: String,
+    /// Its cycle time, s.
+    pub cycle_time_s: f64,
+    /// Its beam-on time, s, where the model tells it (LinuxCNC's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub beam_on_s: Option<f64>,
+    /// What the model counted (`34 segments, 6 stops`), for the text report.
+    #[serde(skip)]
+    pub detail: String,
+    /// Why lase's own plan stands in for the controller: it has no model, or the model
+    /// cannot run the program.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// Peak magnitudes one axis reaches, in mm (deg for a rotary axis) per s, s², s³.
@@ -134,6 +161,7 @@ pub fn summarize(job: &Job) -> Summary {
         machine: machine.name.clone(),
         ramp: job.program.planner.ramp,
         cycle_time_s: round_sig(job.cycle_time()),
+        controller: None,
         path_length_mm: round_sig(plan.length()),
         rapid_length_mm: round_sig(rapid),
         laser_on_length_mm: round_sig(lit_len),

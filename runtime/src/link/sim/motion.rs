@@ -796,12 +796,30 @@ pub fn model_name(firmware: super::Firmware) -> &'static str {
 /// the machine has no post for that family (it is not run by GRBL), `Err` with the reason when
 /// its program cannot be written or run there.
 pub fn controller_time(job: &crate::motion::Job) -> Option<Result<ControllerTime, String>> {
+    controller_time_in(job, crate::link::live_dialect(&job.program.machine))
+}
+
+/// [`controller_time`] for the program in `dialect` (`grbl` or `grblhal`; any other is
+/// `None`): GRBL 1.1's model for `grbl`, grblHAL's with the machine's axes (at least X Y Z)
+/// for `grblhal`, as `lase plan --dialect` asks.
+pub fn controller_time_in(
+    job: &crate::motion::Job,
+    dialect: crate::emit::Dialect,
+) -> Option<Result<ControllerTime, String>> {
     let machine = &job.program.machine;
-    let dialect = crate::link::live_dialect(machine);
+    let firmware = match dialect {
+        crate::emit::Dialect::Grbl => super::Firmware::Grbl,
+        crate::emit::Dialect::GrblHal => super::Firmware::GrblHal {
+            axes: crate::link::controller_axes(machine).max(3),
+        },
+        _ => return None,
+    };
     dialect.lookup(&machine.post)?;
     Some((|| {
         let nc = crate::emit::emit_to_string(job, dialect).map_err(|e| e.to_string())?;
-        let cfg = super::ControllerConfig::for_machine(machine);
+        let mut cfg = super::ControllerConfig::for_machine(machine);
+        cfg.firmware = firmware;
+        cfg.planner_blocks = firmware.planner_blocks();
         let limits = cfg.firmware.limits(&cfg.settings, cfg.planner_blocks);
         let timeline = run_program(&nc, &limits, cfg.home()).map_err(|e| e.to_string())?;
         Ok(ControllerTime {
