@@ -508,13 +508,16 @@ impl Lowering<'_> {
         }
         // What the planner may know of a move (`planner::Along`): the spot's part-space
         // direction of each feed move (none for rapids, whose spot path on an oriented machine
-        // is no straight line), which bounds the blends' reach; and whether it is lit: corners
-        // between lit moves keep the junction-deviation step for now, since blending the
-        // chords of a lit curve would lower its lit speed (issue 13, item 3: what is left).
+        // is no straight line), which bounds the blends' reach; and whether it is lit. On a
+        // flat bed a lit corner is blended like any other (it may slow there: power follows
+        // the planned speed, pulses the distance); on an oriented machine the corners between
+        // lit chords keep the junction-deviation step for now, since blending them one by one
+        // would lower the lit speed below the programmed one (`held`; issue 13, item 3).
+        let step_lit = lit && kin.oriented();
         let line_to = |low: &mut Self, p: P3, feed: f64| -> Result<(), MotionError> {
             let q = inverse(kin, p, low.orient, Some(&low.q_prev), op.span, program)?;
             let along = if feed.is_finite() {
-                along_of(low.pos, p, lit)
+                along_of(low.pos, p, lit, step_lit)
             } else {
                 planner::Along::default()
             };
@@ -639,11 +642,13 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
 }
 
 /// What the planner may know of a feed move from `from` to `to` (spot, part space): the
-/// spot's unit direction, and whether it is lit.
-fn along_of(from: P3, to: P3, lit: bool) -> planner::Along {
+/// spot's unit direction, whether it is lit, and whether its corners with other such moves
+/// keep the velocity step (`step`).
+fn along_of(from: P3, to: P3, lit: bool, step: bool) -> planner::Along {
     let d = dist(from, to);
     let mut along = planner::Along {
-        step_corners: lit,
+        lit,
+        step_corners: step,
         ..planner::Along::default()
     };
     if d > 1e-12 {

@@ -26,8 +26,14 @@ mod short_moves;
 /// above: the planner keeps what each move tells the blends (`blend::MoveInfo`: its
 /// part-space direction and stop flags, 32 B) until every corner is judged, a segment carries
 /// its blend index, and the entry caps are recomputed in one pass (414 B measured; as first
-/// merged, with a table of junctions and a copy of the plan, 829 B).
-const CAP_PER_MOVE: f64 = 430.0;
+/// merged, with a table of junctions and a copy of the plan, 829 B). Since the lit corners of
+/// a flat bed are blended too (issue 13 item 3), every corner of this lit zigzag is: each
+/// 0.05 mm move becomes the two halves of the blends at its ends (2.5 segments a move, the
+/// plan's 176 B each with its point and look-ahead scratch), each corner keeps its 152-byte
+/// `Blend`, and `blend::split` builds the expanded plan beside the one it expands: 1 086 B
+/// measured. Compacting that layout is issue 18's (branch `mem150`); this cap still fails a
+/// per-move table that comes back.
+const CAP_PER_MOVE: f64 = 1100.0;
 
 #[test]
 fn short_moves_from_a_loop_compile_and_emit_within_a_fixed_budget_per_move() {
@@ -36,7 +42,12 @@ fn short_moves_from_a_loop_compile_and_emit_within_a_fixed_budget_per_move() {
     let before = ALLOC.allocated();
     let (_recipe, job) = compile::compile(&mut files, "moves.lase")
         .unwrap_or_else(|(_, f)| panic!("the recipe compiles: {f}"));
-    let moves = job.plan.segments().len();
+    // Moves, not segments: a blended move is two or three segments (`planner::blend`).
+    let moves = job
+        .plan
+        .segments()
+        .last()
+        .map_or(0, |s| s.move_index as usize + 1);
     // Every move of the loop was planned (plus the lead-in and lead-out lase adds).
     assert!((n..n + 8).contains(&moves), "{moves} moves planned");
     let mut lines = 0usize;

@@ -40,7 +40,8 @@ pub struct Shortfall {
 /// recipe statement that made it.
 pub fn check_held(job: &Job) -> Result<(), MotionError> {
     if !job.kin.oriented() {
-        // On a flat bed a lit path slows at its corners by design (junction deviation).
+        // On a flat bed a lit path slows at its corners by design (their blends' limits;
+        // coupled power and pulses by distance follow the planned speed).
         return Ok(());
     }
     for section in &job.sections {

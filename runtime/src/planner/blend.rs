@@ -34,7 +34,10 @@
 //! within the halves of both moves (so neighbouring blends never overlap; on the chords of an
 //! arc they abut and the path is curved throughout), and within [`REACH_MAX`]`·δ` of the
 //! corner along each move, so a lead-in loses at most that much of its straight ramp (the
-//! lead-ins add it: `motion::leadin`).
+//! lead-ins add it: `motion::leadin`) — except between two lit moves (`MoveInfo::lit_before`),
+//! which no lead-in ends at: there only the halves bound it, so the blends of a lit arc's
+//! chords abut (the smoothstep's jerk, `1.5·|Δu|·v³/ℓ²`, falls with ℓ², and a flat bed's lit
+//! arc keeps its speed where blends of `4·δ` would slow it; dial_marks' circle keeps 40 mm/s).
 //!
 //! **Limits along it.** With path speed `v`, acceleration `a`, jerk `j`, axis k moves at
 //! `q'_k v`, accelerates at `q''_k v² + q'_k a` and jerks at `q'''_k v³ + 3 q''_k v a + q'_k j`.
@@ -151,6 +154,17 @@ pub(crate) struct Side<'a> {
     pub euclidean: bool,
 }
 
+/// Largest reach of a blend along each of its moves: [`REACH_MAX`]`·δ`, so that a lead-in
+/// loses at most that much of its straight ramp, except between two lit moves (no lead-in
+/// there), where only the moves' halves bound it.
+fn reach_cap(delta: f64, lit: bool) -> f64 {
+    if lit {
+        f64::INFINITY
+    } else {
+        REACH_MAX * delta
+    }
+}
+
 /// `|d_next − d_prev|` of two known part-space unit directions; 2 (the largest) when either is
 /// unknown.
 fn part_turn(prev: &[f64; 3], next: &[f64; 3]) -> f64 {
@@ -163,14 +177,16 @@ fn part_turn(prev: &[f64; 3], next: &[f64; 3]) -> f64 {
 }
 
 /// The junction at `corner` from `prev` into `next`, with corner tolerance `delta`;
-/// `part_turn` bounds the spot's turn where the moves' lengths are not axis-space lengths.
-#[allow(clippy::needless_range_loop)] // one index over parallel axis arrays
+/// `part_turn` bounds the spot's turn where the moves' lengths are not axis-space lengths;
+/// `lit`: both moves are lit (`reach_cap`).
+#[allow(clippy::needless_range_loop, clippy::too_many_arguments)] // parallel axis arrays
 pub(crate) fn junction(
     corner: &Axes,
     prev: Side<'_>,
     next: Side<'_>,
     delta: f64,
     part_turn: f64,
+    lit: bool,
     limits: &AxisLimits,
     n_axes: usize,
 ) -> Junction {
@@ -193,7 +209,7 @@ pub(crate) fn junction(
     }
     let turn = if euclidean { du2.sqrt() } else { part_turn };
     let reach = (delta / (DEVIATION * turn))
-        .min(REACH_MAX * delta)
+        .min(reach_cap(delta, lit))
         .min(0.5 * prev.kin.len.min(next.kin.len));
     if !(reach > 0.0 && reach.is_finite()) {
         return Junction::Stop;
@@ -313,6 +329,9 @@ pub(crate) struct MoveInfo {
     /// The corner before the move keeps the velocity-step model (`Along::step_corners`):
     /// `prepare` capped its entry already.
     pub stepped_before: bool,
+    /// The move and the one before it are lit (`Along::lit`): their blend is not bounded by
+    /// [`REACH_MAX`].
+    pub lit_before: bool,
 }
 
 impl MoveInfo {
@@ -322,6 +341,7 @@ impl MoveInfo {
         stop_before: true,
         part_dir: [0.0; 3],
         stepped_before: false,
+        lit_before: false,
     };
 }
 
@@ -383,6 +403,7 @@ pub(super) fn split(
             side(i + 1, &rate_next),
             delta,
             turn,
+            info[i + 1].lit_before,
             limits,
             n,
         )
@@ -560,9 +581,16 @@ mod tests {
             kin: &kin,
             euclidean: true,
         };
-        let Junction::Blend { blend, v, a, j } =
-            junction(&axes(10.0, 0.0), side(&u), side(&w), delta, 2.0, &lim, 2)
-        else {
+        let Junction::Blend { blend, v, a, j } = junction(
+            &axes(10.0, 0.0),
+            side(&u),
+            side(&w),
+            delta,
+            2.0,
+            false,
+            &lim,
+            2,
+        ) else {
             panic!("a right angle at δ = 0.01 is blended");
         };
         assert!(DEVIATION * blend.reach * 2f64.sqrt() <= delta * (1.0 + 1e-12));
@@ -600,16 +628,16 @@ mod tests {
         let (u, r) = (axes(1.0, 0.0), axes(-1.0, 0.0));
         let c = axes(0.0, 0.0);
         assert_eq!(
-            junction(&c, side(&u), side(&u), 0.01, 2.0, &lim, 2),
+            junction(&c, side(&u), side(&u), 0.01, 2.0, false, &lim, 2),
             Junction::Straight
         );
         assert_eq!(
-            junction(&c, side(&u), side(&r), 0.01, 2.0, &lim, 2),
+            junction(&c, side(&u), side(&r), 0.01, 2.0, false, &lim, 2),
             Junction::Stop
         );
         let w = axes(0.0, 1.0);
         assert_eq!(
-            junction(&c, side(&u), side(&w), 0.0, 2.0, &lim, 2),
+            junction(&c, side(&u), side(&w), 0.0, 2.0, false, &lim, 2),
             Junction::Stop
         );
     }
