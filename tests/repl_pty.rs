@@ -326,9 +326,9 @@ fn ctrl_c_in_lase_run_holds_and_a_second_one_aborts() {
     )
     .unwrap();
     p.exp_string("a second Ctrl-C = abort").unwrap();
-    // The bar runs on planned time: its ETA counts down from the plan's cycle time (22.374 s
+    // The bar runs on planned time: its ETA counts down from the plan's cycle time (22.094 s
     // since the lit rounded corners are blended, issue 13 item 3).
-    p.exp_regex(r"% ETA [0-9.]+ s of 22\.4 s planned").unwrap();
+    p.exp_regex(r"% ETA [0-9.]+ s of 22\.1 s planned").unwrap();
     // The controller says `Run` while the job moves, on the machine's own axes.
     p.exp_regex(r"lines \| Run \| X-?[0-9.]+ Y-?[0-9.]+")
         .unwrap();

@@ -29,8 +29,8 @@ mod short_moves;
 /// merged, with a table of junctions and a copy of the plan, 829 B). Since the lit corners of
 /// a flat bed are blended too (issue 13 item 3), every corner of this lit zigzag is: each
 /// 0.05 mm move becomes the two halves of the blends at its ends (2.5 segments a move, the
-/// plan's 176 B each with its point and look-ahead scratch), each corner keeps its 152-byte
-/// `Blend`, and `blend::split` builds the expanded plan beside the one it expands: 1 086 B
+/// plan's 176 B each with its point and look-ahead scratch), each corner keeps its 160-byte
+/// `Blend`, and `blend::split` builds the expanded plan beside the one it expands: 1 094 B
 /// measured. Compacting that layout is issue 18's (branch `mem150`); this cap still fails a
 /// per-move table that comes back.
 const CAP_PER_MOVE: f64 = 1100.0;

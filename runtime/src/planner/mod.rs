@@ -37,7 +37,7 @@
 //!
 //! Memory: 120 bytes of segment, `8 · n_axes` of points and 40 of look-ahead scratch per move
 //! (176 bytes for two axes, 208 for six), and nothing else per move; a blended corner adds two
-//! segments and a 152-byte [`Blend`].
+//! segments and a 160-byte [`Blend`].
 //!
 //! Known limit: every S-curve move starts and ends at zero path acceleration, so acceleration
 //! is continuous everywhere, but a run of very short moves gains speed in small jerk-limited
