@@ -3,17 +3,17 @@
 //! by finite differences, against that axis's limits (issue 13, item 3).
 //!
 //! Corners taken at speed follow a planned blend (`planner::Blend`) — rapids, unlit feeds,
-//! leads, every junction between them and the lit paths, and on flat beds the lit corners too
-//! (a lit polyline's corners and the chords of a lit arc: the blend's own limits slow the path
-//! there as much as every axis needs) — and must stay within every limit at every sample (1e-6
-//! relative), on every example and on random paths on every stock machine. What is left: on
-//! oriented machines (the cams, the arm) the corners *between two lit chords* keep the
-//! junction-deviation velocity step, because blending those chords one by one within the jerk
-//! limits would lower the lit speed below the programmed one, which `lase::plan::
-//! speed_not_held` refuses there (the blends' curvature returns to zero at every chord
-//! midpoint). [`WORST`] pins the examples that have such corners, each at its measured worst,
-//! so they can only get better; the random paths are checked everywhere but within 4 ms of
-//! such a corner (none on a flat bed).
+//! leads, every junction between them and the lit paths, and the lit corners too (a lit
+//! polyline's corners, the chords of a lit arc or of a cam's lit section: the blend's own
+//! limits slow the path there as much as every axis needs, on a flat bed; on an oriented
+//! machine the plan must hold the lit speed) — and must stay within every limit at every
+//! sample (1e-6 relative), on every example and on random paths on every stock machine. What
+//! is left: where blending an oriented machine's lit chords one by one would lower the lit
+//! speed below the programmed one (`lase::plan::speed_not_held`: the arm's sections, whose
+//! chords' blends return their curvature to zero at every chord midpoint), the plan is made
+//! again with the junction-deviation velocity step at those corners. [`WORST`] pins the
+//! examples that have such corners, each at its measured worst, so they can only get better;
+//! the random paths are checked everywhere but within 4 ms of such a corner.
 
 mod common;
 
@@ -65,7 +65,7 @@ fn report(name: &str, w: &AxisWorst) -> String {
 
 /// Measured worst |v|/v_max, |a|/a_max, |j|/j_max at 1 kHz of the examples whose lit paths
 /// have corners between two lit moves taken at speed with the velocity step (module doc: the
-/// lit chords of the cams and the arm), rounded up in the fourth digit; every other example
+/// lit chords of the arm), rounded up in the fourth digit; every other example
 /// and axis, and every sample away from those corners, is held to 1. Measured with `cargo
 /// test -p lase-runtime --test trace_axis_limits -- --nocapture`, which prints each example's
 /// row. Each peak lies at a lit chord corner, an acceleration step only: a is within its
@@ -73,16 +73,9 @@ fn report(name: &str, w: &AxisWorst) -> String {
 /// to a/a_max 26.9 (cam X), 12.6 (arm X), 9.5 (arm A), 3.4 (codes, image_engrave,
 /// texture_array); before the flat beds' lit corners were blended, their velocity steps: a/a_max
 /// 2.14 (air_assist), 4.90 (material_test), 2.50 (nested_parts), 6.03 (serial_number), 6.16
-/// (rotary_engrave), and j/j_max 18.3 (dial_marks), 38.2 (frame_marking).
+/// (rotary_engrave), and j/j_max 18.3 (dial_marks), 38.2 (frame_marking); before the cams'
+/// lit chords were blended, j/j_max 4.54 (cam_hardening B), 7.64 (rhai_cam B).
 const WORST: &[(&str, &str, f64, f64, f64)] = &[
-    ("cam_hardening", "B", 1.0, 1.0, 4.5358),
-    ("cam_hardening", "C", 1.0, 1.0, 1.8278),
-    ("cam_hardening", "X", 1.0, 1.0, 3.0732),
-    // Chord-true steps (issue 13 item 4) halve some of the rhai cam's steps, so its lit
-    // chords meet at slightly different acceleration steps (B 7.6262 and C 3.0771 before).
-    ("rhai_cam", "B", 1.0, 1.0, 7.6412),
-    ("rhai_cam", "C", 1.0, 1.0, 3.0833),
-    ("rhai_cam", "X", 1.0, 1.0, 3.0727),
     ("surface_hardening_arm", "A", 1.0, 1.0, 23.6669),
     ("surface_hardening_arm", "B", 1.0, 1.0, 22.476),
     ("surface_hardening_arm", "C", 1.0, 1.0, 46.0094),

@@ -16,9 +16,9 @@
 //!      it (`blend`); a corner that cannot be rounded is a stop. Each move is split into the
 //!      half-blend after its start corner, its straight middle and the half-blend before its
 //!      end corner, all three with the move's tag. A corner between two moves that both keep
-//!      the velocity step (`Along::step_corners`: the lit chords of an oriented machine, for
-//!      now) is planned as under `JunctionDeviation`; every other corner, lit or not, is
-//!      blended.
+//!      the velocity step (`Along::step_corners`: the lit chords of an oriented machine whose
+//!      blended plan could not hold the lit speed) is planned as under `JunctionDeviation`;
+//!      every other corner, lit or not, is blended.
 //!    - `JunctionDeviation` (GRBL's model, kept for comparison and its own tests): the entry
 //!      speed is capped by the corner model (`junction`: GRBL's junction deviation and
 //!      Klipper's centripetal cap where the length is the axis-space arc length, as on
@@ -303,8 +303,10 @@ pub struct Along {
     /// rounded along their whole length instead of at their ends only.
     pub lit: bool,
     /// A corner between two such moves keeps the junction-deviation model (an axis velocity
-    /// step) under `Corners::Blend`. lase's oriented lit paths use it until their chords'
-    /// blends can be planned without lowering the lit speed (issue 13, item 3: what is left).
+    /// step) under `Corners::Blend`. lase sets it on the lit moves of an oriented machine only
+    /// when the plan with every lit corner blended could not hold the lit speed (the arm's
+    /// sections: their chords' blends do not share their curvature off Cartesian paths yet;
+    /// issue 13, item 3: what is left).
     pub step_corners: bool,
 }
 
