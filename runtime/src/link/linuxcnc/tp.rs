@@ -11,7 +11,7 @@
 //!   length is its X Y Z length, or its rotary length when X Y Z do not move; its speed and
 //!   acceleration are the largest that keep every axis within its INI `MAX_VELOCITY` and
 //!   `MAX_ACCELERATION` along it; `G0` runs at that speed, a feed at `F` (`G93`: the block's
-//!   length over `60/F` s), both capped by `[TRAJ] MAX_LINEAR_VELOCITY` when X Y Z move and by
+//!   length over `60/F` s, at least 0.1 per minute: `inverse_time_rate_straight`), both capped by `[TRAJ] MAX_LINEAR_VELOCITY` when X Y Z move and by
 //!   the length over one servo period (`tcClampVelocityByLength`). An arc runs at the smaller
 //!   of its plane's axis limits, at most `sqrt(0.866·a·r)` (`pmCircleActualMaxVel`), and ramps
 //!   with half the acceleration (`BLEND_ACC_RATIO_TANGENTIAL`). In blending mode an arc whose
@@ -490,7 +490,7 @@ fn segment(
         let (ax, ay) = (axes[ix].a, axes[iy].a);
         let acc = ax.min(ay);
         let req = if inverse_time {
-            len * feed / 60.0
+            (len * feed).max(0.1) / 60.0
         } else {
             feed / 60.0
         };
@@ -541,7 +541,7 @@ fn segment(
     let req = if rapid {
         vmax
     } else if inverse_time {
-        len * feed / 60.0
+        (len * feed).max(0.1) / 60.0
     } else {
         feed / 60.0
     };

@@ -203,9 +203,13 @@ pub(super) fn run_chain(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> 
             switch_s[i] = cycle as f64 * period;
         }
     };
-    // A chain of a few thousand segments runs for minutes at most; the bound only guards the
-    // loop against a segment that cannot move.
-    let limit: u64 = 1_000_000_000;
+    // Each segment ends within its cruise time plus its ramps, and a period or two; the bound
+    // (ten times that) only guards the loop against arithmetic that would not end.
+    let limit = segs
+        .iter()
+        .map(|s| (((s.len / s.v + 2.0 * s.v / s.acc) / period) as u64).saturating_add(4))
+        .fold(0u64, u64::saturating_add)
+        .saturating_mul(10);
     while head < n && cycles < limit {
         let before: Vec<f64> = (head..n.min(head + 2)).map(|i| tcs[i].progress).collect();
         let next = (head + 1 < n).then_some(head + 1);
@@ -292,8 +296,14 @@ pub(super) fn chain_times(
         while j + 1 < n && parabolic(j) {
             j += 1;
         }
-        let simulate =
-            starts_at_rest && j > i && stops_after(j) && segs[i..=j].iter().all(|s| !s.arc);
+        // Lines only, each with somewhere to go at some speed (one that could not move would
+        // never end).
+        let simulate = starts_at_rest
+            && j > i
+            && stops_after(j)
+            && segs[i..=j]
+                .iter()
+                .all(|s| !s.arc && s.req.min(s.vmax) > 0.0 && s.acc > 0.0);
         if simulate {
             let chain: Vec<ChainSeg> = segs[i..=j]
                 .iter()
