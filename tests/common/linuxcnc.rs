@@ -420,17 +420,29 @@ impl Headless {
         if !self.task_alive() {
             return None;
         }
+        // A task that vanishes between two commands leaves linuxcncrsh without answers (seen:
+        // `set mode auto` unanswered for 60 s right after a restart): a vanished task too, for
+        // the caller to restart, not a failed run.
+        macro_rules! or_vanished {
+            ($e:expr) => {
+                match $e {
+                    Ok(v) => v,
+                    Err(_) if !self.task_alive() => return None,
+                    Err(e) => panic!("linuxcncrsh: {e:?}"),
+                }
+            };
+        }
         let mut rsh = self.rsh();
-        rsh.start_auto().unwrap();
-        rsh.errors().unwrap();
-        rsh.set(&format!("open {}", path.display())).unwrap();
+        or_vanished!(rsh.start_auto());
+        or_vanished!(rsh.errors());
+        or_vanished!(rsh.set(&format!("open {}", path.display())));
         let before = self.last_sample();
-        rsh.set("run").unwrap();
+        or_vanished!(rsh.set("run"));
         let t0 = Instant::now();
         let mut seen_running = false;
         loop {
-            let st = rsh.status().unwrap();
-            let errors = rsh.errors().unwrap();
+            let st = or_vanished!(rsh.status());
+            let errors = or_vanished!(rsh.errors());
             assert!(errors.is_empty(), "LinuxCNC: {errors:?}");
             seen_running |= st.program != ProgramStatus::Idle;
             if st.program == ProgramStatus::Idle && (seen_running || t0.elapsed().as_secs() > 2) {

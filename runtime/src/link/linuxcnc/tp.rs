@@ -11,18 +11,21 @@
 //!   length is its X Y Z length, or its rotary length when X Y Z do not move; its speed and
 //!   acceleration are the largest that keep every axis within its INI `MAX_VELOCITY` and
 //!   `MAX_ACCELERATION` along it; `G0` runs at that speed, a feed at `F` (`G93`: the block's
-//!   length over `60/F` s), both capped by `[TRAJ] MAX_LINEAR_VELOCITY` when X Y Z move and by
+//!   length over `60/F` s, at least 0.1 per minute: `inverse_time_rate_straight`), both capped by `[TRAJ] MAX_LINEAR_VELOCITY` when X Y Z move and by
 //!   the length over one servo period (`tcClampVelocityByLength`). An arc runs at the smaller
 //!   of its plane's axis limits, at most `sqrt(0.866·a·r)` (`pmCircleActualMaxVel`), and ramps
 //!   with half the acceleration (`BLEND_ACC_RATIO_TANGENTIAL`). In blending mode an arc whose
 //!   chord strays less than the naive CAM tolerance (`G64 Q`, else `P`) from it runs as that
-//!   chord (measured: dial_marks' 0.25 mm arcs turn at their chord ends).
+//!   chord: canon's `ARC_FEED` sends it as two lines through its middle
+//!   (`chord_deviation < naivecamTolerance`), which the naive CAM detector joins into one
+//!   (dial_marks' 0.25 mm arcs turn at their chord ends).
 //! - **Term conditions** (`tpAddLine`/`tpAddCircle` → `tpCheckCanonType`, `tpHandleBlendArc`),
 //!   parabolic by default under `G64`:
 //!   - *stop* between a rapid and a feed (`tpCheckCanonType`), at a reversal sharper than 178°
 //!     (`tpSetupTangent`'s `SHARP_CORNER_DEG`) and under `G61`;
 //!   - *tangent* when the direction change needs less than `ARC_BLEND_KINK_RATIO` (0.1) of an
-//!     axis's acceleration at full speed over one servo period (circles count double): the
+//!     axis's acceleration at full speed over one servo period plus the next segment's own
+//!     acceleration (`a_inst = v_max / cycleTime + tc->maxaccel`; circles count double): the
 //!     speed carries through and both segments lose that share of their acceleration
 //!     (`tpAdjustAccelForTangent`);
 //!   - otherwise, without rotary motion, a *blend arc* (`blendComputeParameters`) that takes
@@ -32,15 +35,20 @@
 //!     (`tpCheckTangentPerformance`). What a segment keeps between two blend arcs runs at most
 //!     its length per servo period: two blend arcs that meet in the middle of a segment
 //!     carrying `M62/M63` nearly stop the machine there. That is dial_marks' 17 slowdowns;
-//!   - with rotary motion on either side neither can be made (`tpRotaryMotionCheck`): the
-//!     *parabolic* blend (`tpComputeBlendVelocity`): the next segment starts when the previous
-//!     one has slowed below its blend speed and their speeds add up through the overlap, so
-//!     the path runs as if at the blend speed there, which is how this model counts it.
+//!   - with rotary motion on either side neither can be made (`tpSetupTangent` gives up on
+//!     ABC motion): the *parabolic* blend (`tpComputeBlendVelocity`): the next segment starts
+//!     when the previous one, on its final deceleration, has slowed below its blend speed, and
+//!     their speeds add up through the overlap. A chain of them from rest to rest runs servo
+//!     period by servo period ([`servo`]): that is where a cam's 20–40 ms G93 blocks gain
+//!     ~0.4 ms each on continuous trapezoids. Elsewhere the path runs as if at the blend
+//!     speed there.
 //!   - A parabolic term condition halves the acceleration of both its segments
-//!     (`tpGetScaledAccel`); so does the one the queue ends on, where the task waits for motion
-//!     to end before a dwell, an immediate output (`M64`/`M65`/`M68`), another M-code or the
-//!     program's end: measured on conrod_notch, whose first move runs at half the axis
-//!     acceleration. Each such drain rests the machine for about `DRAIN_CYCLES` servo periods.
+//!     (`tcGetOverallMaxAccel`: `blend_prev`, or the segment's own term condition
+//!     PARABOLIC). `G64` makes PARABOLIC every segment's default (`tcSetupState`), and only a
+//!     successor changes it, so the segment the queue ends on keeps it and ramps at half the
+//!     acceleration too: where the task waits for motion to end before a dwell, an immediate
+//!     output (`M64`/`M65`/`M68`), another M-code or the program's end (conrod_notch's first
+//!     move). Each such drain rests the machine for about `DRAIN_CYCLES` servo periods.
 //! - **Look-ahead** (`tpRunOptimization`): end speeds are planned backward over at most
 //!   `ARC_BLEND_OPTIMIZATION_DEPTH` (50) pieces; further on the machine is assumed to stop.
 //! - **Synced outputs** (`M62`/`M63`/`M67`, `tpSetupSyncedIO`): they switch when the next
@@ -50,7 +58,9 @@
 //! Measured against the real controller (`tests/linuxcnc.rs`), every example it runs is within
 //! 1 % of the model in cycle and beam-on time. Not modelled: feed override, spindle sync, the
 //! naive CAM detector's merging of collinear lines (collinear, so time-neutral), the servo
-//! period's quantisation, and blend arcs in 3D or next to arcs beyond their chord.
+//! period's quantisation outside parabolic chains, and blend arcs in 3D or next to arcs
+//! beyond their chord. Of its constants, only `DRAIN_CYCLES` is measured rather than read
+//! from LinuxCNC's source: it is task's latency, not the planner's.
 
 use crate::axes::to_external;
 use crate::machine::{AxisKind, Machine};
@@ -60,15 +70,9 @@ pub const MODEL: &str = "LinuxCNC 2.9 trajectory planner model";
 
 /// `ARC_BLEND_KINK_RATIO`'s default.
 const KINK_RATIO: f64 = 0.1;
-/// How much stricter LinuxCNC 2.9's kink test is than `tpSetupTangent` as read (kink ratio
-/// 0.1 of the axis acceleration at full speed over one servo period): measured on the real
-/// controller. dial_marks' dotted arc (0.25 mm chords, 0.434° apart, every one carrying
-/// `M62/M63 P1`) nearly stops at exactly the 17 chords both of whose junctions score above
-/// 0.0925 by this model's formula; any factor from 1.076 to 1.086 picks the same 17, 1.0
-/// picks none. Why it is stricter is not found.
-const KINK_MEASURED: f64 = 1.081;
 /// Servo periods the machine rests where the queue drains (the task waits for motion to end,
-/// then runs an immediate output, a dwell or an M-code and queues the next move): measured,
+/// then runs an immediate output, a dwell or an M-code and queues the next move): measured
+/// (milltask's polling and NML round trip, not tp.c's arithmetic),
 /// 2 and 3 ms on conrod_notch.
 const DRAIN_CYCLES: f64 = 2.5;
 /// `ARC_BLEND_OPTIMIZATION_DEPTH`'s default.
@@ -157,6 +161,9 @@ pub struct TpTime {
     pub segments: usize,
     /// Places where the machine comes to rest between segments.
     pub stops: usize,
+    /// Each queued segment's NC line (1-based, as `motion.program-line` reports it) and the
+    /// time its motion starts, s from the first motion: where the model and a real run part.
+    pub starts: Vec<(usize, f64)>,
 }
 
 /// The LinuxCNC time of a job: `None` when the machine has no LinuxCNC post, `Err` with the
@@ -231,6 +238,8 @@ struct Seg {
     dio: Vec<(u32, bool)>,
     /// Per-axis X Y Z acceleration bounds, for the kink rule.
     acc_bound: [f64; 3],
+    /// Its NC line, 1-based.
+    line: usize,
 }
 
 /// What comes between two segments.
@@ -281,7 +290,7 @@ fn read(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<(Queue, Vec<f64>),
             _ => q.stops += usize::from(dwell > 0.0),
         }
     }
-    for raw in nc.lines() {
+    for (number, raw) in nc.lines().enumerate() {
         let w = words(raw)?;
         if w.is_empty() {
             continue;
@@ -370,6 +379,7 @@ fn read(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<(Queue, Vec<f64>),
         pos = target;
         let Some(mut seg) = seg else { continue };
         seg.dio = std::mem::take(&mut pending);
+        seg.line = number + 1;
         if let (Some(j @ None), true) = (q.joints.last_mut(), exact_stop) {
             // G61: the term condition STOP, inside the planner.
             *j = Some(Joint::Stop {
@@ -480,7 +490,7 @@ fn segment(
         let (ax, ay) = (axes[ix].a, axes[iy].a);
         let acc = ax.min(ay);
         let req = if inverse_time {
-            len * feed / 60.0
+            (len * feed).max(0.1) / 60.0
         } else {
             feed / 60.0
         };
@@ -501,6 +511,7 @@ fn segment(
             u1: tangent(r1),
             dio: Vec::new(),
             acc_bound,
+            line: 0,
         }));
     }
     // A line: its length is X Y Z's, or the rotary axes' when X Y Z stay.
@@ -530,7 +541,7 @@ fn segment(
     let req = if rapid {
         vmax
     } else if inverse_time {
-        len * feed / 60.0
+        (len * feed).max(0.1) / 60.0
     } else {
         feed / 60.0
     };
@@ -551,6 +562,7 @@ fn segment(
         u1: u,
         dio: Vec::new(),
         acc_bound,
+        line: 0,
     }))
 }
 
@@ -585,9 +597,13 @@ fn junction(a: &Seg, b: &Seg, tol: f64, cycle: f64) -> Kind {
     if c < sharp {
         return Kind::Stop;
     }
-    // tpSetupTangent: the acceleration to turn at full speed within one servo period.
+    // tpSetupTangent: the acceleration to turn at full speed within one servo period, plus the
+    // next segment's own (`v_max / cycleTime + tc->maxaccel`: "acceleration past final
+    // velocity during a split cycle"). That term is what an earlier reading missed and
+    // measured as a factor of 1.081 on dial_marks' 25 mm/s chords (2000 mm/s² along an axis:
+    // 1 + 2000 / 25000 = 1.08).
     let v_max = a.vmax.min(a.req).min(b.vmax.min(b.req));
-    let a_inst = v_max / cycle;
+    let a_inst = v_max / cycle + b.acc;
     let mut scale: f64 = (0..3)
         .map(|k| {
             let diff = a_inst * (b.u0[k] - a.u1[k]);
@@ -601,7 +617,6 @@ fn junction(a: &Seg, b: &Seg, tol: f64, cycle: f64) -> Kind {
     if a.arc || b.arc {
         scale /= ACC_RATIO_TANGENTIAL;
     }
-    scale *= KINK_MEASURED;
     if scale < KINK_RATIO {
         return Kind::Tangent {
             cap: v_max,
@@ -657,8 +672,10 @@ fn parabolic(a: &Seg, b: &Seg, tol: f64) -> Kind {
     let t_blend = t_max.min((reach_a / acc_a).max(reach_b / acc_b));
     let mut va = reach_a.min(t_blend * acc_a);
     let mut vb = reach_b.min(t_blend * acc_b);
-    if tol > 0.0 && a.u1 != [0.0; 3] && b.u0 != [0.0; 3] {
-        let theta = (-dot(a.u1, b.u0)).clamp(-1.0, 1.0).acos() / 2.0;
+    if tol > 0.0 {
+        // pmCartLineInit: a line without X Y Z motion points along +X.
+        let unit = |u: [f64; 3]| if u == [0.0; 3] { [1.0, 0.0, 0.0] } else { u };
+        let theta = (-dot(unit(a.u1), unit(b.u0))).clamp(-1.0, 1.0).acos() / 2.0;
         if theta.cos() > (std::f64::consts::FRAC_PI_2 - MIN_ARC_ANGLE).cos() {
             let v_tol = |acc: f64| 2.0 * (acc * tol / theta.cos()).sqrt();
             va = va.min(v_tol(acc_a));
@@ -716,6 +733,7 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
             beam_on_s: 0.0,
             segments: 0,
             stops: 0,
+            starts: Vec::new(),
         });
     }
     let segs = &q.segs;
@@ -746,7 +764,8 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
             // immediate output or any M-code, or the program ends) keeps its default,
             // parabolic, term condition.
             None => {
-                half[i] = i + 1 == n || matches!(q.joints[i], Some(Joint::Stop { drain: true, .. }))
+                half[i] |=
+                    i + 1 == n || matches!(q.joints[i], Some(Joint::Stop { drain: true, .. }))
             }
             _ => {}
         }
@@ -755,8 +774,10 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
     // length per servo period (tcClampVelocityByLength), which is how two blend arcs that
     // meet in the middle of a segment they may not swallow nearly stop the machine there.
     let mut pieces: Vec<Piece> = Vec::with_capacity(n);
+    let mut piece_of_seg = Vec::with_capacity(n);
     let mut trim_start = 0.0;
     for i in 0..n {
+        piece_of_seg.push(pieces.len());
         let s = &segs[i];
         let a = if half[i] { acc[i] * 0.5 } else { acc[i] };
         let trim_end = match kinds[i] {
@@ -809,6 +830,16 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
         }
     }
     let m = pieces.len();
+    // Chains of parabolic blends run servo period by servo period (`servo`).
+    let chain_time = servo::chain_times(
+        segs,
+        &kinds,
+        &q.joints,
+        &tolerances,
+        &piece_of_seg,
+        m,
+        cycle,
+    );
     // Backward (tpRunOptimization): each piece's highest exit speed, planning to a stop at
     // most OPTIMIZATION_DEPTH pieces ahead.
     let entry_of = |k: usize, exit: f64| {
@@ -849,7 +880,11 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
             }
         };
     apply_immediate(None, &mut outputs);
+    let mut starts = Vec::with_capacity(n);
     for (k, p) in pieces.iter().enumerate() {
+        if starts.last().is_none_or(|&(i, _)| i != p.seg) {
+            starts.push((p.seg, total));
+        }
         for &(o, on) in &p.dio {
             outputs.insert(o, on);
         }
@@ -857,7 +892,7 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
         let v1 = exit[k]
             .min((v0 * v0 + 2.0 * p.acc * p.len).sqrt())
             .min(p.v_top);
-        let t = trapezoid(p.len, v0, v1, p.v_top, p.acc);
+        let t = chain_time[k].unwrap_or_else(|| trapezoid(p.len, v0, v1, p.v_top, p.acc));
         total += t;
         if lit(&outputs) {
             beam_on += t;
@@ -888,8 +923,10 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
         beam_on_s: beam_on,
         segments: n,
         stops,
+        starts: starts.into_iter().map(|(i, t)| (segs[i].line, t)).collect(),
     })
 }
 
+mod servo;
 #[cfg(test)]
 mod tests;

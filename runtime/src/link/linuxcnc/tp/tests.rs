@@ -120,3 +120,66 @@ fn words_it_does_not_know_are_refused() {
     assert!(run_program("G1 W10 F100\n", &table()).is_err());
     assert!(run_program("G1 X10 F1200\nG7\n", &table()).is_err());
 }
+
+fn cam() -> TpLimits {
+    let m = crate::machine::parse_machine(lase_stdlib::machine("cam_xwb").unwrap(), 0).unwrap();
+    TpLimits::for_machine(&m, 0.001)
+}
+
+/// The lit chain of a cam program as the real LinuxCNC 2.9 ran it (`tests/linuxcnc.rs` with
+/// `LASE_LINUXCNC_DUMP`, from its 1 ms HAL samples): from the first lead-in move (NC line 8)
+/// to the end of motion, and how long `motion.digital-out-00` was on. Every junction is a
+/// parabolic blend between G93 blocks of 20–41 ms; continuous trapezoids put the chain at
+/// 27.36 s (1.2 % over), the servo-period replay at the sampled number.
+fn cam_chain(nc: &str, executed_chain_s: f64, executed_beam_s: f64) {
+    // From where its rapid (NC line 6) ends: the chain starts at rest there either way.
+    let start: Vec<f64> = nc.lines().nth(5).unwrap()[3..]
+        .split(' ')
+        .map(|w| w[1..].parse().unwrap())
+        .collect();
+    let t = run_program_from(nc, &cam(), &start).unwrap();
+    let lead_in = t.starts.iter().find(|(line, _)| *line == 8).unwrap().1;
+    let chain = t.total_s - lead_in;
+    assert!(
+        (chain - executed_chain_s).abs() <= 0.0015,
+        "chain {chain} s: {t:?}"
+    );
+    assert!(
+        (t.beam_on_s - executed_beam_s).abs() <= 0.0015,
+        "beam {} s",
+        t.beam_on_s
+    );
+}
+
+#[test]
+fn a_cam_chain_of_parabolic_blends_runs_as_linuxcnc_ran_it() {
+    cam_chain(
+        include_str!("../../../../tests/fixtures/linuxcnc/rhai_cam.ngc"),
+        27.019,
+        26.939,
+    );
+    cam_chain(
+        include_str!("../../../../tests/fixtures/linuxcnc/cam_hardening.ngc"),
+        27.290,
+        27.210,
+    );
+}
+
+#[test]
+fn the_kink_test_counts_the_next_segments_own_acceleration() {
+    // tpSetupTangent: a_inst = v / cycleTime + tc->maxaccel. At 25 mm/s on the table
+    // (2000 mm/s²) a turn of θ needs 27000·sin θ / 2000 of Y's limit: under 0.1 (tangent)
+    // up to θ = 7.41 mrad; without the segment's own 2000 mm/s² it would be 8.0 mrad.
+    let l = table();
+    let kind = |dy: f64| {
+        let nc = format!("G64 P0.01\nG1 X10 F1500\nX20 Y{dy}\n");
+        let (q, tol) = read(&nc, &l, &[]).unwrap();
+        junction(&q.segs[0], &q.segs[1], tol[1], 0.001)
+    };
+    assert!(matches!(kind(0.070), Kind::Tangent { .. }));
+    assert!(
+        !matches!(kind(0.077), Kind::Tangent { .. }),
+        "{:?}",
+        kind(0.077)
+    );
+}
