@@ -102,17 +102,23 @@ fn num(v: f64) -> String {
     if s == "-0" { "0".into() } else { s.into() }
 }
 
+/// `[TRAJ] MAX_LINEAR_VELOCITY` of the generated INI: the fastest linear axis, mm/s. The
+/// trajectory-planner model (`tp`) caps its moves with the same number.
+pub(crate) fn max_linear_velocity(machine: &Machine) -> f64 {
+    machine
+        .axes
+        .iter()
+        .filter(|a| a.kind == AxisKind::Linear)
+        .map(|a| a.v_max)
+        .fold(0.0, f64::max)
+}
+
 pub fn generate(machine: &Machine, options: &ConfigOptions) -> Config {
     let letters = letters(machine);
     let coords: String = letters.iter().collect();
     let n = machine.axes.len();
     let ext = |kind: AxisKind, v: f64| to_external(kind, v);
-    let max_linear_v = machine
-        .axes
-        .iter()
-        .filter(|a| a.kind == AxisKind::Linear)
-        .map(|a| a.v_max)
-        .fold(0.0, f64::max);
+    let max_linear_v = max_linear_velocity(machine);
     let max_linear_a = machine
         .axes
         .iter()

@@ -127,12 +127,7 @@ impl TpLimits {
                 a: to_external(a.kind, a.a_max),
             })
             .collect();
-        let max_linear_v = machine
-            .axes
-            .iter()
-            .filter(|a| a.kind == AxisKind::Linear)
-            .map(|a| a.v_max)
-            .fold(0.0, f64::max);
+        let max_linear_v = super::config::max_linear_velocity(machine);
         let beam_output = machine.post.get("linuxcnc").and_then(|p| {
             p.laser_on.iter().find_map(|l| {
                 let w = words(l).ok()?;

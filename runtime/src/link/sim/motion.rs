@@ -426,6 +426,21 @@ pub struct Span {
     pub line: u64,
 }
 
+impl Span {
+    /// The machine standing at `at` from `t0` for `duration`, the beam at `laser_s`.
+    fn rest(t0: f64, duration: f64, at: AxisPos, laser_s: f64) -> Span {
+        Span {
+            t0,
+            duration,
+            from: at,
+            to: at,
+            activity: Activity::Rest,
+            laser_s,
+            line: 0,
+        }
+    }
+}
+
 /// The beam switched: when, where and how fast the machine moved.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BeamEdge {
@@ -700,43 +715,19 @@ fn execute(items: &[Item], window: usize, start: AxisPos) -> Timeline {
             }
             Item::Dwell(d) => {
                 v = 0.0;
-                tl.push(Span {
-                    t0: t,
-                    duration: *d,
-                    from: pos,
-                    to: pos,
-                    activity: Activity::Rest,
-                    laser_s: rest_s,
-                    line: 0,
-                });
+                tl.push(Span::rest(t, *d, pos, rest_s));
                 t += d;
             }
             Item::Wait(d) => {
                 if *d > 0.0 {
-                    tl.push(Span {
-                        t0: t,
-                        duration: *d,
-                        from: pos,
-                        to: pos,
-                        activity: Activity::Rest,
-                        laser_s: rest_s,
-                        line: 0,
-                    });
+                    tl.push(Span::rest(t, *d, pos, rest_s));
                     t += d;
                 }
             }
             Item::Rest(s) => {
                 if *s != rest_s && v == 0.0 {
                     // The beam switches at rest: a zero-length stretch marks the edge.
-                    tl.push(Span {
-                        t0: t,
-                        duration: 0.0,
-                        from: pos,
-                        to: pos,
-                        activity: Activity::Rest,
-                        laser_s: *s,
-                        line: 0,
-                    });
+                    tl.push(Span::rest(t, 0.0, pos, *s));
                 }
                 rest_s = *s;
             }
