@@ -149,13 +149,35 @@ fn laser_on_speed_is_the_programmed_feed_and_never_above() {
         vmax <= 20.0 * (1.0 + 1e-6),
         "lit speed {vmax} above 20 mm/s"
     );
-    // Most of the lit time is spent at exactly the programmed speed (the long straight edges).
+    // Most of the lit time is spent at exactly the programmed speed (the long straight edges):
+    // 84 %. The rest is on the rounded corners (arcs of 1.5 mm about the plate's corners), whose
+    // chords' blends are taken at 9.2 to about 13 mm/s within 50 m/s³ (issue 13 item 3: a flat
+    // bed's lit corners are blended and slow the path as much as every axis needs), and on the
+    // ramps into them: every lit sample below the feed lies within 2 mm of a plate corner.
     let at_feed = lit.iter().filter(|(_, v)| (v - 20.0).abs() < 1e-6).count();
     assert!(
-        at_feed as f64 > 0.9 * lit.len() as f64,
+        at_feed as f64 > 0.8 * lit.len() as f64,
         "{at_feed} of {}",
         lit.len()
     );
+    let corners: Vec<(f64, f64)> = (0..3)
+        .flat_map(|i| {
+            let y = 0.2 * i as f64;
+            [(0.0, y), (40.0, y), (40.0, 20.0 + y), (0.0, 20.0 + y)]
+        })
+        .collect();
+    let (px, py, laser, v) = (t.cols["px"], t.cols["py"], t.cols["laser"], t.cols["v"]);
+    for r in t
+        .rows
+        .iter()
+        .filter(|r| r[laser] == 1.0 && r[v] < 20.0 - 1e-6)
+    {
+        let d = corners
+            .iter()
+            .map(|(x, y)| (r[px] - x).hypot(r[py] - y))
+            .fold(f64::INFINITY, f64::min);
+        assert!(d <= 2.0, "lit at {} mm/s {d} mm from a plate corner", r[v]);
+    }
     // The trace ends at the cycle time of the summary.
     let last_t = t.col("t").last().unwrap();
     let cycle = s["cycle_time_s"].as_f64().unwrap();
@@ -284,9 +306,14 @@ fn notch_transition_point_is_moved_back_by_the_ramp_distance() {
     }
 }
 
-/// On the motion-synchronized xy_table, the beam goes on only at the programmed feed: the
-/// first lit trace row of every lit run has the feed written with the laser-on in the NC
-/// program (lead-ins end at full speed on a straight junction).
+/// On the motion-synchronized xy_table, the beam goes on at speed, never during a ramp from
+/// rest. Where the lit path starts on a straight (dial_marks' ticks and arcs start tangent to
+/// their lead-ins), the first lit trace row of every lit run has the feed written with the
+/// laser-on in the NC program (lead-ins end at full speed on a straight junction). Where it
+/// starts on a rounded corner (frame_marking's offset path starts on the 1.5 mm arc about the
+/// plate's corner), at the speed the plan takes that corner at: its chords' blends hold it to
+/// 9.2 mm/s within 50 m/s³ where the arc begins (issue 13 item 3), and the lead-in ends at no
+/// less than that, within 10 % of it (9.9 mm/s measured).
 #[test]
 fn laser_on_points_run_at_the_programmed_feed() {
     for ex in ["examples/frame_marking.lase", "examples/dial_marks.lase"] {
@@ -312,16 +339,32 @@ fn laser_on_points_run_at_the_programmed_feed() {
         let (t, _) = trace(ex, "1ms");
         let lit: Vec<f64> = t.col("laser").collect();
         let v: Vec<f64> = t.col("v").collect();
-        let firsts: Vec<f64> = (1..lit.len())
+        // The speed at each beam-on row, and the lowest lit speed of the 50 ms after it.
+        let firsts: Vec<(f64, f64)> = (1..lit.len())
             .filter(|&i| lit[i] == 1.0 && lit[i - 1] == 0.0)
-            .map(|i| v[i])
+            .map(|i| {
+                (
+                    v[i],
+                    v[i..(i + 50).min(v.len())]
+                        .iter()
+                        .copied()
+                        .fold(f64::INFINITY, f64::min),
+                )
+            })
             .collect();
         assert_eq!(firsts.len(), on_feeds.len(), "{ex}");
-        for (v, f) in firsts.iter().zip(&on_feeds) {
-            assert!(
-                (v - f).abs() <= 1e-3 * f,
-                "{ex}: beam on at {v} mm/s, feed {f}"
-            );
+        for ((v, held), f) in firsts.iter().zip(&on_feeds) {
+            if ex.ends_with("frame_marking.lase") {
+                assert!(
+                    *v >= *held && *v <= 1.1 * held && *v < *f,
+                    "{ex}: beam on at {v} mm/s, the corner held at {held}, feed {f}"
+                );
+            } else {
+                assert!(
+                    (v - f).abs() <= 1e-3 * f,
+                    "{ex}: beam on at {v} mm/s, feed {f}"
+                );
+            }
         }
     }
 }

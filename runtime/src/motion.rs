@@ -329,12 +329,87 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     drop(index);
     // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
     let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;
+    let plan_with = |program: ProcessProgram,
+                     kin: Arc<dyn Kinematics>,
+                     sections: Vec<LitSection>,
+                     leads: Vec<Lead>,
+                     step_lit: bool| {
+        lower_and_plan(Planning {
+            program,
+            kin,
+            start,
+            limits: &limits,
+            cfg: &cfg,
+            laser_switch_stops,
+            arm_stops: &arm_stops,
+            sections,
+            leads,
+            step_lit,
+        })
+    };
+    let job = plan_with(program, kin, sections, leads, false)?;
+    match held::check_held(&job) {
+        Ok(()) => Ok(job),
+        // Every corner between lit chords is blended first. On a machine that orients the
+        // beam, blending a lit curve's chords one by one can lower the lit speed below the
+        // programmed one (their curvature returns to zero at every chord midpoint: the arm's
+        // sections); the plan is then made again with the velocity step at those corners
+        // (`Along::step_corners`, issue 13 item 3: what is left), and judged again.
+        Err(_) if job.kin.oriented() => {
+            let Job {
+                program,
+                kin,
+                sections,
+                leads,
+                ..
+            } = job;
+            let job = plan_with(program, kin, sections, leads, true)?;
+            held::check_held(&job)?;
+            Ok(job)
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// What `lower_and_plan` needs beyond the program.
+struct Planning<'a> {
+    program: ProcessProgram,
+    kin: Arc<dyn Kinematics>,
+    start: Axes,
+    limits: &'a AxisLimits,
+    cfg: &'a PlannerConfig,
+    laser_switch_stops: bool,
+    arm_stops: &'a [usize],
+    sections: Vec<LitSection>,
+    leads: Vec<Lead>,
+    /// Corners between lit moves keep the velocity step (`Along::step_corners`).
+    step_lit: bool,
+}
+
+/// Lowers the program (leads added) op by op into the planner: the job, not yet judged by
+/// `held`.
+fn lower_and_plan(p: Planning<'_>) -> Result<Job, MotionError> {
+    let Planning {
+        program,
+        kin,
+        start,
+        limits,
+        cfg,
+        laser_switch_stops,
+        arm_stops,
+        sections,
+        leads,
+        step_lit,
+    } = p;
+    let n_axes = kin.axis_count();
+    let start_span = program.ops.first().map(|o| o.span).unwrap_or_default();
     let expected = program.ops.iter().filter(|o| o.target().is_some()).count();
     let mut low = Lowering {
         kin: &*kin,
         program: &program,
         laser_switch_stops,
-        arm_stops: &arm_stops,
+        arm_stops,
+        step_lit,
         next_op: 0,
         pos: program.start,
         q_prev: start,
@@ -346,7 +421,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         error: None,
         last_tag: 0,
     };
-    let planned = planner::plan_along_iter(start, &mut low, expected, &limits, &cfg);
+    let planned = planner::plan_along_iter(start, &mut low, expected, limits, cfg);
     // The op whose move the planner refused: the move it read last.
     let refused = low.last_tag as usize;
     if planned.is_err() {
@@ -365,7 +440,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
             .unwrap_or(start_span);
         MotionError::Planner(PlannerFailure { error: e, span })
     })?;
-    let job = Job {
+    Ok(Job {
         program,
         kin,
         start,
@@ -374,9 +449,7 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
         plan,
         sections,
         leads,
-    };
-    held::check_held(&job)?;
-    Ok(job)
+    })
 }
 
 /// Every arc replaced by its chords within the chord tolerance (the points [`arc_points`]
@@ -445,6 +518,8 @@ struct Lowering<'a> {
     laser_switch_stops: bool,
     /// The ops a flying GRBL post re-arms the laser before (sorted).
     arm_stops: &'a [usize],
+    /// Corners between lit moves keep the velocity step (`Along::step_corners`).
+    step_lit: bool,
     next_op: usize,
     /// The spot and the axes where the last move ended.
     pos: P3,
@@ -513,13 +588,15 @@ impl Lowering<'_> {
         }
         // What the planner may know of a move (`planner::Along`): the spot's part-space
         // direction of each feed move (none for rapids, whose spot path on an oriented machine
-        // is no straight line), which bounds the blends' reach; and whether it is lit: corners
-        // between lit moves keep the junction-deviation step for now, since blending the
-        // chords of a lit curve would lower its lit speed (issue 13, item 3: what is left).
+        // is no straight line), which bounds the blends' reach; and whether it is lit. A lit
+        // corner is blended like any other (on a flat bed it may slow there: power follows the
+        // planned speed, pulses the distance), unless this plan is the second one of an
+        // oriented machine whose lit speed the blends could not hold (`plan_program`).
+        let step_lit = lit && self.step_lit;
         let line_to = |low: &mut Self, p: P3, feed: f64| -> Result<(), MotionError> {
             let q = inverse(kin, p, low.orient, Some(&low.q_prev), op.span, program)?;
             let along = if feed.is_finite() {
-                along_of(low.pos, p, lit)
+                along_of(low.pos, p, lit, step_lit)
             } else {
                 planner::Along::default()
             };
@@ -644,11 +721,13 @@ fn kin_error(e: KinError, span: Span, program: &ProcessProgram) -> MotionError {
 }
 
 /// What the planner may know of a feed move from `from` to `to` (spot, part space): the
-/// spot's unit direction, and whether it is lit.
-fn along_of(from: P3, to: P3, lit: bool) -> planner::Along {
+/// spot's unit direction, whether it is lit, and whether its corners with other such moves
+/// keep the velocity step (`step`).
+fn along_of(from: P3, to: P3, lit: bool, step: bool) -> planner::Along {
     let d = dist(from, to);
     let mut along = planner::Along {
-        step_corners: lit,
+        lit,
+        step_corners: step,
         ..planner::Along::default()
     };
     if d > 1e-12 {

@@ -29,13 +29,19 @@ static ALLOC: Cap<System> = Cap::new(System, usize::MAX);
 #[path = "support/short_moves.rs"]
 mod short_moves;
 
-/// Peak live heap per move while compiling and emitting, above what was live before, bytes:
-/// 225.2 B measured (the job's 224 B and the blends' flags). It was 414 B before the op
-/// shrank from 168 B to 72 B (−96), the look-ahead's scratch moved into the segments (−40),
-/// the blends' per-move input became a byte (−31), the entry caps were written in place (−8),
-/// emit stopped tabling each op's speeds (−23 at emit's peak) and motion stopped holding the
-/// lead index (−4).
-const CAP_PER_MOVE: f64 = 230.0;
+/// Peak live heap per move while compiling and emitting, above what was live before, bytes.
+/// With its corners taken at rest or stepped this recipe peaked at 225.2 B (the job's 224 B
+/// and the blends' flags; 414 B before the op shrank from 168 B to 72 B, the look-ahead's
+/// scratch moved into the segments, the blends' per-move input became a byte, the entry caps
+/// were written in place, emit stopped tabling each op's speeds and motion stopped holding the
+/// lead index). Since the lit corners of a flat bed are blended (issue 13 item 3), every
+/// corner of this lit zigzag is: each 0.05 mm move becomes the halves of the blends at its ends
+/// (2.5 segments a move, 300 B), each corner keeps its 160-byte `Blend`, and `blend::split`
+/// builds the expanded plan beside the one it expands (137 B at the peak): 793.2 B measured.
+/// Compacting that (a blend derived from its neighbours' points, splitting in place) or
+/// planning in windows is issue 18's next step; this cap still fails a per-move table that
+/// comes back.
+const CAP_PER_MOVE: f64 = 800.0;
 
 /// Peak of live heap above `base` so far, bytes.
 fn peak_above(base: usize) -> usize {
@@ -60,7 +66,12 @@ fn short_moves_from_a_loop_compile_and_emit_within_a_fixed_budget_per_move() {
     let job = compile::plan(program).unwrap_or_else(|f| panic!("the recipe plans: {f}"));
     let planned = peak_above(before);
     let held = ALLOC.allocated().saturating_sub(before);
-    let moves = job.plan.segments().len();
+    // Moves, not segments: a blended move is two or three segments (`planner::blend`).
+    let moves = job
+        .plan
+        .segments()
+        .last()
+        .map_or(0, |s| s.move_index as usize + 1);
     // Every move of the loop was planned (plus the lead-in and lead-out lase adds).
     assert!((n..n + 8).contains(&moves), "{moves} moves planned");
     let mut lines = 0usize;

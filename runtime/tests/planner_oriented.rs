@@ -29,10 +29,13 @@ fn machine(name: &str) -> Machine {
 /// speed `v`: its rate per unit of path changes by `Δu_k` there, and taken within the shorter
 /// of the two adjacent half-moves (all the room the corner has without leaving them) that is
 /// an acceleration of `|Δu_k|·v² / min(L)`. On chords sampling a smooth axis curve this is its
-/// second difference `q_k''·v²`. Zero before the first segment.
+/// second difference `q_k''·v²`. Zero before the first segment, and where either segment is
+/// half of a corner blend (`Plan::blend_of`: the cam's lit chords, issue 13 item 3): there no
+/// axis velocity steps, and the blend's own axis acceleration is what the samples of
+/// `every_axis_stays_within_its_machine_limits` measure.
 fn corner_accel(p: &Plan, i: usize, k: usize, v: f64) -> f64 {
     let segs = p.segments();
-    if i == 0 || i >= segs.len() {
+    if i == 0 || i >= segs.len() || p.blend_of(i).is_some() || p.blend_of(i - 1).is_some() {
         return 0.0;
     }
     let du = p.direction(i)[k] - p.direction(i - 1)[k];

@@ -254,6 +254,53 @@ fn emitted_sub_block_power_is_the_plans_time_mean() {
     }
 }
 
+/// The rectangle's three lit corners are rounded by blends (`planner::Blend`, issue 13 item
+/// 3) and taken well below the feed; the coupled power follows the slower corner: in the plan
+/// (`P_set · v / F` at the corner) and in the LinuxCNC program, whose last sub-block before
+/// each corner is written at that power to within the sub-blocks' 1 % step.
+#[test]
+fn coupled_power_follows_the_slower_lit_corners() {
+    let j = job(RECT);
+    let p_set = 40.0;
+    let blocks = lit_blocks(&j, Dialect::LinuxCnc, 100.0);
+    let mut corners = 0;
+    for (i, seg) in j.plan.segments().iter().enumerate() {
+        // The half of a blend after its corner starts at the corner.
+        let Some((blend, true)) = j.plan.blend_of(i) else {
+            continue;
+        };
+        let lit = j.program.ops[seg.tag as usize].laser().is_some();
+        let before = j.plan.segments()[i - 1].tag;
+        if !(lit && j.program.ops[before as usize].laser().is_some()) {
+            continue;
+        }
+        corners += 1;
+        let s = j.plan.sample(seg.t_start);
+        let (v, feed) = (s.v, seg.feed);
+        assert!(
+            v < 0.9 * feed,
+            "corner {:?} taken at {v} mm/s",
+            blend.corner
+        );
+        let (_, _, p) = beam_at(&j, seg.t_start);
+        assert!(
+            (p - p_set * v / feed).abs() <= 1e-9 * p_set,
+            "{p} W at {v} mm/s"
+        );
+        // The op that ends at this corner: its last block carries the power of the slow end.
+        let (_, written, end) = *blocks
+            .iter()
+            .rfind(|b| b.0 == before)
+            .expect("the op before the corner is written");
+        assert!((end[0] - blend.corner[0]).abs() < 1e-4 && (end[1] - blend.corner[1]).abs() < 1e-4);
+        assert!(
+            written <= p_set * (v / feed + 2.0 * power::POWER_STEP) && written < 0.9 * p_set,
+            "{written} W written before the corner at {v} mm/s"
+        );
+    }
+    assert_eq!(corners, 3, "the rectangle's lit corners are blended");
+}
+
 #[test]
 fn grbl_uses_dynamic_mode_instead_of_sub_blocks() {
     let coupled = emit_to_string(&job(RECT), Dialect::Grbl).unwrap();

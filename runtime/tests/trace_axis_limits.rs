@@ -3,12 +3,15 @@
 //! by finite differences, against that axis's limits (issue 13, item 3).
 //!
 //! Corners taken at speed follow a planned blend (`planner::Blend`) — rapids, unlit feeds,
-//! leads and every junction between them and the lit paths — and must stay within every limit
-//! at every sample (1e-6 relative), on every example and on random paths on every stock
-//! machine. What is left: corners *between two lit moves* (the chords of a lit arc or curve, a
-//! lit polyline's corners) keep the junction-deviation velocity step, because blending them
-//! within the jerk limits would lower the lit speed below the programmed one (chords of a
-//! curve blended one by one need far more jerk than the curve itself). [`WORST`] pins the
+//! leads, every junction between them and the lit paths, and the lit corners too (a lit
+//! polyline's corners, the chords of a lit arc or of a cam's lit section: the blend's own
+//! limits slow the path there as much as every axis needs, on a flat bed; on an oriented
+//! machine the plan must hold the lit speed) — and must stay within every limit at every
+//! sample (1e-6 relative), on every example and on random paths on every stock machine. What
+//! is left: where blending an oriented machine's lit chords one by one would lower the lit
+//! speed below the programmed one (`lase::plan::speed_not_held`: the arm's sections, whose
+//! chords' blends return their curvature to zero at every chord midpoint), the plan is made
+//! again with the junction-deviation velocity step at those corners. [`WORST`] pins the
 //! examples that have such corners, each at its measured worst, so they can only get better;
 //! the random paths are checked everywhere but within 4 ms of such a corner.
 
@@ -61,42 +64,21 @@ fn report(name: &str, w: &AxisWorst) -> String {
 }
 
 /// Measured worst |v|/v_max, |a|/a_max, |j|/j_max at 1 kHz of the examples whose lit paths
-/// have corners between two lit moves taken at speed (module doc), rounded up in the fourth
-/// digit; every other example and axis, and every sample away from those corners, is held
-/// to 1. Measured with `cargo test -p lase-runtime --test trace_axis_limits -- --nocapture`,
-/// which prints each example's row. Each peak lies at a lit corner: the lit polylines' and
-/// glyphs' corners and the chords of lit arcs (air_assist, dial_marks, frame_marking,
-/// material_test, nested_parts, rotary_engrave, serial_number: a velocity step, so a and j), and the lit chords
-/// of the cams and the arm (an acceleration step only: a is within its limits, j is not).
-/// Before the blends the same table also held every rapid↔feed junction: up to a/a_max 26.9
-/// (cam X), 12.6 (arm X), 9.5 (arm A), 3.4 (codes, image_engrave, texture_array).
+/// have corners between two lit moves taken at speed with the velocity step (module doc: the
+/// lit chords of the arm), rounded up in the fourth digit; every other example
+/// and axis, and every sample away from those corners, is held to 1. Measured with `cargo
+/// test -p lase-runtime --test trace_axis_limits -- --nocapture`, which prints each example's
+/// row. Each peak lies at a lit chord corner, an acceleration step only: a is within its
+/// limits, j is not. Before the blends the same table also held every rapid↔feed junction: up
+/// to a/a_max 26.9 (cam X), 12.6 (arm X), 9.5 (arm A), 3.4 (codes, image_engrave,
+/// texture_array); before the flat beds' lit corners were blended, their velocity steps: a/a_max
+/// 2.14 (air_assist), 4.90 (material_test), 2.50 (nested_parts), 6.03 (serial_number), 6.16
+/// (rotary_engrave), and j/j_max 18.3 (dial_marks), 38.2 (frame_marking); before the cams'
+/// lit chords were blended, j/j_max 4.54 (cam_hardening B), 7.64 (rhai_cam B).
 const WORST: &[(&str, &str, f64, f64, f64)] = &[
-    ("air_assist", "X", 1.0, 2.1425, 85.6971),
-    ("air_assist", "Y", 1.0, 2.0279, 81.1155),
-    ("cam_hardening", "B", 1.0, 1.0, 4.5358),
-    ("cam_hardening", "C", 1.0, 1.0, 1.8278),
-    ("cam_hardening", "X", 1.0, 1.0, 3.0953),
-    ("dial_marks", "X", 1.0, 1.0, 17.9568),
-    ("dial_marks", "Y", 1.0, 1.0, 18.3142),
-    ("frame_marking", "X", 1.0, 1.0, 37.644),
-    ("frame_marking", "Y", 1.0, 1.0, 38.1774),
-    ("material_test", "X", 1.0, 4.9034, 196.1352),
-    ("material_test", "Y", 1.0, 4.816, 192.9792),
-    ("nested_parts", "X", 1.0, 2.454, 98.1564),
-    ("nested_parts", "Y", 1.0, 2.5035, 100.1396),
-    // Chord-true steps (issue 13 item 4) halve some of the rhai cam's steps, so its lit
-    // chords meet at slightly different acceleration steps (B 7.6262 and C 3.0771 before).
-    ("rhai_cam", "B", 1.0, 1.0, 7.6412),
-    ("rhai_cam", "C", 1.0, 1.0, 3.0833),
-    ("rhai_cam", "X", 1.0, 1.0, 3.1362),
-    // The engraved glyphs' lit corners around the tube (a velocity step on X and A).
-    ("rotary_engrave", "A", 1.0001, 5.2669, 262.1456),
-    ("rotary_engrave", "X", 1.0, 6.1613, 246.4455),
-    ("serial_number", "X", 1.0, 6.0281, 240.8917),
-    ("serial_number", "Y", 1.0, 5.4633, 217.8669),
-    ("surface_hardening_arm", "A", 1.0, 1.0, 44.7405),
-    ("surface_hardening_arm", "B", 1.0, 1.0, 41.9978),
-    ("surface_hardening_arm", "C", 1.0, 1.0, 62.2933),
+    ("surface_hardening_arm", "A", 1.0, 1.0, 23.6669),
+    ("surface_hardening_arm", "B", 1.0, 1.0, 22.476),
+    ("surface_hardening_arm", "C", 1.0, 1.0, 46.0094),
 ];
 
 /// Job times of the corners between two lit moves taken at speed, which keep the

@@ -10,6 +10,10 @@
 //! programmed one by more than 0.1 % is named by its arc length along the section, with the
 //! highest speed the plan holds there.
 //!
+//! `plan_program` plans an oriented job with every lit corner blended first; where that dips
+//! (the chords of a lit curve blended one by one), it plans again with the velocity step
+//! between lit chords (`planner::Along::step_corners`) and judges that plan.
+//!
 //! The ramps at a section's ends are not dips: with lead-ins (the default) the section is
 //! entered and left at the programmed speed; with `planner { leadin none }` the recipe has
 //! accepted that the beam comes on during the ramp, and only what lies between the first and
@@ -40,7 +44,8 @@ pub struct Shortfall {
 /// recipe statement that made it.
 pub fn check_held(job: &Job) -> Result<(), MotionError> {
     if !job.kin.oriented() {
-        // On a flat bed a lit path slows at its corners by design (junction deviation).
+        // On a flat bed a lit path slows at its corners by design (their blends' limits;
+        // coupled power and pulses by distance follow the planned speed).
         return Ok(());
     }
     for section in &job.sections {

@@ -34,7 +34,10 @@
 //! within the halves of both moves (so neighbouring blends never overlap; on the chords of an
 //! arc they abut and the path is curved throughout), and within [`REACH_MAX`]`·δ` of the
 //! corner along each move, so a lead-in loses at most that much of its straight ramp (the
-//! lead-ins add it: `motion::leadin`).
+//! lead-ins add it: `motion::leadin`) — except between two lit moves (`MoveInfo::lit_before`),
+//! which no lead-in ends at: there only the halves bound it, so the blends of a lit arc's
+//! chords abut (the smoothstep's jerk, `1.5·|Δu|·v³/ℓ²`, falls with ℓ², and a flat bed's lit
+//! arc keeps its speed where blends of `4·δ` would slow it; dial_marks' circle keeps 40 mm/s).
 //!
 //! **Limits along it.** With path speed `v`, acceleration `a`, jerk `j`, axis k moves at
 //! `q'_k v`, accelerates at `q''_k v² + q'_k a` and jerks at `q'''_k v³ + 3 q''_k v a + q'_k j`.
@@ -42,6 +45,24 @@
 //! within the axis's limit everywhere on the blend ([`limits`]): the curvature terms get at
 //! most [`SHARE`] of each axis's acceleration and jerk, the path's own changes what is left.
 //! A corner the plan cannot round (δ = 0, a reversal on a Cartesian path) is a stop.
+//!
+//! **Runs of chords.** Where the blends of a curve's chords abut (each reaches half of every
+//! chord, so the path is curved throughout), their curvature returns to zero at every chord
+//! midpoint: `0 → 1.5κ → 0` per chord, a jerk of about `6·v³·κ/L` that would hold a lit arc
+//! below its feed. There two abutting blends that sample one smooth curve (`curve_like`: their
+//! mean curvatures `Δu/2ℓ` differ by at most half) share the axis curvature at the midpoint
+//! between them ([`shared_curvature`], the central difference of the chords' rates): each
+//! blend's rate gets the quartic terms `2ℓ·(g0·p(x) − g1·p(1 − x))`, `p(x) = x(1 − x)²(1 −
+//! 5x/2)`, which set `q''` to `g0` at its start and `g1` at its end without moving its ends or
+//! changing their rates, so each axis's acceleration is continuous across the run and, on a
+//! circle's chords, the blends bend like the circle (`q'''` about `6·κ²` per unit path³ instead
+//! of `3·κ/ℓ`). The curvature ramps in over the first and last `LEVELS − 1` midpoints of a run
+//! (`Blend::shared` keeps the level at each end), runs shorter than `MIN_RUN` midpoints keep
+//! the smoothstep (their ramps would cost more than they gain), and a shared curvature is used
+//! only where both blends stay within δ of their corners with it (`|3/16·ℓ·Δu + ℓ²/16·(g0 +
+//! g1)|`, whatever the other ends share) — on Cartesian paths only, where that is the spot's
+//! distance. Each blend's limits come from its own largest `|q'|`, `|q''|`, `|q'''|`
+//! (`Blend::bounds`).
 //!
 //! **In the plan.** `prepare` splits each move into the second half of the blend at its start,
 //! its straight middle, and the first half of the blend at its end; all three keep the move's
@@ -66,16 +87,103 @@ pub const DEVIATION: f64 = 3.0 / 16.0;
 /// velocity step left there is below what a 1 kHz trace can tell from rounding (`v·1e-12`).
 const STRAIGHT: f64 = 1e-12;
 
+/// Relative slack on "two blends abut": their reaches add up to the length of the chord
+/// between them (each is at most half of it).
+const ABUT: f64 = 1e-9;
+
 /// Cosine of a reversal on a Cartesian path (stop there).
 const REVERSAL_COS: f64 = -1.0 + 1e-9;
 
-/// One blend: its corner, its reach along each move and the two moves' `Δq / length`.
+/// One blend: its corner, its reach along each move, the two moves' `Δq / length`, and
+/// whether it shares its end curvatures with the blends beside it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Blend {
     pub corner: Axes,
     pub reach: f64,
     pub u: Axes,
     pub w: Axes,
+    /// How much of the curvature it shares with the blend before it (low four bits) and after
+    /// it (high four bits), in steps of `1 / LEVELS` ([`Blend::levels`]): 0 where that end
+    /// is the smoothstep's (zero curvature), `LEVELS` where the move between the two is a
+    /// chord wholly inside both and they bend there like the curve the chords sample
+    /// ([`shared_curvature`]), less where a run of chords ramps into that curvature.
+    pub shared: u8,
+}
+
+/// Steps of [`Blend::shared`]: a run of chords ramps into its curvature over `LEVELS − 1`
+/// midpoints from each end.
+pub const LEVELS: u8 = 3;
+
+/// Fewest midpoints a run of chords shares its curvature over: in a shorter one (a glyph's
+/// curve of a few chords) the ramps at its ends, which need more jerk than the smoothstep,
+/// would cost more than its middle gains.
+const MIN_RUN: usize = 8;
+
+impl Blend {
+    /// The levels of curvature shared at the start and the end (`shared`).
+    pub fn levels(&self) -> (u8, u8) {
+        (self.shared & 0x0f, self.shared >> 4)
+    }
+}
+
+/// [`shared_curvature`] at `level` of [`LEVELS`].
+pub fn shared_at(prev: &Blend, next: &Blend, level: u8) -> Axes {
+    let g = shared_curvature(prev, next);
+    let scale = f64::from(level) / f64::from(LEVELS);
+    let mut out = Axes::ZERO;
+    for k in 0..MAX_AXES {
+        out[k] = g[k] * scale;
+    }
+    out
+}
+
+/// The axis curvature `q''` two abutting blends share where they meet, at the midpoint of the
+/// chord between their corners: the central difference of the rates of the chords before and
+/// after it, `(w_next − u_prev) / (2ℓ_prev + 2ℓ_next)`. On the chords of a circle of radius R
+/// turning by φ each it is the curvature `cos(φ/2)/R` towards the centre, the same at every
+/// chord, so the blends of a run of chords bend like the curve they sample.
+pub fn shared_curvature(prev: &Blend, next: &Blend) -> Axes {
+    let mut g = Axes::ZERO;
+    let span = 2.0 * (prev.reach + next.reach);
+    for k in 0..MAX_AXES {
+        g[k] = (next.w[k] - prev.u[k]) / span;
+    }
+    g
+}
+
+/// Whether two abutting blends sample one smooth curve: their mean curvatures `Δu / 2ℓ` differ
+/// by at most [`CURVE_LIKE`] of the larger (on the chords of a circle turning by φ each, by
+/// `2·sin(φ/2)`). Elsewhere (the corners of a glyph's short strokes) sharing the curvature
+/// would only bend the blends harder than their own turns; they keep the smoothstep.
+fn curve_like(a: &Blend, b: &Blend, n: usize) -> bool {
+    let (mut diff, mut ka, mut kb) = (0.0f64, 0.0f64, 0.0f64);
+    for k in 0..n {
+        let ca = (a.w[k] - a.u[k]) / (2.0 * a.reach);
+        let cb = (b.w[k] - b.u[k]) / (2.0 * b.reach);
+        diff += (cb - ca) * (cb - ca);
+        ka += ca * ca;
+        kb += cb * cb;
+    }
+    diff.sqrt() <= CURVE_LIKE * ka.max(kb).sqrt()
+}
+
+/// How much the mean curvatures of two abutting blends may differ, relative to the larger, for
+/// them to share their curvature (`curve_like`).
+const CURVE_LIKE: f64 = 0.5;
+
+/// `(P, p, p', p'')` at `x`: `p(x) = x(1 − x)²(1 − 5x/2)`, the rate term that gives a blend the
+/// axis curvature `g0` at its start without moving its ends or changing its end rates:
+/// `p(0) = p(1) = 0`, `∫₀¹ p = 0`, `p'(0) = 1`, `p'(1) = 0`; `P = ∫₀ˣ p`. Its mirror
+/// `−p(1 − x)` does the same for `g1` at the end.
+#[inline]
+fn ramp(x: f64) -> (f64, f64, f64, f64) {
+    let (x2, x3) = (x * x, x * x * x);
+    (
+        0.5 * x2 - 1.5 * x3 + 1.5 * x2 * x2 - 0.5 * x2 * x3,
+        x - 4.5 * x2 + 6.0 * x3 - 2.5 * x2 * x2,
+        1.0 - 9.0 * x + 18.0 * x2 - 10.0 * x3,
+        -9.0 + 36.0 * x - 30.0 * x2,
+    )
 }
 
 /// `(H, h, h', h'')` at `x ∈ [0, 1]`: `h = 3x² − 2x³` and its integral and derivatives.
@@ -91,37 +199,134 @@ pub(crate) fn smoothstep(x: f64) -> (f64, f64, f64, f64) {
 }
 
 impl Blend {
-    /// Axis positions at `x = (σ + ℓ)/(2ℓ)`, clamped to `[0, 1]`.
+    /// Axis positions at `x = (σ + ℓ)/(2ℓ)`, clamped to `[0, 1]`, of the smoothstep blend
+    /// (zero curvature at both ends; [`Blend::point_curved`] with the shared curvatures).
     pub fn point(&self, x: f64) -> Axes {
+        self.point_curved(x, &Axes::ZERO, &Axes::ZERO)
+    }
+
+    /// Axis positions at `x`, with axis curvature `g0` at the start and `g1` at the end:
+    /// `q = C − uℓ + 2ℓ·(u·x + Δu·H(x) + 2ℓ·(g0·P(x) + g1·P(1 − x)))` (`ramp`).
+    pub fn point_curved(&self, x: f64, g0: &Axes, g1: &Axes) -> Axes {
         let x = x.clamp(0.0, 1.0);
         let (hh, ..) = smoothstep(x);
+        let (p0, ..) = ramp(x);
+        let (p1, ..) = ramp(1.0 - x);
         let l2 = 2.0 * self.reach;
         let mut q = Axes::ZERO;
         for k in 0..MAX_AXES {
             let du = self.w[k] - self.u[k];
-            q[k] = self.corner[k] - self.u[k] * self.reach + l2 * (self.u[k] * x + du * hh);
+            let curved = l2 * (g0[k] * p0 + g1[k] * p1);
+            q[k] =
+                self.corner[k] - self.u[k] * self.reach + l2 * (self.u[k] * x + du * hh + curved);
         }
         q
     }
 
-    /// Axis positions, velocities, accelerations and jerks at `x` along the blend, at path
-    /// speed `v`, acceleration `a` and jerk `j`.
-    #[allow(clippy::needless_range_loop)] // one index over parallel axis arrays
+    /// Axis positions, velocities, accelerations and jerks at `x` along the smoothstep blend,
+    /// at path speed `v`, acceleration `a` and jerk `j`.
     pub fn state(&self, x: f64, v: f64, a: f64, j: f64) -> [Axes; 4] {
+        self.state_curved(x, v, a, j, &Axes::ZERO, &Axes::ZERO)
+    }
+
+    /// [`Blend::state`] with axis curvature `g0` at the start and `g1` at the end.
+    #[allow(clippy::too_many_arguments)] // the path state and both end curvatures
+    pub fn state_curved(&self, x: f64, v: f64, a: f64, j: f64, g0: &Axes, g1: &Axes) -> [Axes; 4] {
         let x = x.clamp(0.0, 1.0);
-        let (_, h, h1, h2) = smoothstep(x);
-        let l = self.reach;
-        let mut out = [self.point(x), Axes::ZERO, Axes::ZERO, Axes::ZERO];
+        let mut out = [
+            self.point_curved(x, g0, g1),
+            Axes::ZERO,
+            Axes::ZERO,
+            Axes::ZERO,
+        ];
         for k in 0..MAX_AXES {
-            let du = self.w[k] - self.u[k];
-            let d1 = self.u[k] + du * h;
-            let d2 = du * h1 / (2.0 * l);
-            let d3 = du * h2 / (4.0 * l * l);
+            let [d1, d2, d3] = self.rates(k, x, g0[k], g1[k]);
             out[1][k] = d1 * v;
             out[2][k] = d2 * v * v + d1 * a;
             out[3][k] = d3 * v * v * v + 3.0 * d2 * v * a + d1 * j;
         }
         out
+    }
+
+    /// Axis `k`'s `q'`, `q''`, `q'''` (per unit path) at `x`, with end curvatures `g0`, `g1`.
+    #[inline]
+    fn rates(&self, k: usize, x: f64, g0: f64, g1: f64) -> [f64; 3] {
+        let (_, h, h1, h2) = smoothstep(x);
+        let (_, p0, p0d, p0dd) = ramp(x);
+        let (_, p1, p1d, p1dd) = ramp(1.0 - x);
+        let l = self.reach;
+        let du = self.w[k] - self.u[k];
+        [
+            self.u[k] + du * h + 2.0 * l * (g0 * p0 - g1 * p1),
+            du * h1 / (2.0 * l) + g0 * p0d + g1 * p1d,
+            du * h2 / (4.0 * l * l) + (g0 * p0dd - g1 * p1dd) / (2.0 * l),
+        ]
+    }
+
+    /// Per axis, the largest `|q'|`, `|q''|` and `|q'''|` along the blend with end curvatures
+    /// `g0`, `g1`: `q''` is a cubic in `x` and `q'''` a quadratic, so both are taken at the ends
+    /// and at their stationary points; `|q'|` (a quartic) at 65 points, plus the most it can
+    /// rise between two of them, `ℓ·max|q''|/64`. For the smoothstep these are `max(|u|, |w|)`,
+    /// `0.75·|Δu|/ℓ` and `1.5·|Δu|/ℓ²` (module doc).
+    fn bounds(&self, g0: &Axes, g1: &Axes, n: usize) -> [[f64; 3]; MAX_AXES] {
+        let l = self.reach;
+        let mut out = [[0.0; 3]; MAX_AXES];
+        for k in 0..n {
+            let du = self.w[k] - self.u[k];
+            if g0[k] == 0.0 && g1[k] == 0.0 {
+                out[k] = [
+                    self.u[k].abs().max(self.w[k].abs()),
+                    0.75 * du.abs() / l,
+                    1.5 * du.abs() / (l * l),
+                ];
+                continue;
+            }
+            // d q''/dx = c0 + c1·x + c2·x²: A·h''(x) + g0·p''(x) − g1·p''(1 − x), A = Δu/(2ℓ).
+            let aa = du / (2.0 * l);
+            let (a, b) = (g0[k], g1[k]);
+            let c = [
+                6.0 * aa - 9.0 * a + 3.0 * b,
+                -12.0 * aa + 36.0 * a - 24.0 * b,
+                -30.0 * a + 30.0 * b,
+            ];
+            let mut xs = [0.0, 1.0, -1.0, -1.0, -1.0];
+            if c[2] != 0.0 {
+                let disc = c[1] * c[1] - 4.0 * c[2] * c[0];
+                if disc >= 0.0 {
+                    let r = disc.sqrt();
+                    xs[2] = (-c[1] + r) / (2.0 * c[2]);
+                    xs[3] = (-c[1] - r) / (2.0 * c[2]);
+                }
+                xs[4] = -c[1] / (2.0 * c[2]);
+            } else if c[1] != 0.0 {
+                xs[2] = -c[0] / c[1];
+            }
+            let (mut m2, mut m3) = (0.0f64, 0.0f64);
+            for &x in xs.iter().filter(|x| (0.0..=1.0).contains(*x)) {
+                let [_, d2, d3] = self.rates(k, x, a, b);
+                m2 = m2.max(d2.abs());
+                m3 = m3.max(d3.abs());
+            }
+            let mut m1 = 0.0f64;
+            for i in 0..=64 {
+                m1 = m1.max(self.rates(k, i as f64 / 64.0, a, b)[0].abs());
+            }
+            out[k] = [m1 + l * m2 / 64.0, m2, m3];
+        }
+        out
+    }
+
+    /// How far the blend passes from its corner (at σ = 0), in axis space:
+    /// `|3/16·ℓ·Δu + ℓ²/16·(g0 + g1)|` (`H(½) = 3/32`, `P(½) = 1/64`).
+    fn deviation(&self, g0: &Axes, g1: &Axes, n: usize) -> f64 {
+        let l = self.reach;
+        (0..n)
+            .map(|k| {
+                let d = DEVIATION * l * (self.w[k] - self.u[k]) + l * l / 16.0 * (g0[k] + g1[k]);
+                d * d
+            })
+            .sum::<f64>()
+            .sqrt()
     }
 }
 
@@ -143,12 +348,42 @@ pub(crate) enum Junction {
     },
 }
 
+/// A junction that is not rounded: what `shape` says instead of a blend (small, so that its
+/// `Result` stays small).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Unrounded {
+    Straight,
+    Stop,
+    Stepped,
+}
+
+impl From<Unrounded> for Junction {
+    fn from(u: Unrounded) -> Junction {
+        match u {
+            Unrounded::Straight => Junction::Straight,
+            Unrounded::Stop => Junction::Stop,
+            Unrounded::Stepped => Junction::Stepped,
+        }
+    }
+}
+
 /// The moves on either side of a junction: `Δq / length`, length, speed and path limits
 /// (`Kin`), and whether the length is the axis-space length (`euclidean`).
 pub(crate) struct Side<'a> {
     pub dir: &'a Axes,
     pub kin: &'a Kin,
     pub euclidean: bool,
+}
+
+/// Largest reach of a blend along each of its moves: [`REACH_MAX`]`·δ`, so that a lead-in
+/// loses at most that much of its straight ramp, except between two lit moves (no lead-in
+/// there), where only the moves' halves bound it.
+fn reach_cap(delta: f64, lit: bool) -> f64 {
+    if lit {
+        f64::INFINITY
+    } else {
+        REACH_MAX * delta
+    }
 }
 
 /// `|d_next − d_prev|` of two known part-space unit directions; 2 (the largest) when either is
@@ -163,17 +398,47 @@ fn part_turn(prev: &[f64; 3], next: &[f64; 3]) -> f64 {
 }
 
 /// The junction at `corner` from `prev` into `next`, with corner tolerance `delta`;
-/// `part_turn` bounds the spot's turn where the moves' lengths are not axis-space lengths.
-#[allow(clippy::needless_range_loop)] // one index over parallel axis arrays
+/// `part_turn` bounds the spot's turn where the moves' lengths are not axis-space lengths;
+/// `lit`: both moves are lit (`reach_cap`). A blend is the smoothstep here; `split` gives the
+/// blends of a run of chords their shared curvatures.
+#[cfg(test)]
+#[allow(clippy::too_many_arguments)] // the corner, its two moves and the machine
 pub(crate) fn junction(
     corner: &Axes,
     prev: Side<'_>,
     next: Side<'_>,
     delta: f64,
     part_turn: f64,
+    lit: bool,
     limits: &AxisLimits,
     n_axes: usize,
 ) -> Junction {
+    match shape(corner, &prev, &next, delta, part_turn, lit, n_axes) {
+        Ok(blend) => with_limits(
+            blend,
+            &Axes::ZERO,
+            &Axes::ZERO,
+            prev.kin,
+            next.kin,
+            limits,
+            n_axes,
+        ),
+        Err(other) => other.into(),
+    }
+}
+
+/// The blend that rounds the junction (module doc: its reach), or what the junction is
+/// instead: straight, a stop.
+#[allow(clippy::needless_range_loop)] // one index over parallel axis arrays
+fn shape(
+    corner: &Axes,
+    prev: &Side<'_>,
+    next: &Side<'_>,
+    delta: f64,
+    part_turn: f64,
+    lit: bool,
+    n_axes: usize,
+) -> Result<Blend, Unrounded> {
     let (u, w) = (prev.dir, next.dir);
     let n = n_axes.min(MAX_AXES);
     let (mut d_max, mut m_max, mut du2, mut cos) = (0.0f64, 0.0f64, 0.0, 0.0);
@@ -185,54 +450,65 @@ pub(crate) fn junction(
         cos += u[k] * w[k];
     }
     if d_max <= STRAIGHT * m_max {
-        return Junction::Straight;
+        return Err(Unrounded::Straight);
     }
     let euclidean = prev.euclidean && next.euclidean;
     if delta == 0.0 || (euclidean && cos <= REVERSAL_COS) {
-        return Junction::Stop;
+        return Err(Unrounded::Stop);
     }
     let turn = if euclidean { du2.sqrt() } else { part_turn };
     let reach = (delta / (DEVIATION * turn))
-        .min(REACH_MAX * delta)
+        .min(reach_cap(delta, lit))
         .min(0.5 * prev.kin.len.min(next.kin.len));
     if !(reach > 0.0 && reach.is_finite()) {
-        return Junction::Stop;
+        return Err(Unrounded::Stop);
     }
-    let v_moves = prev.kin.v.min(next.kin.v);
-    let a_moves = prev.kin.a.min(next.kin.a);
-    let j_moves = prev.kin.j.min(next.kin.j);
-    let (v, a, j) = limits_along(u, w, reach, v_moves, a_moves, j_moves, limits, n);
+    Ok(Blend {
+        corner: *corner,
+        reach,
+        u: *u,
+        w: *w,
+        shared: 0,
+    })
+}
+
+/// `blend` with end curvatures `g0`, `g1`, and the limits that keep every axis within its own
+/// along it (`limits_along`); a stop where none are left.
+fn with_limits(
+    blend: Blend,
+    g0: &Axes,
+    g1: &Axes,
+    prev: &Kin,
+    next: &Kin,
+    limits: &AxisLimits,
+    n_axes: usize,
+) -> Junction {
+    let n = n_axes.min(MAX_AXES);
+    let bounds = blend.bounds(g0, g1, n);
+    let v_moves = prev.v.min(next.v);
+    let a_moves = prev.a.min(next.a);
+    let j_moves = prev.j.min(next.j);
+    let (v, a, j) = limits_along(&bounds, v_moves, a_moves, j_moves, limits, n);
     if !(v > 0.0 && a > 0.0 && j > 0.0) {
         return Junction::Stop;
     }
-    Junction::Blend {
-        blend: Blend {
-            corner: *corner,
-            reach,
-            u: *u,
-            w: *w,
-        },
-        v,
-        a,
-        j,
-    }
+    Junction::Blend { blend, v, a, j }
 }
 
-/// Speed cap, path acceleration and path jerk of a blend of reach `reach` from `u` into `w`
-/// (module doc): per axis k with `D = |Δu_k|`, `m = max(|u_k|, |w_k|)`,
-/// `0.75·D·v²/ℓ ≤ SHARE·a_k` and `1.5·D·v³/ℓ² + 2.25·D·v·a₀/ℓ ≤ SHARE·j_k` give the cap
-/// (`a₀ = (1 − SHARE)·min a_k/m`, the least the path keeps); at the highest speed `v` the blend
-/// can then be taken at, the path acceleration is what is left of every axis's,
-/// `a = min (a_k − 0.75·D·v²/ℓ)/m`, no more than the jerk budget allows
-/// (`2.25·D·v·a/ℓ ≤ SHARE·j_k − 1.5·D·v³/ℓ²`), and the path jerk what is left of every axis's,
-/// `j = min (j_k − 1.5·D·v³/ℓ² − 2.25·D·v·a/ℓ)/m`. Each is at least `(1 − SHARE)` of the
-/// axis's limit over `m`. The moves' own limits (`v_moves`, …) bound the results; an infinite
-/// `j_moves` (trapezoid plans) leaves jerk out.
-#[allow(clippy::too_many_arguments, clippy::needless_range_loop)]
+/// Speed cap, path acceleration and path jerk of a blend whose axis k has at most
+/// `c1 = |q'_k|`, `c2 = |q''_k|`, `c3 = |q'''_k|` along it (`bounds[k]`, `Blend::bounds`; for
+/// the smoothstep `c1 = max(|u_k|, |w_k|)`, `c2 = 0.75·|Δu_k|/ℓ`, `c3 = 1.5·|Δu_k|/ℓ²`):
+/// `c2·v² ≤ SHARE·a_k`, `c3·v³ + 3·c2·v·a₀ ≤ SHARE·j_k` and `c1·v ≤ v_k` give the cap
+/// (`a₀ = (1 − SHARE)·min a_k/c1`, the least the path keeps); at the highest speed `v` the
+/// blend can then be taken at, the path acceleration is what is left of every axis's,
+/// `a = min (a_k − c2·v²)/c1`, no more than the jerk budget allows
+/// (`3·c2·v·a ≤ SHARE·j_k − c3·v³`), and the path jerk what is left of every axis's,
+/// `j = min (j_k − c3·v³ − 3·c2·v·a)/c1`. Each is at least `(1 − SHARE)` of the axis's limit
+/// over `c1`. The moves' own limits (`v_moves`, …) bound the results; an infinite `j_moves`
+/// (trapezoid plans) leaves jerk out.
+#[allow(clippy::needless_range_loop)] // one index over parallel axis arrays
 pub(crate) fn limits_along(
-    u: &Axes,
-    w: &Axes,
-    reach: f64,
+    bounds: &[[f64; 3]; MAX_AXES],
     v_moves: f64,
     a_moves: f64,
     j_moves: f64,
@@ -240,24 +516,28 @@ pub(crate) fn limits_along(
     n: usize,
 ) -> (f64, f64, f64) {
     let scurve = j_moves.is_finite();
-    let l = reach;
     let mut a0 = a_moves;
     for k in 0..n {
-        let m = u[k].abs().max(w[k].abs());
+        let m = bounds[k][0];
         if m > 0.0 {
             a0 = a0.min((1.0 - SHARE) * limits.a[k] / m);
         }
     }
     let mut v = v_moves;
     for k in 0..n {
-        let d = (w[k] - u[k]).abs();
-        if d == 0.0 {
+        let [m, c2, c3] = bounds[k];
+        if m > 0.0 {
+            v = v.min(limits.v[k] / m);
+        }
+        if c2 == 0.0 && c3 == 0.0 {
             continue;
         }
-        v = v.min((SHARE * limits.a[k] * l / (0.75 * d)).sqrt());
+        if c2 > 0.0 {
+            v = v.min((SHARE * limits.a[k] / c2).sqrt());
+        }
         if scurve && limits.j[k].is_finite() {
             let a_term = if a0.is_finite() { a0 } else { 0.0 };
-            let g = |v: f64| 1.5 * d * v * v * v / (l * l) + 2.25 * d * v * a_term / l;
+            let g = |v: f64| c3 * v * v * v + 3.0 * c2 * v * a_term;
             let budget = SHARE * limits.j[k];
             if g(v) > budget {
                 // g is increasing in v: bisect for the largest speed within the budget.
@@ -276,14 +556,13 @@ pub(crate) fn limits_along(
     }
     let mut a = a_moves;
     for k in 0..n {
-        let m = u[k].abs().max(w[k].abs());
-        let d = (w[k] - u[k]).abs();
+        let [m, c2, c3] = bounds[k];
         if m > 0.0 {
-            a = a.min((limits.a[k] - 0.75 * d * v * v / l) / m);
+            a = a.min((limits.a[k] - c2 * v * v) / m);
         }
-        if scurve && d > 0.0 && v > 0.0 && limits.j[k].is_finite() {
-            let left = SHARE * limits.j[k] - 1.5 * d * v * v * v / (l * l);
-            a = a.min(left * l / (2.25 * d * v));
+        if scurve && c2 > 0.0 && v > 0.0 && limits.j[k].is_finite() {
+            let left = SHARE * limits.j[k] - c3 * v * v * v;
+            a = a.min(left / (3.0 * c2 * v));
         }
     }
     if !scurve {
@@ -291,10 +570,9 @@ pub(crate) fn limits_along(
     }
     let mut j = j_moves;
     for k in 0..n {
-        let m = u[k].abs().max(w[k].abs());
-        let d = (w[k] - u[k]).abs();
+        let [m, c2, c3] = bounds[k];
         if m > 0.0 && limits.j[k].is_finite() {
-            let used = 1.5 * d * v * v * v / (l * l) + 2.25 * d * v * a / l;
+            let used = c3 * v * v * v + 3.0 * c2 * v * a;
             j = j.min((limits.j[k] - used) / m);
         }
     }
@@ -313,6 +591,9 @@ pub(crate) struct MoveInfo {
     /// The corner before the move keeps the velocity-step model (`Along::step_corners`):
     /// `prepare` capped its entry already.
     pub stepped_before: bool,
+    /// The move and the one before it are lit (`Along::lit`): their blend is not bounded by
+    /// [`REACH_MAX`].
+    pub lit_before: bool,
 }
 
 impl MoveInfo {
@@ -322,6 +603,7 @@ impl MoveInfo {
         stop_before: true,
         part_dir: [0.0; 3],
         stepped_before: false,
+        lit_before: false,
     };
 }
 
@@ -331,7 +613,7 @@ impl MoveInfo {
 /// `part_turn`), so directions are kept from the move before the first such move on.
 #[derive(Default)]
 pub(crate) struct MoveInfos {
-    /// `EUCLIDEAN | STOP_BEFORE | STEPPED_BEFORE` of each move.
+    /// `EUCLIDEAN | STOP_BEFORE | STEPPED_BEFORE | LIT_BEFORE` of each move.
     flags: Vec<u8>,
     /// Each move's `part_dir` from `dirs_from` on (empty until a length is not Euclidean).
     dirs: Vec<[f64; 3]>,
@@ -343,6 +625,7 @@ pub(crate) struct MoveInfos {
 const EUCLIDEAN: u8 = 1;
 const STOP_BEFORE: u8 = 2;
 const STEPPED_BEFORE: u8 = 4;
+const LIT_BEFORE: u8 = 8;
 
 impl MoveInfos {
     /// Room for `moves` moves' flags.
@@ -370,7 +653,8 @@ impl MoveInfos {
         self.flags.push(
             bit(m.euclidean, EUCLIDEAN)
                 | bit(m.stop_before, STOP_BEFORE)
-                | bit(m.stepped_before, STEPPED_BEFORE),
+                | bit(m.stepped_before, STEPPED_BEFORE)
+                | bit(m.lit_before, LIT_BEFORE),
         );
     }
 
@@ -388,6 +672,7 @@ impl MoveInfos {
             stop_before: f & STOP_BEFORE != 0,
             part_dir,
             stepped_before: f & STEPPED_BEFORE != 0,
+            lit_before: f & LIT_BEFORE != 0,
         }
     }
 }
@@ -416,19 +701,21 @@ pub(super) fn split(
     };
     // The junction after each segment. Computed where it is needed instead of kept in a
     // table: a `Junction` with its blend is about 220 bytes, more than the plan's own segment,
-    // kin and point of a move together (issue 18's memory per move). The segments hold each
-    // move's look-ahead data (`Segment::kin`).
-    let junction_at = |p: &Prepared, i: usize| -> Junction {
+    // kin and point of a move together (issue 18's memory per move). `shape_at` is its blend's
+    // geometry (or what it is instead), `junction_at` the blend with its shared curvatures
+    // and limits. The segments hold each move's look-ahead data (`Segment::kin`); the
+    // closures take the plan as an argument, so the caps can be written in place below.
+    let shape_at = |p: &Prepared, i: usize| -> Result<Blend, Unrounded> {
         let kin = |k: usize| p.segments[k].kin();
         if i + 1 >= count || kin(i).len == 0.0 || kin(i + 1).len == 0.0 {
-            return Junction::Stop;
+            return Err(Unrounded::Stop);
         }
         let (info_i, info_next) = (info.get(i), info.get(i + 1));
         if info_next.stop_before {
-            return Junction::Stop;
+            return Err(Unrounded::Stop);
         }
         if info_next.stepped_before {
-            return Junction::Stepped;
+            return Err(Unrounded::Stepped);
         }
         // `Δq / length` of move k, from the points (as `prepare` computed it: not kept, it
         // would be 48 bytes a move).
@@ -443,27 +730,96 @@ pub(super) fn split(
         let (rate_i, rate_next) = (rate(i), rate(i + 1));
         let (kin_i, kin_next) = (kin(i), kin(i + 1));
         let turn = part_turn(&info_i.part_dir, &info_next.part_dir);
-        junction(
+        shape(
             &point(p, i + 1),
-            Side {
+            &Side {
                 dir: &rate_i,
                 kin: &kin_i,
                 euclidean: info_i.euclidean,
             },
-            Side {
+            &Side {
                 dir: &rate_next,
                 kin: &kin_next,
                 euclidean: info_next.euclidean,
             },
             delta,
             turn,
-            limits,
+            info_next.lit_before,
             n,
         )
     };
-    let extra = (0..count)
-        .filter(|&i| matches!(junction_at(&p, i), Junction::Blend { .. }))
-        .count();
+    // The curvature the blends at both ends of move `m` would share at its midpoint: where
+    // they abut (the move is a chord wholly inside them) on a Cartesian path (the deviation
+    // below is the spot's there).
+    let raw_g = |p: &Prepared, m: usize| -> Option<Axes> {
+        if m == 0 || m + 1 >= count || !(info.get(m - 1).euclidean && info.get(m).euclidean) {
+            return None;
+        }
+        if !info.get(m + 1).euclidean {
+            return None;
+        }
+        let (a, b) = (shape_at(p, m - 1).ok()?, shape_at(p, m).ok()?);
+        let abut = a.reach + b.reach >= p.segments[m].kin().len * (1.0 - ABUT);
+        (abut && curve_like(&a, &b, n)).then(|| shared_curvature(&a, &b))
+    };
+    // Whether both blends keep within the corner tolerance with curvature `g` at the midpoint
+    // of move `m`, whatever their other ends share (so each end is decided on its own).
+    let within = |b: &Blend, g0: &[Axes], g1: &[Axes]| {
+        g0.iter().all(|g0| {
+            g1.iter()
+                .all(|g1| b.deviation(g0, g1, n) <= delta * (1.0 + 1e-9))
+        })
+    };
+    // The level of curvature shared at the midpoint of move `m` (`Blend::shared`), ramped in
+    // at a run's ends: the blend that leaves a straight piece into a run of chords bends from
+    // zero, and one that bent to the full curvature within one chord would need more jerk
+    // than the smoothstep; so the k-th midpoint from the nearer end of the run gets k/LEVELS
+    // of its curvature.
+    let level_at = |p: &Prepared, m: usize| -> Option<(u8, Axes)> {
+        raw_g(p, m)?;
+        // Midpoints of the run on either side, as far as it takes to see a run of MIN_RUN.
+        let mut back = 0;
+        while back < MIN_RUN && m > back + 1 && raw_g(p, m - 1 - back).is_some() {
+            back += 1;
+        }
+        let mut fwd = 0;
+        while fwd < MIN_RUN && raw_g(p, m + 1 + fwd).is_some() {
+            fwd += 1;
+        }
+        if back + fwd + 1 < MIN_RUN {
+            return None;
+        }
+        let level = 1 + back.min(fwd).min(usize::from(LEVELS - 1)) as u8;
+        let (a, b) = (shape_at(p, m - 1).ok()?, shape_at(p, m).ok()?);
+        Some((level, shared_at(&a, &b, level)))
+    };
+    let scaled_g = |p: &Prepared, m: usize| level_at(p, m).map(|(_, g)| g);
+    // The curvature the blends at both ends of move `m` share at its midpoint: where they
+    // sample one curve (`raw_g`) and stay within the corner tolerance with it, whatever their
+    // other ends share.
+    let shared_g = |p: &Prepared, m: usize| -> Option<(u8, Axes)> {
+        let (level, g) = level_at(p, m)?;
+        let (a, b) = (shape_at(p, m - 1).ok()?, shape_at(p, m).ok()?);
+        let z = Axes::ZERO;
+        let before = [z, scaled_g(p, m - 1).unwrap_or(z)];
+        let after = [z, scaled_g(p, m + 1).unwrap_or(z)];
+        (within(&a, &before, &[g]) && within(&b, &[g], &after)).then_some((level, g))
+    };
+    let junction_at = |p: &Prepared, i: usize| -> Junction {
+        let mut blend = match shape_at(p, i) {
+            Ok(b) => b,
+            Err(other) => return other.into(),
+        };
+        let (l0, g0) = shared_g(p, i).unwrap_or((0, Axes::ZERO));
+        let (l1, g1) = shared_g(p, i + 1).unwrap_or((0, Axes::ZERO));
+        blend.shared = l0 | (l1 << 4);
+        let (kin_i, kin_next) = (p.segments[i].kin(), p.segments[i + 1].kin());
+        with_limits(blend, &g0, &g1, &kin_i, &kin_next, limits, n)
+    };
+    // How many corners are rounded (a blend's limits leave it a stop only where the axis
+    // limits allow no motion at all: the count only sizes the output and tells whether there is
+    // any, and `junction_at` decides each corner below).
+    let extra = (0..count).filter(|&i| shape_at(&p, i).is_ok()).count();
     if extra == 0 {
         // Nothing to round: only the entry caps change, in place (no second copy of the plan).
         // A move's cap is written after the junction before it is judged, and a junction reads
@@ -574,111 +930,4 @@ pub(super) fn split(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn axes(x: f64, y: f64) -> Axes {
-        Axes::from([x, y, 0.0, 0.0, 0.0, 0.0])
-    }
-
-    fn xy(a: f64, j: f64) -> AxisLimits {
-        AxisLimits {
-            v: [200.0; MAX_AXES],
-            a: [a; MAX_AXES],
-            j: [j; MAX_AXES],
-        }
-    }
-
-    #[test]
-    fn the_blend_joins_both_moves_smoothly_and_passes_3_16_of_its_turn_from_the_corner() {
-        let b = Blend {
-            corner: axes(10.0, 0.0),
-            reach: 0.04,
-            u: axes(1.0, 0.0),
-            w: axes(0.0, 1.0),
-        };
-        let s0 = b.state(0.0, 1.0, 0.0, 0.0);
-        let s1 = b.state(1.0, 1.0, 0.0, 0.0);
-        assert!((s0[0][0] - 9.96).abs() < 1e-12 && s0[0][1].abs() < 1e-12);
-        assert!((s1[0][0] - 10.0).abs() < 1e-12 && (s1[0][1] - 0.04).abs() < 1e-12);
-        // Rate u at the start, w at the end; no curvature at either end.
-        assert_eq!((s0[1][0], s0[1][1]), (1.0, 0.0));
-        assert_eq!((s1[1][0], s1[1][1]), (0.0, 1.0));
-        assert_eq!((s0[2][0], s1[2][1]), (0.0, 0.0));
-        let mid = b.point(0.5);
-        let dev = ((mid[0] - 10.0).powi(2) + mid[1].powi(2)).sqrt();
-        let want = DEVIATION * 0.04 * 2f64.sqrt();
-        assert!((dev - want).abs() < 1e-12, "{dev} vs {want}");
-    }
-
-    #[test]
-    fn a_right_angle_is_rounded_within_the_tolerance_at_a_speed_every_axis_can_follow() {
-        let (a_max, j_max, delta) = (2000.0, 50_000.0, 0.01);
-        let lim = xy(a_max, j_max);
-        let kin = Kin {
-            len: 10.0,
-            v: 100.0,
-            a: a_max,
-            j: j_max,
-            cap: 0.0,
-        };
-        let (u, w) = (axes(1.0, 0.0), axes(0.0, 1.0));
-        let side = |dir| Side {
-            dir,
-            kin: &kin,
-            euclidean: true,
-        };
-        let Junction::Blend { blend, v, a, j } =
-            junction(&axes(10.0, 0.0), side(&u), side(&w), delta, 2.0, &lim, 2)
-        else {
-            panic!("a right angle at δ = 0.01 is blended");
-        };
-        assert!(DEVIATION * blend.reach * 2f64.sqrt() <= delta * (1.0 + 1e-12));
-        // Sample the blend densely at its caps: every axis within a, j.
-        for i in 0..=1000 {
-            let x = i as f64 / 1000.0;
-            for sa in [-a, a] {
-                for sj in [-j, j] {
-                    let st = blend.state(x, v, sa, sj);
-                    for k in 0..2 {
-                        assert!(st[2][k].abs() <= a_max * (1.0 + 1e-9), "a at {x}: {st:?}");
-                        assert!(st[3][k].abs() <= j_max * (1.0 + 1e-9), "j at {x}: {st:?}");
-                    }
-                }
-            }
-        }
-        assert!(v > 1.0 && a > 0.0 && j > 0.0, "{v} {a} {j}");
-    }
-
-    #[test]
-    fn straight_continuations_reversals_and_zero_tolerance() {
-        let lim = xy(2000.0, 50_000.0);
-        let kin = Kin {
-            len: 1.0,
-            v: 50.0,
-            a: 2000.0,
-            j: 50_000.0,
-            cap: 0.0,
-        };
-        let side = |dir| Side {
-            dir,
-            kin: &kin,
-            euclidean: true,
-        };
-        let (u, r) = (axes(1.0, 0.0), axes(-1.0, 0.0));
-        let c = axes(0.0, 0.0);
-        assert_eq!(
-            junction(&c, side(&u), side(&u), 0.01, 2.0, &lim, 2),
-            Junction::Straight
-        );
-        assert_eq!(
-            junction(&c, side(&u), side(&r), 0.01, 2.0, &lim, 2),
-            Junction::Stop
-        );
-        let w = axes(0.0, 1.0);
-        assert_eq!(
-            junction(&c, side(&u), side(&w), 0.0, 2.0, &lim, 2),
-            Junction::Stop
-        );
-    }
-}
+mod tests;

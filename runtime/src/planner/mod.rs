@@ -15,7 +15,10 @@
 //!      speed, acceleration and jerk limits so that every axis stays within its limits along
 //!      it (`blend`); a corner that cannot be rounded is a stop. Each move is split into the
 //!      half-blend after its start corner, its straight middle and the half-blend before its
-//!      end corner, all three with the move's tag.
+//!      end corner, all three with the move's tag. A corner between two moves that both keep
+//!      the velocity step (`Along::step_corners`: the lit chords of an oriented machine whose
+//!      blended plan could not hold the lit speed) is planned as under `JunctionDeviation`;
+//!      every other corner, lit or not, is blended.
 //!    - `JunctionDeviation` (GRBL's model, kept for comparison and its own tests): the entry
 //!      speed is capped by the corner model (`junction`: GRBL's junction deviation and
 //!      Klipper's centripetal cap where the length is the axis-space arc length, as on
@@ -36,7 +39,7 @@
 //! 168 for six), and nothing else per move: the look-ahead reads each move's limits from its
 //! segment before timing it (`lookahead::KinTable`), and the corner blends' per-move input is
 //! a byte of flags (`blend::MoveInfos`) while the corners are judged. A blended corner adds two
-//! segments and a 152-byte [`Blend`].
+//! segments and a 160-byte [`Blend`].
 //!
 //! Known limit: every S-curve move starts and ends at zero path acceleration, so acceleration
 //! is continuous everywhere, but a run of very short moves gains speed in small jerk-limited
@@ -298,9 +301,15 @@ pub struct Along {
     /// length is not its axis-space length (oriented machines) a blend's reach is bounded by
     /// the spot's turn between two known directions, else by the largest turn there is.
     pub part_dir: [f64; 3],
+    /// The beam is on along the move. A corner between two lit moves is not a lead-in's: its
+    /// blend may reach up to half of each move (`blend`), so the chords of a lit curve are
+    /// rounded along their whole length instead of at their ends only.
+    pub lit: bool,
     /// A corner between two such moves keeps the junction-deviation model (an axis velocity
-    /// step) under `Corners::Blend`. lase's lit paths use it until their chords' blends can be
-    /// planned without lowering the lit speed (issue 13, item 3: what is left).
+    /// step) under `Corners::Blend`. lase sets it on the lit moves of an oriented machine only
+    /// when the plan with every lit corner blended could not hold the lit speed (the arm's
+    /// sections: their chords' blends do not share their curvature off Cartesian paths yet;
+    /// issue 13, item 3: what is left).
     pub step_corners: bool,
 }
 
@@ -641,6 +650,7 @@ fn prepare(
                 stop_before: prev_stop,
                 part_dir: here.part_dir,
                 stepped_before: stepped && !prev_stop,
+                lit_before: here.lit && prev_along.lit && !prev_stop,
             });
         }
         let mut seg = skeleton(mv.length, mv, index);

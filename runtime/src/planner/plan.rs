@@ -10,7 +10,7 @@
 //! (the plan's end for the last). [`Plan::sample`] finds the segment by binary search on
 //! `t_start` and evaluates the phase polynomials in closed form.
 
-use super::blend::Blend;
+use super::blend::{Blend, shared_at};
 use super::lookahead::{Kin, KinTable};
 use super::profile::Shape;
 use super::{Axes, MAX_AXES};
@@ -281,6 +281,24 @@ impl Plan {
         Some((self.blends.get((b / 2) as usize)?, b % 2 == 1))
     }
 
+    /// The axis curvatures `q''` at the start and the end of blend `b`: shared with the blend
+    /// before or after it where they abut on a chord of a curve (`Blend::shared`), else zero.
+    pub fn blend_curvatures(&self, b: usize) -> (Axes, Axes) {
+        let Some(blend) = self.blends.get(b) else {
+            return (Axes::ZERO, Axes::ZERO);
+        };
+        let (l0, l1) = blend.levels();
+        let g0 = match b.checked_sub(1).and_then(|p| self.blends.get(p)) {
+            Some(prev) if l0 > 0 => shared_at(prev, blend, l0),
+            _ => Axes::ZERO,
+        };
+        let g1 = match self.blends.get(b + 1) {
+            Some(next) if l1 > 0 => shared_at(blend, next, l1),
+            _ => Axes::ZERO,
+        };
+        (g0, g1)
+    }
+
     /// Every corner blend of the plan, in order.
     pub fn blends(&self) -> &[Blend] {
         &self.blends
@@ -359,7 +377,8 @@ impl Plan {
             // x = (σ + ℓ)/(2ℓ): the half before the corner runs σ from −ℓ to 0, the one after
             // from 0 to ℓ (`blend`).
             let x = 0.5 * (s / b.reach) + if after { 0.5 } else { 0.0 };
-            let [pos, vel, acc, jerk] = b.state(x, v, a, j);
+            let (g0, g1) = self.blend_curvatures((seg.blend / 2) as usize);
+            let [pos, vel, acc, jerk] = b.state_curved(x, v, a, j, &g0, &g1);
             for k in 0..self.n_axes {
                 out.pos[k] = pos[k];
                 out.vel[k] = vel[k];
