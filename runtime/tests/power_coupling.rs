@@ -228,11 +228,12 @@ fn emitted_sub_block_power_is_the_plans_time_mean() {
                     "{mean} vs {}",
                     b.power_w
                 );
-                let mut err = 0.0f64;
+                let (mut err, mut a_max) = (0.0f64, 0.0f64);
                 for i in 0..=50 {
                     let t = ta + (tb - ta) * i as f64 / 50.0;
-                    let p = p_set * j.plan.sample(t).v / feed;
-                    err = err.max((p - b.power_w).abs());
+                    let sample = j.plan.sample(t);
+                    err = err.max((p_set * sample.v / feed - b.power_w).abs());
+                    a_max = a_max.max(sample.a.abs());
                 }
                 assert!(
                     err <= b.max_error_w + 1e-6 * p_set,
@@ -240,16 +241,20 @@ fn emitted_sub_block_power_is_the_plans_time_mean() {
                     b.max_error_w
                 );
                 if b.s_end - sa >= 0.01 {
-                    worst_long = worst_long.max(b.max_error_w / p_set);
+                    // The stated bound: a 1 % speed step, plus what the speed changes in the
+                    // 2 ms a block lasts at least where a steep ramp's steps are merged
+                    // (a controller runs a block no faster than its length per servo period).
+                    let bound = power::POWER_STEP + a_max * power::MIN_BLOCK_S / feed;
+                    worst_long = worst_long.max(b.max_error_w / p_set / bound);
                 }
                 sa = b.s_end;
             }
         }
-        // The stated bound: 1 % of P_set inside every sub-block (short blocks near standstill,
-        // merged to the 1 µm minimum, excepted and reported by max_error_w).
+        // Within the stated bound in every sub-block (short blocks near standstill, merged to
+        // the 1 µm minimum, excepted and reported by max_error_w).
         assert!(
-            worst_long <= power::POWER_STEP + 1e-9,
-            "worst error {worst_long}"
+            worst_long <= 1.0 + 1e-9,
+            "worst error {worst_long} of the bound"
         );
     }
 }

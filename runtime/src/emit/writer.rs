@@ -7,7 +7,10 @@
 //! of `motion::power` (ramps cut at 1 % speed steps, each with its time-mean power), each
 //! preceded by the post's power line when the value changes; LinuxCNC's immediate `M68`
 //! becomes the motion-synchronized `M67` there, so the change lands at the start of its
-//! sub-block and does not break blending.
+//! sub-block and does not break blending. Where lase's plan holds a lit move below its feed
+//! (a blended lit corner, a lit arc's chords), coupled or not, the move is cut the same way
+//! and each sub-block's `F` is the plan's mean speed over it (`power::lit_blocks`), so the
+//! controller runs what lase planned where the beam is on.
 //!
 //! Axis words come from the planned job: a whole move ends at the axes motion computed for its
 //! op (`Job::op_axes`), and a sub-block (power steps, pulse gates) ends on the block it is cut
@@ -19,13 +22,17 @@ use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
 use crate::axes::{self, Axes};
 use crate::machine::AxisKind;
-use crate::motion::{Job, beam};
+use crate::motion::{Job, beam, power};
 use crate::program::{Coupling, Op, OpKind, P3};
 use std::io;
 
 mod pulse;
 mod row;
 mod settle;
+
+/// Lowest feed a lit sub-block is held to, mm/s: the plan's mean speed over a block is
+/// positive, but one written as `F0` would be an error on every controller.
+const MIN_CAP_MM_S: f64 = 0.01;
 
 /// ISO block numbers step by 10 (room to insert blocks by hand, as in the paper's program)
 /// and wrap before six digits, since many Fanuc controls read at most N99999.
@@ -418,9 +425,14 @@ pub(super) fn write(
                         )?;
                     } else if blocks.is_empty() {
                         let to = op.target().unwrap_or(m.pos);
+                        let cap = if dialect.is_grbl_family() || op.laser().is_some() || more {
+                            None
+                        } else {
+                            lead_cap(job, i, &ops[i + 1..], to)
+                        };
                         out.put_with(
                             |line| {
-                                motion_line(line, op, to, q_end, &mut m, machine, arc_axes);
+                                motion_line(line, op, to, q_end, cap, &mut m, machine, arc_axes);
                                 if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
                                     // Every feed move carries its power, S0 when unlit: in laser
                                     // mode an S word on a G1/G2/G3 block changes power as the
@@ -440,6 +452,15 @@ pub(super) fn write(
                         out.stats.motion_blocks += 1;
                     } else {
                         let (from, from_q) = (m.pos, m.q);
+                        let mut blocks = blocks;
+                        if dialect == Dialect::LinuxCnc {
+                            arc_first_block(
+                                op,
+                                from,
+                                &mut blocks,
+                                program.planner.junction_deviation_mm,
+                            );
+                        }
                         let total = blocks.last().map_or(0.0, |b| b.s_end);
                         for (k, b) in blocks.iter().enumerate() {
                             let changed = post.power.first().is_some_and(|t| {
@@ -460,7 +481,18 @@ pub(super) fn write(
                             };
                             let (to, q) = part_way(op, (from, &from_q), &q_end, f, arc_axes);
                             out.put_with(
-                                |line| motion_line(line, op, to, q, &mut m, machine, arc_axes),
+                                |line| {
+                                    motion_line(
+                                        line,
+                                        op,
+                                        to,
+                                        q,
+                                        Some(b.v_cap),
+                                        &mut m,
+                                        machine,
+                                        arc_axes,
+                                    )
+                                },
                                 tag,
                             )?;
                             out.stats.motion_blocks += 1;
@@ -606,6 +638,44 @@ fn part_way(
     }
 }
 
+/// The feed an unlit feed move that leads into a lit one is held to: the plan's speed where
+/// the beam comes on, where that is below the move's feed (a lit section that starts on a
+/// slow lit arc or corner). LinuxCNC runs the blend arc between two blocks at the higher of
+/// their feeds (`blendParamKinematics`' `v_goal`) and switches a synced output as the next
+/// block starts, after that blend: a lead-in written at its full feed carried 14.8 mm/s over
+/// frame_marking's beam edge, where the plan (and the held lit block) say 9.9. `None` at a
+/// stop (the controller stops there anyway) and where the plan keeps the feed.
+fn lead_cap(job: &Job, i: usize, rest: &[Op], to: P3) -> Option<f64> {
+    if !next_move_lit(rest, to) {
+        return None;
+    }
+    let seg = job.plan.segments()[power::op_segments(job, i)].last()?;
+    (seg.v_exit > 0.0 && seg.v_exit < seg.feed).then_some(seg.v_exit)
+}
+
+/// LinuxCNC runs an arc whose sagitta is below the naive CAM tolerance (`G64 P`, which emit
+/// writes as the corner tolerance) as its chord (canon's `ARC_FEED`). A lit arc's first
+/// speed-held sub-block is short, and as a chord it meets the move before it (a lead-in along
+/// lase's first chord, a few degrees off the arc's tangent) at a kink, which tp.c passes at
+/// its kink speed (`tpSetupTangent`: 3 mm/s on the real machine where frame_marking's plan
+/// says 9.9 at the beam's edge). So the first sub-blocks are merged until the first one is an
+/// arc to LinuxCNC too (sagitta at least the tolerance), which it blends with the line before
+/// it (`power::merge_front`: their mean speed and time-mean power).
+fn arc_first_block(op: &Op, from: P3, blocks: &mut Vec<power::PowerBlock>, tol: f64) {
+    let Some((r, _, sweep)) = op.arc_from(from) else {
+        return;
+    };
+    let total = blocks.last().map_or(0.0, |b| b.s_end);
+    let arc_len = r * sweep.abs();
+    if !(tol > 0.0 && r > 0.0 && arc_len > 0.0 && total > 0.0) {
+        return;
+    }
+    // Sagitta r·(1 − cos(φ/2)) ≥ tol: φ ≥ 2·acos(1 − tol/r) (the whole arc when r < tol/2).
+    let phi = 2.0 * (1.0 - tol / r).max(-1.0).acos();
+    let s_min = total * (r * phi * (1.0 + 1e-6) / arc_len);
+    power::merge_front(blocks, s_min);
+}
+
 /// Whether the next op that moves the spot is lit (non-motion ops in between keep the beam
 /// as it is: the laser model of this module).
 fn next_move_lit(rest: &[Op], pos: P3) -> bool {
@@ -617,12 +687,17 @@ fn next_move_lit(rest: &[Op], pos: P3) -> bool {
 /// The block that moves the spot to `to` at axes `q` (planned: see [`part_way`]) as `op`
 /// says (its motion mode, feed and arc centre; `to` is the op's target or a point part way
 /// along it), its words appended to `line` (after the ISO block number or a trigger word a
-/// caller put there), each separated by one space.
+/// caller put there), each separated by one space. `cap` is the plan's mean speed over a
+/// lit sub-block (`power::PowerBlock::v_cap`): where it is below the op's feed, the block's
+/// feed is that speed (in G93 its planned time), so the controller runs it no faster than
+/// lase planned (and coupled the power to).
+#[allow(clippy::too_many_arguments)] // the block, where it ends, and the modal state
 fn motion_line(
     line: &mut String,
     op: &Op,
     to: P3,
     q: Axes,
+    cap: Option<f64>,
     m: &mut Modal,
     machine: &crate::machine::Machine,
     arc_axes: Option<(usize, usize, Option<usize>)>,
@@ -633,6 +708,10 @@ fn motion_line(
         OpKind::Arc { ccw, feed_mm_s, .. } => (if *ccw { "G3" } else { "G2" }, Some(*feed_mm_s)),
         _ => unreachable!("motion_line is called for motion ops only"),
     };
+    let feed = feed.map(|f| match cap {
+        Some(c) if c < f => c.max(MIN_CAP_MM_S),
+        _ => f,
+    });
     // Words go straight into the line handed to the sink: this runs once per NC block, and a
     // million-spot raster writes millions of them.
     let start = line.len();

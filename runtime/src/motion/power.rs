@@ -11,10 +11,30 @@
 //! a sub-block the planned power varies by at most `POWER_STEP · P_set` (1 %). Each sub-block
 //! gets the *time mean* of the planned power over it, `P_set / F · Δs / Δt`, which makes the
 //! energy it deposits exact (`∫P dt = P_set / F · Δs`) and its pointwise power error at most
-//! the variation inside it. Sub-blocks shorter than [`MIN_BLOCK_MM`] (ten steps of the NC
-//! programs' 0.1 µm resolution) are merged into the next one, which happens only near
-//! standstill, where a jerk-limited ramp moves very little; the merged block's true error is
+//! the variation inside it. Consecutive steps are merged until a sub-block is at least
+//! [`MIN_BLOCK_MM`] long and lasts at least [`MIN_BLOCK_S`]: a controller runs a block no
+//! faster than its length per servo period (LinuxCNC's `tcClampVelocityByLength`), so the 1 %
+//! steps of a steep ramp (0.1 ms each at 2 m/s² and 20 mm/s) would make it crawl. Where that
+//! merges steps, the power inside a block varies by at most 1 % of `P_set` plus `P_set / F`
+//! times the speed change over 2 ms (`a · MIN_BLOCK_S`), and the block's true error is
 //! reported in [`PowerBlock::max_error_w`].
+//!
+//! **The controller holds the planned speed** ([`PowerBlock::v_cap`]). The power of a
+//! sub-block assumes the plan's speed there, but a controller without a jerk limit (LinuxCNC
+//! 2.9: trapezoids, accel-only blends) would run a lit corner or a lit arc's chords at the
+//! programmed feed where lase's S-curve plan is slower, and deliver less energy per mm than
+//! the plan (and its coupled power) assume: frame_marking's 1.5 mm corner arcs at 20 mm/s
+//! where the plan says 9.9. So each sub-block also carries the plan's mean speed over it,
+//! `Δs / Δt`, which `emit` writes as the block's feed where it is below the programmed one.
+//! The controller cannot exceed it (tp.c also ends each block at no more than the next one's
+//! feed: `tpGetRealFinalVel`), so it takes at least the plan's time over every such block and
+//! the energy per mm it delivers, `P / v`, is at least the time-mean power over the mean
+//! speed, `P_set / F` when coupled (the plan's average when not): never below what the plan
+//! assumes. Where the controller is slower still (its own corner or look-ahead limits, the
+//! ramps between two blocks' feeds), the energy per mm is higher than planned by the ratio of
+//! the speeds, never lower. A lit move whose power is not coupled (constant `P_set`) is cut
+//! the same way where the plan holds it below its feed, with one power throughout
+//! ([`lit_blocks`]); where the plan holds the feed it stays one block.
 
 use super::Job;
 use crate::planner::Segment;
@@ -26,6 +46,10 @@ pub const POWER_STEP: f64 = 0.01;
 /// Shortest sub-block written, mm.
 pub const MIN_BLOCK_MM: f64 = 0.001;
 
+/// Shortest sub-block written, in planned time, s: two of LinuxCNC's 1 ms servo periods, so
+/// that its length per servo period (the most tp.c runs a segment at) is twice its speed.
+pub const MIN_BLOCK_S: f64 = 0.002;
+
 /// One sub-block of a coupled lit op.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PowerBlock {
@@ -35,7 +59,80 @@ pub struct PowerBlock {
     pub power_w: f64,
     /// Largest difference between `power_w` and the planned power inside the sub-block, W.
     pub max_error_w: f64,
+    /// The plan's mean path speed over the sub-block (`Δs / Δt`), mm/s: the feed the
+    /// controller is held to there where it is below the programmed one.
+    pub v_cap: f64,
 }
+
+/// The sub-blocks of lit op `op` on a controller that is given its speed block by block:
+/// the coupled power's ([`coupled_blocks`]), or, for a lit move at constant power (not
+/// pulsed: a pulse train's spacing is the emitter's), the same cuts at that power where the
+/// plan holds the move below its feed somewhere; empty where it is written as one block.
+pub fn lit_blocks(job: &Job, op: usize) -> Vec<PowerBlock> {
+    let Some(laser) = job.program.ops.get(op).and_then(|o| o.laser()) else {
+        return Vec::new();
+    };
+    let segs = &job.plan.segments()[op_segments(job, op)];
+    let mut blocks = match laser.couple {
+        Coupling::Speed => coupled_blocks(job, op),
+        Coupling::None if laser.pulse.is_some() => return Vec::new(),
+        Coupling::None => speed_blocks(laser, segs)
+            .into_iter()
+            .map(|b| PowerBlock {
+                power_w: laser.power_w,
+                max_error_w: 0.0,
+                ..b
+            })
+            .collect(),
+    };
+    free_rest_ramps(segs, &mut blocks);
+    let feed = segs.first().map_or(f64::INFINITY, |s| s.feed);
+    if laser.couple == Coupling::None && blocks.iter().all(|b| b.v_cap >= feed * FEED_HELD) {
+        return Vec::new();
+    }
+    blocks
+}
+
+/// Leaves the blocks of a ramp from or to standstill to the controller (`v_cap` infinite: the
+/// programmed feed): a lit section that starts or ends at rest (the notcher's pierce, its
+/// beam switched at rest) ramps at the controller's own acceleration, as it did before
+/// blocks were held. There the controller is faster than the jerk-limited plan and the energy
+/// per mm below the plan's, as at any start from rest; holding it to the plan's ramp instead
+/// cost conrod_notch 1.5 % of its motion time on the real LinuxCNC (its approach, ending at
+/// an immediate output, already runs at half acceleration: the segment the queue drains on
+/// keeps its parabolic term condition), beyond the 1 % `tests/linuxcnc.rs` allows.
+fn free_rest_ramps(segs: &[Segment], blocks: &mut [PowerBlock]) {
+    let Some(s0) = segs.first().map(|s| s.s_start) else {
+        return;
+    };
+    // The ramps at rest, as path ranges from the op's start.
+    let mut ramps: Vec<(f64, f64)> = Vec::new();
+    for seg in segs {
+        let t_up = 2.0 * seg.t_j1 + seg.t_a1;
+        let t_down_start = t_up + seg.t_cruise;
+        let base = seg.s_start - s0;
+        if seg.v_entry <= 0.0 {
+            ramps.push((base, base + seg.path_state(t_up).0));
+        }
+        if seg.v_exit <= 0.0 {
+            ramps.push((base + seg.path_state(t_down_start).0, base + seg.length));
+        }
+    }
+    let slack = 1e-9 * segs.iter().map(|s| s.length).sum::<f64>().max(1.0);
+    let mut sa = 0.0;
+    for b in blocks.iter_mut() {
+        if ramps
+            .iter()
+            .any(|&(ra, rb)| sa >= ra - slack && b.s_end <= rb + slack)
+        {
+            b.v_cap = f64::INFINITY;
+        }
+        sa = b.s_end;
+    }
+}
+
+/// A planned speed at or above this share of the feed is the feed (the plan's rounding).
+const FEED_HELD: f64 = 1.0 - 1e-9;
 
 /// Plan segments of op `op` (tags are op indices, in order): `first..end`.
 pub fn op_segments(job: &Job, op: usize) -> std::ops::Range<usize> {
@@ -56,6 +153,11 @@ pub fn coupled_blocks(job: &Job, op: usize) -> Vec<PowerBlock> {
     }
     let range = op_segments(job, op);
     let segs = &job.plan.segments()[range];
+    speed_blocks(laser, segs)
+}
+
+/// The blocks of one lit op's segments, cut at speed steps, each with the coupled power.
+fn speed_blocks(laser: &Laser, segs: &[Segment]) -> Vec<PowerBlock> {
     let Some(s0) = segs.first().map(|s| s.s_start) else {
         return Vec::new();
     };
@@ -154,7 +256,7 @@ fn merge(
         let cruising_on = pieces
             .get(k + 1)
             .is_some_and(|n| n.2 == n.3 && b.3 == b.4 && n.2 == b.3);
-        if b.1 - b.0 < MIN_BLOCK_MM || cruising_on {
+        if b.1 - b.0 < MIN_BLOCK_MM || b.2 < MIN_BLOCK_S || cruising_on {
             open = Some(b);
         } else {
             blocks.push(b);
@@ -176,7 +278,56 @@ fn merge(
                 s_end: sb,
                 power_w: scale * mean_v,
                 max_error_w: scale * (hi - mean_v).max(mean_v - lo).max(0.0),
+                v_cap: mean_v,
             }
         })
         .collect()
+}
+
+/// Merges the first of `blocks` into one that reaches at least `s_min` from the op's start
+/// (all of them when the op is shorter): its power the time mean of theirs, its speed their
+/// mean speed (`Δs / Δt`, each block's time `Δs / v_cap`), its error the largest of theirs
+/// widened by the change of power. For a controller that must see a block's shape (an arc
+/// whose first block would otherwise run as its chord: `emit`'s LinuxCNC writer).
+pub fn merge_front(blocks: &mut Vec<PowerBlock>, s_min: f64) {
+    let n = blocks
+        .iter()
+        .position(|b| b.s_end >= s_min)
+        .map_or(blocks.len(), |k| k + 1);
+    if n < 2 {
+        return;
+    }
+    let (mut s0, mut t, mut energy) = (0.0, 0.0, 0.0);
+    let (mut p_lo, mut p_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for b in &blocks[..n] {
+        let dt = if b.v_cap > 0.0 && b.v_cap.is_finite() {
+            (b.s_end - s0) / b.v_cap
+        } else {
+            0.0
+        };
+        t += dt;
+        energy += b.power_w * dt;
+        p_lo = p_lo.min(b.power_w - b.max_error_w);
+        p_hi = p_hi.max(b.power_w + b.max_error_w);
+        s0 = b.s_end;
+    }
+    let power_w = if t > 0.0 {
+        energy / t
+    } else {
+        blocks[n - 1].power_w
+    };
+    let merged = PowerBlock {
+        s_end: s0,
+        power_w,
+        max_error_w: (p_hi - power_w).max(power_w - p_lo).max(0.0),
+        // A ramp at rest left to the controller (`free_rest_ramps`) stays so.
+        v_cap: if blocks[..n].iter().any(|b| !b.v_cap.is_finite()) {
+            f64::INFINITY
+        } else if t > 0.0 {
+            s0 / t
+        } else {
+            blocks[n - 1].v_cap
+        },
+    };
+    blocks.splice(..n, [merged]);
 }

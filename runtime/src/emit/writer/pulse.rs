@@ -184,7 +184,7 @@ pub(super) fn write_gated(
         let f = if len > 0.0 { s / len } else { 1.0 };
         let (to, q) = part_way(op, (from, &from_q), &g.op_axes.get(i), f, g.arc_axes);
         let block = |line: &mut String, m: &mut Modal| {
-            motion_line(line, op, to, q, m, g.machine, g.arc_axes)
+            motion_line(line, op, to, q, None, m, g.machine, g.arc_axes)
         };
         if high != trigger {
             write_edge(out, g, high, power, m, block, tag)?;

@@ -23,16 +23,12 @@ pub(super) struct Piece<'a> {
     pub blocks: Vec<PowerBlock>,
 }
 
-/// The pieces of motion op `i` starting at `from` (axes `from_q`); `split` asks for the
-/// coupled power sub-blocks (`power::coupled_blocks`).
+/// The pieces of motion op `i` starting at `from` (axes `from_q`); `split` asks for the lit
+/// sub-blocks (`power::lit_blocks`: the coupled power's, and the planned speed's).
 pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -> Vec<Piece<'_>> {
     let op = &job.program.ops[i];
-    let split = split
-        && op
-            .laser()
-            .is_some_and(|l| l.couple == crate::program::Coupling::Speed);
     let blocks = if split {
-        power::coupled_blocks(job, i)
+        power::lit_blocks(job, i)
     } else {
         Vec::new()
     };
@@ -85,6 +81,7 @@ pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -
                 s_end: end - s0,
                 power_w: blocks[b].power_w * scale,
                 max_error_w: blocks[b].max_error_w * scale,
+                v_cap: blocks[b].v_cap,
             });
             if blocks[b].s_end > s1 + 1e-12 && !last {
                 break;

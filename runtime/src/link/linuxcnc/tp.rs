@@ -34,7 +34,11 @@
 //!     `G64 P` tolerance allows, at `sqrt(0.866·a·R)`, or the kink speed when that is faster
 //!     (`tpCheckTangentPerformance`). What a segment keeps between two blend arcs runs at most
 //!     its length per servo period: two blend arcs that meet in the middle of a segment
-//!     carrying `M62/M63` nearly stop the machine there. That is dial_marks' 17 slowdowns;
+//!     carrying `M62/M63` nearly stop the machine there. That is dial_marks' 17 slowdowns.
+//!     A line without synced outputs whose remainder would take fewer than
+//!     `ARC_BLEND_GAP_CYCLES` (4) servo periods at the next blend arc's speed is swallowed by
+//!     that arc instead (`blendCheckConsume`): the short chords of a lit arc's speed-held
+//!     sub-blocks (`motion::power::lit_blocks`) run at the blend's speed, not crawl;
 //!   - with rotary motion on either side neither can be made (`tpSetupTangent` gives up on
 //!     ABC motion): the *parabolic* blend (`tpComputeBlendVelocity`): the next segment starts
 //!     when the previous one, on its final deceleration, has slowed below its blend speed, and
@@ -83,6 +87,10 @@ const ACC_RATIO_TANGENTIAL: f64 = 0.5;
 const ACC_RATIO_NORMAL: f64 = 0.866_025_403_784_438_6;
 /// `BLEND_DIST_FRACTION`: how much of a segment a blend may take.
 const BLEND_DIST_FRACTION: f64 = 0.5;
+/// `[TRAJ] ARC_BLEND_GAP_CYCLES`' default (`arcBlendGapCycles`): what is left of a line
+/// between two blend arcs is swallowed by the second (`blendCheckConsume`) when it would take
+/// fewer servo periods than this at the blend's speed.
+const GAP_CYCLES: f64 = 4.0;
 /// `TP_MIN_ARC_ANGLE`.
 const MIN_ARC_ANGLE: f64 = 1e-3;
 /// `SHARP_CORNER_DEG` in `tpSetupTangent`: a turn this close to a reversal stops.
@@ -780,7 +788,20 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
             _ => 0.0,
         };
         let len = (s.len - trim_start - trim_end).max(0.0);
-        let v_top = s.req.min(s.vmax).min(len.max(1e-6 * s.len) / cycle);
+        // blendCheckConsume: a line without synced outputs (`tcCanConsume`) whose remainder
+        // would take fewer than GAP_CYCLES servo periods at the next blend arc's speed becomes
+        // part of that arc (its `line_length`) and runs at the arc's speed, not at its own
+        // length per servo period (a lit arc's short sub-blocks, each a chord).
+        let consumed = match kinds[i] {
+            Some(Kind::Arc { v, .. }) => {
+                (!s.arc && s.dio.is_empty() && len < GAP_CYCLES * cycle * v).then_some(v)
+            }
+            _ => None,
+        };
+        let v_top = match consumed {
+            Some(v) => s.req.min(s.vmax).min(v),
+            None => s.req.min(s.vmax).min(len.max(1e-6 * s.len) / cycle),
+        };
         let joint = match (kinds[i], q.joints[i]) {
             (_, Some(j)) => j,
             (None, None) | (Some(Kind::Stop), _) => Joint::Stop {
