@@ -453,6 +453,12 @@ pub(super) fn write(
                     } else {
                         let (from, from_q) = (m.pos, m.q);
                         let mut blocks = blocks;
+                        if inverse_time && !coupled {
+                            // In inverse time a block's F is its time: a lit move at constant
+                            // power is held whole, in the plan's time, so no block ends part
+                            // way, on the joints' straight line off the surface and its normal.
+                            power::merge_front(&mut blocks, f64::INFINITY);
+                        }
                         if dialect == Dialect::LinuxCnc {
                             arc_first_block(
                                 op,

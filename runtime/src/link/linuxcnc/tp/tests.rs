@@ -183,3 +183,25 @@ fn the_kink_test_counts_the_next_segments_own_acceleration() {
         kind(0.077)
     );
 }
+
+#[test]
+fn a_short_line_between_two_blend_arcs_is_swallowed_not_crawled() {
+    // 40 chords of 0.05 mm around a 1.5 mm circle at 10 mm/s: each turn (0.033 rad) is past
+    // the kink ratio (12000 mm/s² · 0.033 / 2000 = 0.2), so each corner is a blend arc taking
+    // half of the next chord and the rest of the one before (`tcCanConsume`): nothing is
+    // left of a chord between two arcs, which blendCheckConsume folds into the arc. Before,
+    // the model ran that remnant at its length per servo period, nearly a stop per chord.
+    let (r, n, step) = (1.5f64, 40, 0.05 / 1.5);
+    let mut nc = String::from("G64 P0.01\nG1 X1.5 Y0 F600\n");
+    for k in 1..=n {
+        let a = k as f64 * step;
+        nc.push_str(&format!("X{:.6} Y{:.6}\n", r * a.cos(), r * a.sin()));
+    }
+    let t = run_program(&nc, &table()).unwrap();
+    let first = 1.5 / 10.0; // the first line, from X0 Y0, at 10 mm/s
+    let chords = n as f64 * 0.05 / 10.0;
+    // At 10 mm/s throughout but for the ramps from and to rest (10 ms each at 1000 mm/s²
+    // or more, 5 ms lost each) and the arcs' share of the corners.
+    assert!(t.total_s < 1.05 * (first + chords) + 0.02, "{t:?}");
+    assert_eq!(t.stops, 0);
+}
