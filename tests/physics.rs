@@ -355,8 +355,11 @@ fn laser_on_points_run_at_the_programmed_feed() {
         assert_eq!(firsts.len(), on_feeds.len(), "{ex}");
         for ((v, held), f) in firsts.iter().zip(&on_feeds) {
             if ex.ends_with("frame_marking.lase") {
+                // The first lit block is held to the plan's mean speed over it (the corner
+                // arc's first block, long enough to stay an arc on LinuxCNC): between the
+                // corner's held speed and the speed at the edge.
                 assert!(
-                    *v >= *held && *v <= 1.1 * held && *v < *f,
+                    *v >= *held && *v <= 1.1 * held && *f >= *held && *f <= *v,
                     "{ex}: beam on at {v} mm/s, the corner held at {held}, feed {f}"
                 );
             } else {

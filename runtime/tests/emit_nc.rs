@@ -268,9 +268,11 @@ fn feed_is_mm_per_min_and_only_written_when_it_changes() {
     let j = job(
         "xy_table",
         vec![
-            line(1, [10.0, 0.0, 0.0], 20.0, lit(10.0)),
-            line(2, [10.0, 10.0, 0.0], 20.0, lit(10.0)),
-            line(3, [0.0, 10.0, 0.0], 5.0, lit(10.0)),
+            // Unlit: a lit corner the plan slows through is written at the plan's speed
+            // (`motion::power::lit_blocks`, runtime/tests/lit_feed.rs), not at the feed.
+            line(1, [10.0, 0.0, 0.0], 20.0, None),
+            line(2, [10.0, 10.0, 0.0], 20.0, None),
+            line(3, [0.0, 10.0, 0.0], 5.0, None),
             rapid(4, [0.0, 0.0, 0.0]),
             line(5, [5.0, 0.0, 0.0], 5.0, None),
         ],
@@ -703,7 +705,20 @@ fn stats_count_what_was_written() {
     .unwrap();
     assert_eq!(stats.lines, n);
     assert_eq!(stats.bytes, bytes);
-    assert_eq!(stats.motion_blocks, 7);
+    // Every motion line written (a lit arc the plan holds below its feed is several).
+    let motion = emit_to_string(&j, Dialect::LinuxCnc)
+        .unwrap()
+        .lines()
+        .filter(|l| {
+            l.starts_with('G') && !l.starts_with("G2") && !l.starts_with("G6")
+                || l.starts_with('X')
+                || l.starts_with('Y')
+                || l.starts_with("G2 ")
+        })
+        .filter(|l| l.contains('X') || l.contains('Y'))
+        .count() as u64;
+    assert_eq!(stats.motion_blocks, motion);
+    assert!(motion >= 7);
 }
 
 // ------------------------------------------------------------------ LinuxCNC's interpreter

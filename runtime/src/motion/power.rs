@@ -85,46 +85,96 @@ pub fn lit_blocks(job: &Job, op: usize) -> Vec<PowerBlock> {
             })
             .collect(),
     };
-    free_rest_ramps(segs, &mut blocks);
+    // LinuxCNC stops between a rapid and a feed (tp.c's tpCheckCanonType), where lase's plan
+    // may blend them: a lit move next to a rapid starts or ends at rest there.
+    let ops = &job.program.ops;
+    let moving = |o: &&crate::program::Op| o.target().is_some();
+    let rapid = |o: Option<&crate::program::Op>| {
+        o.is_some_and(|o| matches!(o.kind, crate::program::OpKind::Rapid { .. }))
+    };
+    let after_rapid = rapid(ops[..op].iter().rev().find(moving));
+    let before_rapid = rapid(ops[op + 1..].iter().find(moving));
+    free_rest_ramps(segs, (after_rapid, before_rapid), &mut blocks);
     let feed = segs.first().map_or(f64::INFINITY, |s| s.feed);
-    if laser.couple == Coupling::None && blocks.iter().all(|b| b.v_cap >= feed * FEED_HELD) {
-        return Vec::new();
+    if laser.couple == Coupling::None {
+        // At one power, consecutive blocks written at the feed are one block.
+        let at_feed = |b: &PowerBlock| b.v_cap >= feed * FEED_HELD;
+        blocks.dedup_by(|next, prev| {
+            let same = at_feed(prev) && at_feed(next);
+            if same {
+                prev.s_end = next.s_end;
+                prev.v_cap = f64::INFINITY;
+            }
+            same
+        });
+        if blocks.iter().all(at_feed) {
+            return Vec::new();
+        }
     }
     blocks
 }
 
 /// Leaves the blocks of a ramp from or to standstill to the controller (`v_cap` infinite: the
 /// programmed feed): a lit section that starts or ends at rest (the notcher's pierce, its
-/// beam switched at rest) ramps at the controller's own acceleration, as it did before
+/// beam switched at rest; a lit move next to a rapid, where LinuxCNC stops) ramps at the
+/// controller's own acceleration, as it did before
 /// blocks were held. There the controller is faster than the jerk-limited plan and the energy
 /// per mm below the plan's, as at any start from rest; holding it to the plan's ramp instead
 /// cost conrod_notch 1.5 % of its motion time on the real LinuxCNC (its approach, ending at
 /// an immediate output, already runs at half acceleration: the segment the queue drains on
 /// keeps its parabolic term condition), beyond the 1 % `tests/linuxcnc.rs` allows.
-fn free_rest_ramps(segs: &[Segment], blocks: &mut [PowerBlock]) {
+fn free_rest_ramps(
+    segs: &[Segment],
+    (after_rapid, before_rapid): (bool, bool),
+    blocks: &mut [PowerBlock],
+) {
     let Some(s0) = segs.first().map(|s| s.s_start) else {
         return;
     };
-    // The ramps at rest, as path ranges from the op's start.
+    // The ramps at rest, as path ranges from the op's start: from a standstill on while the
+    // speed only rises (a ramp may run over several segments: blend halves, chords), and
+    // likewise back from a standstill while it only falls.
     let mut ramps: Vec<(f64, f64)> = Vec::new();
-    for seg in segs {
-        let t_up = 2.0 * seg.t_j1 + seg.t_a1;
-        let t_down_start = t_up + seg.t_cruise;
-        let base = seg.s_start - s0;
-        if seg.v_entry <= 0.0 {
-            ramps.push((base, base + seg.path_state(t_up).0));
+    let at = |seg: &Segment, t: f64| seg.s_start - s0 + seg.path_state(t).0;
+    let t_up = |seg: &Segment| 2.0 * seg.t_j1 + seg.t_a1;
+    // Monotone segments: a blend half or a chord at one speed counts as either.
+    let rises = |seg: &Segment| seg.v_exit >= seg.v_peak * FEED_HELD;
+    let falls = |seg: &Segment| seg.v_entry >= seg.v_peak * FEED_HELD;
+    let mut k = 0;
+    while k < segs.len() {
+        if segs[k].v_entry <= 0.0 || (k == 0 && after_rapid) {
+            let a = segs[k].s_start - s0;
+            while k + 1 < segs.len() && rises(&segs[k]) {
+                k += 1;
+            }
+            ramps.push((a, at(&segs[k], t_up(&segs[k]))));
         }
-        if seg.v_exit <= 0.0 {
-            ramps.push((base + seg.path_state(t_down_start).0, base + seg.length));
+        k += 1;
+    }
+    let mut k = segs.len();
+    while k > 0 {
+        k -= 1;
+        if segs[k].v_exit <= 0.0 || (k + 1 == segs.len() && before_rapid) {
+            let b = segs[k].s_start - s0 + segs[k].length;
+            while k > 0 && falls(&segs[k]) {
+                k -= 1;
+            }
+            let seg = &segs[k];
+            ramps.push((at(seg, t_up(seg) + seg.t_cruise), b));
         }
     }
     let slack = 1e-9 * segs.iter().map(|s| s.length).sum::<f64>().max(1.0);
     let mut sa = 0.0;
     for b in blocks.iter_mut() {
-        if ramps
-            .iter()
-            .any(|&(ra, rb)| sa >= ra - slack && b.s_end <= rb + slack)
-        {
+        // A block that starts on a ramp from rest or ends on one to rest is the ramp's (its
+        // other end may reach into the cruise, merged to the 2 ms a block lasts at least).
+        let on = |x: f64| {
+            ramps
+                .iter()
+                .any(|&(ra, rb)| x >= ra - slack && x <= rb + slack)
+        };
+        let mid = 0.5 * (sa + b.s_end);
+        if on(mid) && (on(sa) || on(b.s_end)) {
             b.v_cap = f64::INFINITY;
         }
         sa = b.s_end;
