@@ -199,7 +199,7 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
 }
 
 fn cmd_check(file: &Path) -> CmdResult {
-    let (recipe, job) = driver::compile(file)?;
+    let (recipe, job) = driver::check(file)?;
     outln!("{}", driver::ok_line(&recipe, &job));
     Ok(())
 }
@@ -241,6 +241,7 @@ fn cmd_emit(
         Some(Ok(v)) => Some(v),
         None => None,
     };
+    let mut windowed = None;
     let planned = match (chosen, chosen.work()) {
         (_, Some(g)) => origin::named(program, dialect, g, given, set_origin).map(|(job, s, w)| {
             if let Some(w) = w {
@@ -249,6 +250,18 @@ fn cmd_emit(
             (job, s)
         }),
         (origin::JobOrigin::Current, _) => origin::work_frame(program, dialect),
+        _ if lase_runtime::emit::plans_in_windows(&program, dialect) => {
+            // Planned in windows that are read and dropped (issue 18): the job never holds
+            // its plan, only what the writer reads of it (`emit::PlanFacts`).
+            let mut facts = lase_runtime::emit::PlanFacts::new(&program, dialect);
+            lase_runtime::compile::plan_in_windows(program, |p, w| facts.window(p, &w)).map(
+                |(job, _)| {
+                    facts.finish(&job.program);
+                    windowed = Some(facts);
+                    (job, Vec::new())
+                },
+            )
+        }
         _ => lase_runtime::compile::plan(program).map(|job| (job, Vec::new())),
     };
     let (job, setup) = match planned {
@@ -270,7 +283,7 @@ fn cmd_emit(
         // Write`) for each line and each newline was a tenth of the time of `lase emit`.
         const BATCH: usize = 1 << 20;
         let mut batch: Vec<u8> = Vec::with_capacity(BATCH + 512);
-        let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
+        let mut sink = |l: &NcLine| {
             lines += 1;
             if lines.is_multiple_of(1 << 16) && busy.shown() {
                 busy.say(format!("writing {dialect} NC: {lines} lines"));
@@ -295,7 +308,13 @@ fn cmd_emit(
                 batch.clear();
             }
             Ok(())
-        })
+        };
+        let r = match &windowed {
+            Some(facts) => {
+                lase_runtime::emit::emit_planned(&job, facts, dialect, &options, &mut sink)
+            }
+            None => lase_runtime::emit::emit(&job, dialect, &options, &mut sink),
+        }
         .and_then(|stats| {
             w.write_all(&batch)
                 .inspect_err(|e| io_err = Some(e.to_string()))?;

@@ -286,7 +286,7 @@ pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
 }
 
 /// [`plan_program`] in windows (issue 18): the plan's segments go to `each` a window at a
-/// time, as `planner::plan_along_windows` makes them, bit for bit those of the whole plan, and
+/// time (with the program as planned: leads added), as `planner::plan_along_windows` makes them, bit for bit those of the whole plan, and
 /// are not kept. The job returned has every field of [`plan_program`]'s but for its plan, which
 /// holds no segments (only the start, end and duration; the totals are in [`planner::Planned`]).
 ///
@@ -294,7 +294,7 @@ pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
 /// `held::check_held` reads every lit section's segments before a job may run.
 pub fn plan_program_windows(
     program: ProcessProgram,
-    each: impl FnMut(Plan),
+    each: impl FnMut(&ProcessProgram, Plan),
 ) -> Result<(Job, planner::Planned), MotionError> {
     plan_program_windows_sized(program, planner::MIN_WINDOW, each)
 }
@@ -305,7 +305,7 @@ pub fn plan_program_windows(
 pub fn plan_program_windows_sized(
     program: ProcessProgram,
     min_window: usize,
-    mut each: impl FnMut(Plan),
+    mut each: impl FnMut(&ProcessProgram, Plan),
 ) -> Result<(Job, planner::Planned), MotionError> {
     let st = stage(program)?;
     if st.kin.oriented() {
@@ -329,12 +329,14 @@ pub fn plan_program_windows_sized(
         let summary = Plan::without_segments(&job.plan);
         let plan = std::mem::replace(&mut job.plan, summary);
         if planned.segments > 0 {
-            each(plan);
+            each(&job.program, plan);
         }
         return Ok((job, planned));
     }
     let (planned, op_axes, initial_dwell_s) = lower_and_plan(&st, |low| {
-        planner::plan_along_windows_sized(st.start, low, &st.limits, &st.cfg, min_window, &mut each)
+        planner::plan_along_windows_sized(st.start, low, &st.limits, &st.cfg, min_window, |w| {
+            each(&st.program, w)
+        })
     })?;
     let n_axes = st.cfg.n_axes;
     let plan = Plan::summary(st.start, planned.end, planned.duration, n_axes);

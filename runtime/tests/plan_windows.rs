@@ -5,11 +5,13 @@
 //! look-ahead's commit rule and the corner blends at window boundaries are exercised
 //! everywhere, not only past `planner::MIN_WINDOW` segments.
 
-use lase_runtime::compile::{self, FsFiles};
+use lase_runtime::compile::{self, Files, FsFiles, MemFiles};
+use lase_runtime::emit::{self, Dialect, PlanFacts};
 use lase_runtime::motion;
 use lase_runtime::planner::{
     self, Along, AxisLimits, Corners, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind, Segment,
 };
+use lase_runtime::program::ProcessProgram;
 use std::path::Path;
 
 /// Every field of a segment as bits: `==` on floats would let −0 pass for 0.
@@ -129,7 +131,7 @@ fn every_example_planned_in_windows_is_its_whole_plan_bit_for_bit() {
         for min_window in [1, 3, 64, planner::MIN_WINDOW] {
             let mut windows = Vec::new();
             let (job, planned) =
-                motion::plan_program_windows_sized(program.clone(), min_window, |w| {
+                motion::plan_program_windows_sized(program.clone(), min_window, |_, w| {
                     windows.push(w)
                 })
                 .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -157,6 +159,100 @@ fn every_example_planned_in_windows_is_its_whole_plan_bit_for_bit() {
             }
         }
     }
+}
+
+/// The program of recipe `path` in `files`.
+fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
+    let mut recipe = compile::load(files, path).unwrap_or_else(|(_, f)| panic!("{path}: {f}"));
+    compile::check(&recipe).unwrap_or_else(|f| panic!("{path}: {f}"));
+    compile::evaluate(&mut recipe, files).unwrap_or_else(|f| panic!("{path}: {f}"))
+}
+
+/// `lase emit`'s two ways, whole and in windows (`emit::PlanFacts`), give the same NC text, or
+/// the same refusal, in every dialect.
+fn same_nc(what: &str, program: &ProcessProgram) {
+    let whole = motion::plan_program(program.clone()).unwrap_or_else(|e| panic!("{what}: {e}"));
+    for dialect in Dialect::ALL {
+        if !emit::plans_in_windows(program, dialect) {
+            continue;
+        }
+        let want = emit::emit_to_string(&whole, dialect).map_err(|e| format!("{e:?}"));
+        for min_window in [1, 3, planner::MIN_WINDOW] {
+            let mut facts = PlanFacts::new(program, dialect);
+            let (job, _) =
+                motion::plan_program_windows_sized(program.clone(), min_window, |p, w| {
+                    facts.window(p, &w)
+                })
+                .unwrap_or_else(|e| panic!("{what}: {e}"));
+            facts.finish(&job.program);
+            let mut got = String::new();
+            let r = emit::emit_planned(&job, &facts, dialect, &Default::default(), &mut |l| {
+                got.push_str(&l.text);
+                got.push('\n');
+                Ok(())
+            });
+            let got = r.map(|_| got).map_err(|e| format!("{e:?}"));
+            assert!(
+                got == want,
+                "{what}, {dialect}, windows from {min_window}: the NC differs from the whole \
+                 plan's"
+            );
+        }
+    }
+}
+
+#[test]
+fn every_example_emitted_from_windows_is_the_nc_of_its_whole_plan() {
+    for ex in examples() {
+        let path = ex.to_str().unwrap();
+        same_nc(path, &program_of(&mut FsFiles, path));
+    }
+}
+
+/// Power coupled to speed (sub-blocks from each op's segments, across windows) and a LinuxCNC
+/// post whose immediate output word is refused where the plan flies (the planned speeds at each
+/// op, across windows) and accepted where it stops.
+#[test]
+fn coupled_power_and_flying_switches_emitted_from_windows_are_those_of_the_whole_plan() {
+    let stock = include_str!("../../stdlib/machines/xy_table.toml");
+    let flying = stock.replace("\"M62 P0\"]", "\"M64 P0\"]");
+    assert_ne!(flying, stock, "xy_table's LinuxCNC laser_on ends with M62");
+    let at_rest = flying.replace(
+        "[post.linuxcnc]\n",
+        "[post.linuxcnc]\nlaser_switch_stops = true\n",
+    );
+    let rect = "laser { power 40 W, couple speed }\n\
+                let part = profile polyline [(0, 0), (30 mm, 0), (30 mm, 10 mm), (0, 10 mm)] closed\n\
+                follow part at 20 mm/s\n\
+                move to (0, -20 mm) rapid\n";
+    let short = "planner { leadin none }\n\
+                 laser { power 30 W, couple speed }\n\
+                 laser on\n\
+                 move to (0.5 mm, 0) at 40 mm/s\n\
+                 move to (0.5 mm, 0.4 mm) at 40 mm/s\n\
+                 dwell 0.1 s\n\
+                 move to (2 mm, 0.4 mm) at 40 mm/s\n\
+                 laser off\n\
+                 move to (0, 0) rapid\n";
+    let mut refused = Vec::new();
+    for (machine, toml) in [("stock", stock), ("flying", &flying), ("at_rest", &at_rest)] {
+        for (name, body) in [("rect", rect), ("short", short)] {
+            let recipe = format!("machine \"{machine}.toml\"\n{body}");
+            let mut files = MemFiles::new([
+                (format!("{machine}.toml"), toml.to_string()),
+                ("r.lase".to_string(), recipe),
+            ]);
+            let program = program_of(&mut files, "r.lase");
+            same_nc(&format!("{name} on {machine}"), &program);
+            let whole = motion::plan_program(program).unwrap();
+            if emit::emit_to_string(&whole, Dialect::LinuxCnc).is_err() {
+                refused.push(format!("{name} on {machine}"));
+            }
+        }
+    }
+    // The flying M64 is refused where the beam goes on at speed (after the lead-in), and nowhere
+    // else (`short` switches it on at rest): the check ran, on the windows' speeds too.
+    assert_eq!(refused, ["rect on flying"]);
 }
 
 /// A deterministic generator (xorshift), so that a failure names its seed.

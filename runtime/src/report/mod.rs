@@ -147,7 +147,7 @@ pub(super) fn standstills(job: &Job) -> Vec<Standstill> {
 
 /// Rounds to 9 significant digits, so goldens do not change with the last bits of a platform's
 /// libm.
-pub(crate) fn round_sig(x: f64) -> f64 {
+pub fn round_sig(x: f64) -> f64 {
     if !x.is_finite() || x == 0.0 {
         return x;
     }
