@@ -536,8 +536,8 @@ impl<'a> Preparer<'a> {
     pub(super) fn new(start: Axes, limits: &'a AxisLimits, cfg: &'a PlannerConfig) -> Self {
         let n_axes = cfg.n_axes;
         let mut inv_a = [0.0; MAX_AXES];
-        for axis in 0..n_axes {
-            inv_a[axis] = 1.0 / limits.a[axis];
+        for (inv, a) in inv_a.iter_mut().zip(&limits.a).take(n_axes) {
+            *inv = 1.0 / a;
         }
         Preparer {
             limits,
