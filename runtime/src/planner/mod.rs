@@ -32,8 +32,13 @@
 //!    table of the axes in use; [`Plan::sample`] evaluates it exactly (on a blend, along the
 //!    blend curve).
 //!
-//! Memory: 120 bytes of segment and `8 · n_axes` of points per move (136 bytes for two axes,
-//! 168 for six), and nothing else per move: the look-ahead reads each move's limits from its
+//! In windows ([`plan_along_windows`], `window`): the same steps run as the moves come in,
+//! each on a small buffer, and the look-ahead hands on a prefix of segments once no later move
+//! can change it, so the caller reads the plan a window at a time and it never exists whole;
+//! the windows are the whole plan, bit for bit.
+//!
+//! Memory of a whole plan: 120 bytes of segment and `8 · n_axes` of points per move (136 bytes
+//! for two axes, 168 for six), and nothing else per move: the look-ahead reads each move's limits from its
 //! segment before timing it (`lookahead::KinTable`), and the corner blends' per-move input is
 //! a byte of flags (`blend::MoveInfos`) while the corners are judged. A blended corner adds two
 //! segments and a 152-byte [`Blend`].
@@ -44,7 +49,8 @@
 //! jerk-limited ramp over several straight-enough moves would lift that.
 //!
 //! Module map: `error` (diagnostics), `junction` (corner speeds), `lookahead` (speed passes),
-//! `profile` (1-D closed forms), `plan` (segments and sampling), `blend` (corner blends).
+//! `profile` (1-D closed forms), `plan` (segments and sampling), `blend` (corner blends),
+//! `window` (planning in windows).
 
 mod blend;
 mod error;
