@@ -151,6 +151,8 @@ pub struct Job {
     pub op_axes: OpAxes,
     /// Standstill before the first move (dwells and events ahead of any motion), s.
     pub initial_dwell_s: f64,
+    /// The whole plan; from [`plan_program_windows`] a plan of no segments (its windows were
+    /// handed on), with the start, end and duration.
     pub plan: Plan,
     /// The lit sections as the recipe wrote them, located in `program.ops` (which holds the
     /// leads lase added).
