@@ -411,3 +411,39 @@ pub fn emit_to_string_with(
     })?;
     Ok(out)
 }
+
+/// [`emit_to_string`]'s lines handed to `each` one at a time instead (the controller models of
+/// `lase plan`, which read a program line by line and never hold it, issue 18): exactly the
+/// lines `emit_to_string(job, dialect)?.lines()` yields. `facts`: the job was planned in
+/// windows ([`emit_planned`]). Stops at the first line `each` refuses, with its reason; an
+/// emit error is given as its text.
+pub fn emit_nc_lines(
+    job: &Job,
+    facts: Option<&PlanFacts>,
+    dialect: Dialect,
+    each: &mut dyn FnMut(&str) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut refused = None;
+    let emitted = emit_with(
+        job,
+        facts,
+        dialect,
+        &EmitOptions::default(),
+        &mut |l: &NcLine| {
+            // `str::lines` of the text with its `\n`: split at each `\n`, a `\r` before it
+            // dropped.
+            for raw in l.text.split('\n') {
+                if let Err(why) = each(raw.strip_suffix('\r').unwrap_or(raw)) {
+                    refused = Some(why);
+                    return Err(std::io::Error::other("refused"));
+                }
+            }
+            Ok(())
+        },
+    );
+    match (refused, emitted) {
+        (Some(why), _) => Err(why),
+        (None, Err(e)) => Err(e.to_string()),
+        (None, Ok(_)) => Ok(()),
+    }
+}
