@@ -161,6 +161,46 @@ fn every_example_planned_in_windows_is_its_whole_plan_bit_for_bit() {
     }
 }
 
+/// `lase plan`'s summary and time split counted from windows (`report::PlanTotals`) are the
+/// whole plan's, to the last bit (the JSON rounds to 9 digits; this does not).
+#[test]
+fn every_examples_summary_counted_from_windows_is_the_whole_plans() {
+    use lase_runtime::report::{self, PlanTotals};
+    for ex in examples() {
+        let path = ex.to_str().unwrap();
+        let program = program_of(&mut FsFiles, path);
+        let whole = motion::plan_program(program.clone()).unwrap_or_else(|e| panic!("{e}"));
+        let want = report::summarize(&whole);
+        let split = report::time_split(&whole);
+        for min_window in [1, 3, planner::MIN_WINDOW] {
+            let what = format!("{path}, windows from {min_window}");
+            let mut totals = PlanTotals::new(&program);
+            let (job, planned) =
+                motion::plan_program_windows_sized(program.clone(), min_window, |p, w| {
+                    totals.window(p, &w)
+                })
+                .unwrap_or_else(|e| panic!("{what}: {e}"));
+            totals.finish(&job.program, planned.length);
+            assert_eq!(
+                format!("{:?}", totals.summary(&job)),
+                format!("{want:?}"),
+                "{what}: summary"
+            );
+            assert_eq!(
+                format!("{:?}", totals.time_split(&job)),
+                format!("{split:?}"),
+                "{what}: time split"
+            );
+        }
+        // The pulse count is the pulse events' (`lase plan --pulses`).
+        assert_eq!(
+            want.pulses,
+            report::pulse_events(&whole).count() as u64,
+            "{path}: pulses"
+        );
+    }
+}
+
 /// The program of recipe `path` in `files`.
 fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
     let mut recipe = compile::load(files, path).unwrap_or_else(|(_, f)| panic!("{path}: {f}"));

@@ -19,7 +19,9 @@ mod trace;
 
 pub use plot::{DOT_LIMIT, PNG_SCALE, PlotOptions, SpeedUnit, plot_png, plot_svg, svg_to_png};
 pub use pulses::{PulseEvent, PulseEvents, pulse_events, write_pulses};
-pub use summary::{AxisPeaks, ControllerCycle, Summary, TimeSplit, summarize, time_split};
+pub use summary::{
+    AxisPeaks, ControllerCycle, PlanTotals, Summary, TimeSplit, summarize, time_split,
+};
 pub use trace::write_trace;
 
 use crate::motion::Job;
