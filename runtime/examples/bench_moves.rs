@@ -1,8 +1,10 @@
 //! Memory per move of a job of many short moves written with a `for` loop (issue 18): the
 //! recipe is compiled with its plan made in windows and emitted as LinuxCNC NC to a sink that
-//! keeps nothing (what `lase check` and `lase emit` do), then compiled with the whole plan (what
-//! `lase plan` does), in this one process, and the peak of live heap above what was live
-//! before is counted by a counting global allocator, not read from RSS.
+//! keeps nothing (what `lase check` and `lase emit` do), planned in windows again with the
+//! summary counted and every controller timed by its streamed model (what `lase plan` does),
+//! then compiled with the whole plan (what trace, plot, run and the REPL do), in this one
+//! process, and the peak of live heap above what was live before is counted by a counting
+//! global allocator, not read from RSS.
 //!
 //! ```text
 //! cargo run --release -p lase-runtime --example bench_moves            # 500 000 moves
@@ -99,7 +101,49 @@ fn main() {
         c2 - c1,
     );
     drop((job, facts));
-    // `lase plan` (and trace, plot, run, the REPL): the whole plan.
+    // `lase plan`: the summary's running totals and each controller's facts gathered as the
+    // windows pass, then every controller it reports timed by its model, line by line.
+    let c0 = cpu_time();
+    let p = program(&mut files);
+    let first = lase_runtime::link::estimate::default_dialect(&p.machine);
+    let dialects: Vec<Dialect> = std::iter::once(first)
+        .chain(lase_runtime::link::estimate::other_dialects(
+            &p.machine, first,
+        ))
+        .collect();
+    let mut totals = lase_runtime::report::PlanTotals::new(&p);
+    let mut facts: Vec<PlanFacts> = dialects.iter().map(|&d| PlanFacts::new(&p, d)).collect();
+    let (job, planned) = compile::plan_in_windows(p, |p, w| {
+        totals.window(p, &w);
+        facts.iter_mut().for_each(|f| f.window(p, &w));
+    })
+    .unwrap_or_else(|f| fail(f));
+    totals.finish(&job.program, planned.length);
+    facts.iter_mut().for_each(|f| f.finish(&job.program));
+    let summary = totals.summary(&job);
+    let c1 = cpu_time();
+    let times: Vec<String> = dialects
+        .iter()
+        .zip(&facts)
+        .map(|(&d, f)| {
+            let c = lase_runtime::link::estimate::controller_cycle_from(&job, Some(f), d);
+            format!("{d} {:.3} s", c.cycle_time_s)
+        })
+        .collect();
+    let c2 = cpu_time();
+    let peak = ALLOC.max_allocated().saturating_sub(before);
+    println!(
+        "{moves} moves planned in windows (lase plan): peak so far {:.0} B/move ({:.1} MiB); \
+         lase's plan {:.3} s, {}; CPU {:.2} s plan, {:.2} s controller models",
+        per(peak),
+        mib(peak),
+        summary.cycle_time_s,
+        times.join(", "),
+        c1 - c0,
+        c2 - c1,
+    );
+    drop((job, facts));
+    // Trace, plot, run, the REPL: the whole plan.
     let c0 = cpu_time();
     let job = compile::plan(program(&mut files)).unwrap_or_else(|f| fail(f));
     let c1 = cpu_time();

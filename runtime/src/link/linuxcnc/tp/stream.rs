@@ -1,8 +1,9 @@
 //! The model of [`super::run_program_from`] fed a line at a time, holding what LinuxCNC's own
 //! planner holds (issue 18: `lase plan` of a job of millions of lines keeps no table per
-//! line): tp.c's queue is a ring of `DEFAULT_TC_QUEUE_SIZE` segments, and `tpRunOptimization`
-//! plans end speeds backward over `ARC_BLEND_OPTIMIZATION_DEPTH` (50) of them; the task reads
-//! ahead of motion only as far as that queue lets it. So here a segment becomes its pieces as
+//! line): tp.c's queue is a ring of `DEFAULT_TC_QUEUE_SIZE` segments (2000, `emcmotcfg.h`:
+//! "a TC_STRUCT is about 512 bytes so this queue is about a megabyte"), and
+//! `tpRunOptimization` plans end speeds backward over `ARC_BLEND_OPTIMIZATION_DEPTH` (50) of
+//! them; the task reads ahead of motion only as far as that queue lets it. So here a segment becomes its pieces as
 //! soon as the next one is read (its junction, its scaled acceleration and its blend arcs need
 //! nothing further), and a piece runs as soon as the 50 after it are made (its exit speed
 //! plans to a stop 50 pieces on), so no more than about 51 pieces and two segments are held.
