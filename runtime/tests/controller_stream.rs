@@ -2,7 +2,7 @@
 //! (issue 18): `lase plan` times a job on LinuxCNC (`tp::TpStream`) and GRBL or grblHAL
 //! (`sim::motion::ModelStream`) holding only their own queues, and must print exactly the
 //! times the tabled models (`tp::run_program_from`, `sim::motion::run_program`) give. Every
-//! example in every dialect it has a post for, planned whole and in windows, and a few hundred
+//! example in every dialect it has a post for, planned whole and in windows, and 400
 //! random programs (arcs, blends, stops, dwells, synced and immediate outputs, inverse time,
 //! rotary axes, beam switches, comments) compare every number by its bits.
 
