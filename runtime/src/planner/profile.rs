@@ -278,6 +278,20 @@ pub(crate) struct Shape {
     pub t_a2: f64,
 }
 
+/// A move of length `len` is surely too short to ramp from `v0` up to `vmax ≥ max(v0, v1)` and
+/// back to `v1`, without computing the ramps: even constant-acceleration ramps, shorter than
+/// any jerk-limited one (`t_j ≥ 0` adds distance; without a constant phase
+/// `(2v + dv)·√(dv/J) ≥ (2v + dv)·dv/2a` as `dv ≤ a²/J`), need
+/// `((vmax² − v0²) + (vmax² − v1²)) / 2a` more than `len`, by a relative 1e-9 that rounding
+/// (a few ulps: the differences of squares are formed as products of exact-ish differences)
+/// cannot reach. Most moves of a cornered path are far too short to reach their feed, and this
+/// spares `shape` two ramp distances each (a root and divisions) before it solves their peak.
+#[inline]
+fn too_short_to_cruise(len: f64, v0: f64, v1: f64, vmax: f64, a: f64) -> bool {
+    let d = (vmax - v0) * (vmax + v0) + (vmax - v1) * (vmax + v1);
+    d > 2.0 * a * len * (1.0 + 1e-9)
+}
+
 /// Relative tolerance of the peak-speed solve on the distance equation.
 const PEAK_REL_TOL: f64 = 1e-14;
 
@@ -291,6 +305,7 @@ pub(crate) fn shape(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> Sh
     let vp = if len <= 0.0 {
         hi
     } else if vmax.is_finite()
+        && !too_short_to_cruise(len, v0, v1, vmax, a)
         && ramp_distance(v0, vmax - v0, a, j) + ramp_distance(v1, vmax - v1, a, j) <= len
     {
         vmax
@@ -712,6 +727,34 @@ mod tests {
             );
         }
         assert!(banded > cases * 9 / 10, "{banded} of {cases} banded");
+    }
+
+    #[test]
+    fn moves_too_short_to_cruise_could_not_cruise() {
+        // Wherever the shortcut says a move cannot cruise at vmax, its ramps as computed need
+        // more than its length; and it does say so for most short moves.
+        let mut rnd = uniform(0x5851_f42d_4c95_7f2d);
+        let (mut said, cases) = (0, 100_000);
+        for _ in 0..cases {
+            let len = 10f64.powf(-3.0 + 5.0 * rnd());
+            let a = 10f64.powf(1.0 + 4.0 * rnd());
+            let j = if rnd() < 0.2 {
+                INF
+            } else {
+                10f64.powf(3.0 + 4.0 * rnd())
+            };
+            let vmax = 10f64.powf(4.0 * rnd());
+            let (v0, v1) = (vmax * rnd(), vmax * rnd());
+            if too_short_to_cruise(len, v0, v1, vmax, a) {
+                said += 1;
+                let d = ramp_distance(v0, vmax - v0, a, j) + ramp_distance(v1, vmax - v1, a, j);
+                assert!(
+                    d > len,
+                    "len={len} v0={v0} v1={v1} vmax={vmax} a={a} j={j}: {d}"
+                );
+            }
+        }
+        assert!(said > cases / 4, "{said} of {cases}");
     }
 
     #[test]
