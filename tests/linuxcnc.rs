@@ -391,18 +391,22 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // The same early switch on rows at 100 mm/s: edges 0.279 mm off, the lit path 0.245
         // (cycle 1.0031, beam 0.9989 of the model). Pinned (issue 13).
         "image_engrave" => Bounds::new(0.3, 0.5),
-        // Pinned (issue 13): cycle 0.9133 and beam-on 0.7795 of the model, edges 0.600 mm and
-        // 39.4 mm/s off, the lit path 3.00 mm off. Its characters' strokes are runs of short,
-        // nearly collinear lines continuing their lead-ins, which LinuxCNC runs at the feed
-        // (40 mm/s) where the model has them at ~10 mm/s: its program line skips from the
-        // lead-in to a stroke's fourth line (canon's naive-CAM detector, `G64 Q` = P, joining
-        // them, which the model leaves out); its beam comes on 0.66 mm past the lead-in's end;
-        // at some strokes it lights at rest.
+        // Pinned (issue 13), at lit↔lit corners: its characters' strokes turn at sharp
+        // corners between short lit lines, which LinuxCNC rounds with blend arcs within
+        // G64 P0.01 (14.7 mm/s at the S's 45° turns) and the model runs slower: stroke by
+        // stroke (rest to rest) the model is 88-105 ms long on every stroke with such corners
+        // and within 2 ms on the straight ones (cycle 0.951 and beam-on 0.879 of the model;
+        // 0.913 and 0.780 before the model joined collinear lines as canon's naive-CAM
+        // detector does). The lit↔lit corners are being replanned (branch litfeed). The edges
+        // (0.600 mm, 39.4 mm/s) and the lit path (3.00 mm) miss lase's plan: a stroke's first
+        // lit line continues its lead-in, so the blend arc LinuxCNC lays over the junction
+        // takes half the 1.3 mm lead-in and the lit line's output switches 0.66 mm late, where
+        // the segment carrying it starts; at some strokes it lights at rest.
         "serial_number" => Bounds {
             place: 3.1,
             dv: 40.0,
-            cycle: 0.09,
-            beam: 0.23,
+            cycle: 0.055,
+            beam: 0.13,
             ..Bounds::new(0.0, 0.0)
         },
         // Pinned (issue 13): 5 of 105 pulses never fire. Where two dots touch, lase writes

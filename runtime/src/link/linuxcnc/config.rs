@@ -134,9 +134,12 @@ fn digital_outputs(machine: &Machine) -> u32 {
     let index = |line: &str| -> Option<u32> {
         let up = line.to_ascii_uppercase();
         let words: Vec<&str> = up.split_whitespace().collect();
-        let digital = words
-            .iter()
-            .any(|w| matches!(*w, "M62" | "M63" | "M64" | "M65"));
+        // M62-M65: the digital outputs, synchronized or immediate.
+        let digital = words.iter().any(|w| {
+            w.strip_prefix('M')
+                .and_then(|n| n.parse::<u32>().ok())
+                .is_some_and(|n| (62..=65).contains(&n))
+        });
         let p = words.iter().find_map(|w| w.strip_prefix('P')?.parse().ok());
         p.filter(|_| digital)
     };
