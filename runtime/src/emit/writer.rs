@@ -171,6 +171,7 @@ struct Modal {
 
 pub(super) fn write(
     job: &Job,
+    facts: Option<&super::PlanFacts>,
     dialect: Dialect,
     options: &EmitOptions<'_>,
     checked: &Checked<'_>,
@@ -363,7 +364,7 @@ pub(super) fn write(
                     continue;
                 }
                 // An image row is written one block per pixel run (`row`); any other op as is.
-                let pieces = row::pieces(job, i, m.pos, m.q, !dialect.is_grbl_family());
+                let pieces = row::pieces(job, facts, i, m.pos, m.q, !dialect.is_grbl_family());
                 let n_pieces = pieces.len();
                 for (k, piece) in pieces.into_iter().enumerate() {
                     let (op, q_end, blocks) = (&*piece.op, piece.q, piece.blocks);

@@ -54,8 +54,12 @@ pub fn coupled_blocks(job: &Job, op: usize) -> Vec<PowerBlock> {
     if laser.couple != Coupling::Speed {
         return Vec::new();
     }
-    let range = op_segments(job, op);
-    let segs = &job.plan.segments()[range];
+    coupled_blocks_of(laser, &job.plan.segments()[op_segments(job, op)])
+}
+
+/// [`coupled_blocks`] of a coupled lit op whose plan segments are `segs` (all of them, in
+/// order): what `emit::PlanFacts` computes from a plan made in windows.
+pub fn coupled_blocks_of(laser: &Laser, segs: &[Segment]) -> Vec<PowerBlock> {
     let Some(s0) = segs.first().map(|s| s.s_start) else {
         return Vec::new();
     };

@@ -49,7 +49,7 @@
 //! a segment boundary, where the plan switches ops exactly as before.
 
 use super::lookahead::Kin;
-use super::plan::NO_BLEND;
+use super::plan::{NO_BLEND, Segment};
 use super::{Axes, AxisLimits, MAX_AXES, Prepared};
 
 /// Share of each axis's acceleration (and jerk) the blend's curvature may use; the rest is for
@@ -336,6 +336,8 @@ pub(crate) struct MoveInfos {
     /// Each move's `part_dir` from `dirs_from` on (empty until a length is not Euclidean).
     dirs: Vec<[f64; 3]>,
     dirs_from: usize,
+    /// The index of the move `flags[0]` belongs to (`forget_before`).
+    first: usize,
     /// The last move's `part_dir`, for the move after it.
     last_dir: [f64; 3],
 }
@@ -354,7 +356,7 @@ impl MoveInfos {
     }
 
     pub(crate) fn push(&mut self, m: MoveInfo) {
-        let i = self.flags.len();
+        let i = self.first + self.flags.len();
         if self.dirs.is_empty() && !m.euclidean {
             // From the move before this one: the first junction that may read a direction.
             self.dirs_from = i.saturating_sub(1);
@@ -377,7 +379,7 @@ impl MoveInfos {
     /// Move `i`'s info (`part_dir` zero where no junction reads it).
     #[inline]
     pub(crate) fn get(&self, i: usize) -> MoveInfo {
-        let f = self.flags[i];
+        let f = self.flags[i - self.first];
         let part_dir = i
             .checked_sub(self.dirs_from)
             .and_then(|k| self.dirs.get(k))
@@ -390,12 +392,126 @@ impl MoveInfos {
             stepped_before: f & STEPPED_BEFORE != 0,
         }
     }
+
+    /// Drops what moves before `i` had (the planner in windows has judged their junctions),
+    /// keeping the last direction kept, so that `get` answers for later moves as it would have.
+    pub(crate) fn forget_before(&mut self, i: usize) {
+        let k = i.saturating_sub(self.first).min(self.flags.len());
+        self.flags.drain(..k);
+        self.first += k;
+        let d = i
+            .saturating_sub(self.dirs_from)
+            .min(self.dirs.len().saturating_sub(1));
+        self.dirs.drain(..d);
+        self.dirs_from += d;
+    }
+}
+
+/// What [`junction_at`] reads of the moves `prepare` made: each move's look-ahead data, start
+/// point and flags, by its index among them; `count` once every move is known (`usize::MAX`
+/// before: the planner in windows judges a junction only once both its moves and the one after
+/// them are in).
+pub(super) trait MoveSource {
+    fn count(&self) -> usize;
+    fn kin(&self, i: usize) -> Kin;
+    /// Start point of move `i`; the end of the last move for `i == count`.
+    fn point(&self, i: usize) -> Axes;
+    fn info(&self, i: usize) -> MoveInfo;
+}
+
+/// The whole program `prepare` made.
+struct Whole<'a> {
+    p: &'a Prepared,
+    info: &'a MoveInfos,
+    start: Axes,
+    n: usize,
+}
+
+impl MoveSource for Whole<'_> {
+    fn count(&self) -> usize {
+        self.p.segments.len()
+    }
+
+    #[inline]
+    fn kin(&self, i: usize) -> Kin {
+        self.p.segments[i].kin()
+    }
+
+    #[inline]
+    fn point(&self, i: usize) -> Axes {
+        if i >= self.count() {
+            return self.p.end;
+        }
+        let mut q = self.start;
+        q[..self.n].copy_from_slice(&self.p.points[i * self.n..(i + 1) * self.n]);
+        q
+    }
+
+    #[inline]
+    fn info(&self, i: usize) -> MoveInfo {
+        self.info.get(i)
+    }
+}
+
+/// The junction after move `i`. Computed where it is needed instead of kept in a table: a
+/// `Junction` with its blend is about 220 bytes, more than the plan's own segment, kin and
+/// point of a move together (issue 18's memory per move). It reads moves `i` and `i + 1` and
+/// the start of `i + 2`.
+#[allow(clippy::needless_range_loop)] // one index over parallel axis arrays
+pub(super) fn junction_at(
+    src: &impl MoveSource,
+    i: usize,
+    delta: f64,
+    limits: &AxisLimits,
+    n: usize,
+) -> Junction {
+    let count = src.count();
+    if i.saturating_add(1) >= count || src.kin(i).len == 0.0 || src.kin(i + 1).len == 0.0 {
+        return Junction::Stop;
+    }
+    let (info_i, info_next) = (src.info(i), src.info(i + 1));
+    if info_next.stop_before {
+        return Junction::Stop;
+    }
+    if info_next.stepped_before {
+        return Junction::Stepped;
+    }
+    // `Δq / length` of move k, from the points (as `prepare` computed it: not kept, it would
+    // be 48 bytes a move).
+    let rate = |k: usize| -> Axes {
+        let (a, b) = (src.point(k), src.point(k + 1));
+        let len = src.kin(k).len;
+        let mut r = Axes::ZERO;
+        for axis in 0..n {
+            r[axis] = (b[axis] - a[axis]) / len;
+        }
+        r
+    };
+    let (rate_i, rate_next) = (rate(i), rate(i + 1));
+    let (kin_i, kin_next) = (src.kin(i), src.kin(i + 1));
+    let turn = part_turn(&info_i.part_dir, &info_next.part_dir);
+    junction(
+        &src.point(i + 1),
+        Side {
+            dir: &rate_i,
+            kin: &kin_i,
+            euclidean: info_i.euclidean,
+        },
+        Side {
+            dir: &rate_next,
+            kin: &kin_next,
+            euclidean: info_next.euclidean,
+        },
+        delta,
+        turn,
+        limits,
+        n,
+    )
 }
 
 /// Splits every move of `p` at the blends of its corners (module doc): the second half of the
 /// blend at its start, its straight middle, the first half of the blend at its end, each with
 /// its limits and entry cap; corners that cannot be rounded get entry cap 0 (a stop).
-#[allow(clippy::needless_range_loop)] // one index over parallel per-segment arrays
 pub(super) fn split(
     mut p: Prepared,
     info: &MoveInfos,
@@ -406,68 +522,17 @@ pub(super) fn split(
 ) -> Prepared {
     let n = n_axes;
     let count = p.segments.len();
-    let point = |p: &Prepared, i: usize| -> Axes {
-        if i >= count {
-            return p.end;
-        }
-        let mut q = start;
-        q[..n].copy_from_slice(&p.points[i * n..(i + 1) * n]);
-        q
-    };
-    // The junction after each segment. Computed where it is needed instead of kept in a
-    // table: a `Junction` with its blend is about 220 bytes, more than the plan's own segment,
-    // kin and point of a move together (issue 18's memory per move). The segments hold each
-    // move's look-ahead data (`Segment::kin`).
-    let junction_at = |p: &Prepared, i: usize| -> Junction {
-        let kin = |k: usize| p.segments[k].kin();
-        if i + 1 >= count || kin(i).len == 0.0 || kin(i + 1).len == 0.0 {
-            return Junction::Stop;
-        }
-        let (info_i, info_next) = (info.get(i), info.get(i + 1));
-        if info_next.stop_before {
-            return Junction::Stop;
-        }
-        if info_next.stepped_before {
-            return Junction::Stepped;
-        }
-        // `Δq / length` of move k, from the points (as `prepare` computed it: not kept, it
-        // would be 48 bytes a move).
-        let rate = |k: usize| -> Axes {
-            let (a, b) = (point(p, k), point(p, k + 1));
-            let mut r = Axes::ZERO;
-            for axis in 0..n {
-                r[axis] = (b[axis] - a[axis]) / kin(k).len;
-            }
-            r
-        };
-        let (rate_i, rate_next) = (rate(i), rate(i + 1));
-        let (kin_i, kin_next) = (kin(i), kin(i + 1));
-        let turn = part_turn(&info_i.part_dir, &info_next.part_dir);
-        junction(
-            &point(p, i + 1),
-            Side {
-                dir: &rate_i,
-                kin: &kin_i,
-                euclidean: info_i.euclidean,
-            },
-            Side {
-                dir: &rate_next,
-                kin: &kin_next,
-                euclidean: info_next.euclidean,
-            },
-            delta,
-            turn,
-            limits,
-            n,
-        )
+    let junction_after = |p: &Prepared, i: usize| {
+        let src = Whole { p, info, start, n };
+        junction_at(&src, i, delta, limits, n)
     };
     let extra = (0..count)
-        .filter(|&i| matches!(junction_at(&p, i), Junction::Blend { .. }))
+        .filter(|&i| matches!(junction_after(&p, i), Junction::Blend { .. }))
         .count();
     if extra == 0 {
         // Nothing to round: only the entry caps change, in place (no second copy of the plan).
         // A move's cap is written after the junction before it is judged, and a junction reads
-        // no cap.
+        // no cap. The same caps as `Splitter::split_move` gives a move without blends.
         let mut prev_v = 0.0f64;
         let mut before = Junction::Stop;
         for i in 0..count {
@@ -475,15 +540,15 @@ pub(super) fn split(
             if k.len == 0.0 {
                 prev_v = 0.0;
             } else {
-                let cap = match (i > 0).then_some(before) {
-                    Some(Junction::Straight) => k.v.min(prev_v),
-                    Some(Junction::Stepped) => k.cap.min(prev_v),
+                let cap = match before {
+                    Junction::Straight => k.v.min(prev_v),
+                    Junction::Stepped => k.cap.min(prev_v),
                     _ => 0.0,
                 };
                 p.segments[i].set_kin(&Kin { cap, ..k });
                 prev_v = k.v;
             }
-            before = junction_at(&p, i);
+            before = junction_after(&p, i);
         }
         return p;
     }
@@ -493,25 +558,63 @@ pub(super) fn split(
         end: p.end,
         blends: Vec::with_capacity(extra),
     };
-    // The speed limit of the sub-segment emitted last (0: at rest).
-    let mut prev_v = 0.0f64;
-    // The blend the previous move ended in, with its limits.
-    let mut blend_in: Option<(usize, f64, f64, f64)> = None;
-    // The junctions before and after move `i`.
-    let mut before = Junction::Stop;
-    let mut after = junction_at(&p, 0);
+    let mut splitter = Splitter::default();
     for i in 0..count {
-        if i > 0 {
-            before = after;
-            after = junction_at(&p, i);
+        let after = junction_after(&p, i);
+        let at = Whole {
+            p: &p,
+            info,
+            start,
+            n,
         }
-        let (seg, k) = (p.segments[i], p.segments[i].kin());
+        .point(i);
+        splitter.split_move(p.segments[i], &at, after, &mut out, n);
+    }
+    out
+}
+
+/// `split`, one move at a time: what it remembers of the moves before.
+pub(super) struct Splitter {
+    /// The speed limit of the sub-segment emitted last (0: at rest).
+    prev_v: f64,
+    /// The blend the previous move ended in, its index among the plan's blends, and its limits.
+    blend_in: Option<(Blend, u32, f64, f64, f64)>,
+    /// The junction before the next move.
+    before: Junction,
+    /// How many blends were made.
+    pub(super) blends: u32,
+}
+
+impl Default for Splitter {
+    fn default() -> Self {
+        Splitter {
+            prev_v: 0.0,
+            blend_in: None,
+            before: Junction::Stop,
+            blends: 0,
+        }
+    }
+}
+
+impl Splitter {
+    /// Splits the next move, `seg` from `at`, whose end junction is `after`, into `out`
+    /// (blends go to `out.blends`, numbered from the first this splitter made).
+    pub(super) fn split_move(
+        &mut self,
+        seg: Segment,
+        at: &Axes,
+        after: Junction,
+        out: &mut Prepared,
+        n: usize,
+    ) {
+        let before = std::mem::replace(&mut self.before, after);
+        let k = seg.kin();
         if k.len == 0.0 {
             out.segments.push(seg);
-            out.points.extend_from_slice(&point(&p, i)[..n]);
-            prev_v = 0.0;
-            blend_in = None;
-            continue;
+            out.points.extend_from_slice(&at[..n]);
+            self.prev_v = 0.0;
+            self.blend_in = None;
+            return;
         }
         let first = out.segments.len();
         let push =
@@ -524,53 +627,59 @@ pub(super) fn split(
                 out.segments.push(s);
                 out.points.extend_from_slice(&at[..n]);
             };
-        let l_in = blend_in.map_or(0.0, |(b, ..)| out.blends[b].reach);
+        let l_in = self.blend_in.map_or(0.0, |(b, ..)| b.reach);
         let (l_out, out_limits) = match after {
             Junction::Blend { blend, v, a, j } => (blend.reach, Some((blend, v, a, j))),
             _ => (0.0, None),
         };
         // Entry cap of the move's first sub-segment, when no blend leads into it.
-        let cap_before = match (i > 0).then_some(before) {
-            Some(Junction::Straight) => k.v.min(prev_v),
-            Some(Junction::Stepped) => k.cap.min(prev_v),
+        let cap_before = match before {
+            Junction::Straight => k.v.min(self.prev_v),
+            Junction::Stepped => k.cap.min(self.prev_v),
             _ => 0.0,
         };
-        if let Some((b, bv, ba, bj)) = blend_in {
+        if let Some((b, index, bv, ba, bj)) = self.blend_in {
             let v = k.v.min(bv);
-            let at = out.blends[b].point(0.5);
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(&mut out, l_in, lim, v.min(prev_v), 2 * b as u32 + 1, at);
-            prev_v = v;
+            push(
+                out,
+                l_in,
+                lim,
+                v.min(self.prev_v),
+                2 * index + 1,
+                b.point(0.5),
+            );
+            self.prev_v = v;
         }
         let mid = k.len - l_in - l_out;
         if mid > 1e-9 * k.len {
-            let (cap, at) = match blend_in {
-                Some((b, ..)) => (k.v.min(prev_v), out.blends[b].point(1.0)),
-                None => (cap_before, point(&p, i)),
+            let (cap, from) = match self.blend_in {
+                Some((b, ..)) => (k.v.min(self.prev_v), b.point(1.0)),
+                None => (cap_before, *at),
             };
-            push(&mut out, mid, (k.v, k.a, k.j), cap, NO_BLEND, at);
-            prev_v = k.v;
+            push(out, mid, (k.v, k.a, k.j), cap, NO_BLEND, from);
+            self.prev_v = k.v;
         }
-        blend_in = None;
+        self.blend_in = None;
         if let Some((blend, bv, ba, bj)) = out_limits {
-            let b = out.blends.len();
+            let index = self.blends;
+            self.blends += 1;
             out.blends.push(blend);
             let v = k.v.min(bv);
             let cap = if out.segments.len() == first {
                 cap_before
             } else {
-                v.min(prev_v)
+                v.min(self.prev_v)
             };
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(&mut out, l_out, lim, cap, 2 * b as u32, blend.point(0.0));
-            prev_v = v;
-            blend_in = Some((b, bv, ba, bj));
+            push(out, l_out, lim, cap, 2 * index, blend.point(0.0));
+            self.prev_v = v;
+            self.blend_in = Some((blend, index, bv, ba, bj));
         }
         if let Some(last) = out.segments.last_mut() {
             last.dwell = seg.dwell;
         }
     }
-    out
 }
 
 #[cfg(test)]

@@ -221,9 +221,32 @@ pub struct Plan {
     pub(crate) n_axes: usize,
     /// The corner blends segments refer to (`Segment::blend`).
     pub(crate) blends: Vec<Blend>,
+    /// The number of the plan's first blend: 0 for a whole plan, that of the first blend a
+    /// window's segments refer to for a window (`planner::plan_along_windows`).
+    pub(crate) blend_base: u32,
 }
 
 impl Plan {
+    /// A plan of no segments that says where a program planned in windows starts and ends and
+    /// how long it takes (`motion::plan_program_windows`: its windows were handed on).
+    pub fn summary(start: Axes, end: Axes, duration: f64, n_axes: usize) -> Plan {
+        Plan {
+            segments: Vec::new(),
+            points: Vec::new(),
+            start,
+            end,
+            duration,
+            n_axes,
+            blends: Vec::new(),
+            blend_base: 0,
+        }
+    }
+
+    /// [`Plan::summary`] of `plan`.
+    pub fn without_segments(plan: &Plan) -> Plan {
+        Plan::summary(plan.start, plan.end, plan.duration, plan.n_axes)
+    }
+
     /// Total duration in s, dwells included.
     pub fn duration(&self) -> f64 {
         self.duration
@@ -278,7 +301,8 @@ impl Plan {
         if b == NO_BLEND {
             return None;
         }
-        Some((self.blends.get((b / 2) as usize)?, b % 2 == 1))
+        let k = (b / 2).checked_sub(self.blend_base)?;
+        Some((self.blends.get(k as usize)?, b % 2 == 1))
     }
 
     /// Every corner blend of the plan, in order.

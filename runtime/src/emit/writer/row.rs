@@ -25,14 +25,25 @@ pub(super) struct Piece<'a> {
 
 /// The pieces of motion op `i` starting at `from` (axes `from_q`); `split` asks for the
 /// coupled power sub-blocks (`power::coupled_blocks`).
-pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -> Vec<Piece<'_>> {
+pub(super) fn pieces<'j>(
+    job: &'j Job,
+    facts: Option<&crate::emit::PlanFacts>,
+    i: usize,
+    from: P3,
+    from_q: Axes,
+    split: bool,
+) -> Vec<Piece<'j>> {
     let op = &job.program.ops[i];
     let split = split
         && op
             .laser()
             .is_some_and(|l| l.couple == crate::program::Coupling::Speed);
     let blocks = if split {
-        power::coupled_blocks(job, i)
+        // A plan made in windows left them in `facts` (`emit::PlanFacts`).
+        match facts {
+            Some(f) => f.coupled_blocks(i),
+            None => power::coupled_blocks(job, i),
+        }
     } else {
         Vec::new()
     };

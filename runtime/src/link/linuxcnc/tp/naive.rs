@@ -1,6 +1,6 @@
 //! canon's naive-CAM detector (emccanon.cc `see_segment`, `linkable`, `flush_segments`), the
 //! part that joins straight feeds: whether the next line the model reads joins the chain
-//! read so far (`super::read` keeps the chain and ends it where canon flushes it).
+//! read so far ([`super::read::Reader`] keeps the chain and ends it where canon flushes it).
 
 /// Whether canon's naive-CAM detector joins a straight feed to `to` onto the chain that
 /// started at `from` and has reached `points` (emccanon.cc `linkable`): at most 100 points

@@ -173,8 +173,8 @@ fn the_kink_test_counts_the_next_segments_own_acceleration() {
     let l = table();
     let kind = |dy: f64| {
         let nc = format!("G64 P0.01\nG1 X10 F1500\nX20 Y{dy}\n");
-        let (q, tol) = read(&nc, &l, &[]).unwrap();
-        junction(&q.segs[0], &q.segs[1], tol[1], 0.001)
+        let q = read::read(&nc, &l, &[]).unwrap();
+        junction(&q.segs[0], &q.segs[1], q.tolerances[1], 0.001)
     };
     assert!(matches!(kind(0.070), Kind::Tangent { .. }));
     assert!(
