@@ -409,14 +409,14 @@ fn flat_bed_bounds(example: &str) -> Bounds {
             beam: 0.13,
             ..Bounds::new(0.0, 0.0)
         },
-        // Pinned (issue 13): 5 of 105 pulses never fire. Where two dots touch, lase writes
-        // `M63 P1` and the next `M62 P1` before the same move; LinuxCNC keeps one
-        // synchronized switch per output and segment (the later one: emccanon.cc's note on
-        // SET_MOTION_OUTPUT_BIT), so the output stays on across both dots: one long pulse
-        // (rows y = 1.05, 1.65, 2.25, 3.75, 4.05). Cycle 1.0101; edges 0.126 mm off.
+        // Every one of its 105 pulses fires. Where two dots touch (rows y = 1.05, 1.65, 2.25,
+        // 3.75, 4.05) lase once wrote `M63 P1` and the next `M62 P1` before the same move, and
+        // LinuxCNC keeps one synchronized switch per output and segment (tp.c `tpSetDout`),
+        // so 5 pulses merged into their neighbours; the trigger now falls on a block of its
+        // own (`emit::writer::pulse`). Pinned (issue 13): cycle 1.0101 of the model; edges
+        // 0.126 mm off.
         "codes" => Bounds {
             cycle: 0.015,
-            pulses_missing: 5,
             ..Bounds::new(0.13, 0.5)
         },
         // Pinned (issue 13): beam-on 0.978 of the model (cycle 0.991), edges 0.248 mm and
