@@ -105,7 +105,8 @@ enum Command {
     /// Links: `sim` (in-process simulated GRBL/grblHAL controller, the default; options as a query:
     /// `sim://?time-scale=real&baud=115200`), `tcp://HOST:PORT`, `serial:///dev/ttyUSB0?baud=115200`,
     /// `linuxcnc://HOST:5007` (LinuxCNC 2.9 over linuxcncrsh: the program is written to a folder
-    /// the controller reads, `?dir=LOCAL&remote-dir=ON-CONTROLLER`, and run there in AUTO mode).
+    /// the controller reads, `?dir=LOCAL&remote-dir=ON-CONTROLLER`, and run there in AUTO mode;
+    /// `&timeout=SECONDS`, default 30, bounds every wait on LinuxCNC).
     /// Over tcp and serial a journal records every line sent and acknowledged (default: in the
     /// user's state directory, `$XDG_STATE_HOME/lase/journals/` or
     /// `~/.local/state/lase/journals/`, one file per recipe path; the run prints where); after

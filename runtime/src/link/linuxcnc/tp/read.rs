@@ -87,6 +87,11 @@ pub(super) struct Reader {
     /// G64 Q, the naive CAM detector's tolerance: P when Q is not given.
     naive: f64,
     pending: Vec<(u32, bool)>,
+    /// canon's naive-CAM detector: the open chain of straight feeds, as (where it starts, the
+    /// points joined so far); see [`super::naive::joins`]. Its segment is always the queue's
+    /// last, and [`super::stream::TpStream`] makes the one before it into pieces only once
+    /// the chain has ended ([`Reader::chain_open`]).
+    chain: Option<(Vec<f64>, Vec<Vec<f64>>)>,
 }
 
 impl Reader {
@@ -102,7 +107,14 @@ impl Reader {
             tolerance: 0.0,
             naive: 0.0,
             pending: Vec::new(),
+            chain: None,
         }
+    }
+
+    /// Whether the queue's last segment is a chain of straight feeds the next line may still
+    /// lengthen.
+    pub(super) fn chain_open(&self) -> bool {
+        self.chain.is_some()
     }
 
     /// Reads NC line `number` (0-based) into `q`.
@@ -118,6 +130,7 @@ impl Reader {
         if w.is_empty() {
             return Ok(());
         }
+        let feed_before = self.feed;
         let mut target = self.pos.clone();
         let mut moved = false;
         let mut center = [None, None];
@@ -187,7 +200,58 @@ impl Reader {
             return Ok(());
         }
         if !moved {
+            self.chain = None;
             return Ok(());
+        }
+        // A straight feed the detector chains: in G64 with a Q tolerance, G94, moving no
+        // rotary axis. It joins the open chain only at the chain's feed and with no output
+        // or other word before it, since those flush the chain first (a new F does, and every
+        // synchronized output: SET_MOTION_OUTPUT_BIT and its kin call flush_segments before
+        // queueing).
+        let chainable = self.motion == 1
+            && !self.inverse_time
+            && !self.exact_stop
+            && self.naive > 0.0
+            && limits
+                .axes
+                .iter()
+                .zip(self.pos.iter().zip(&target))
+                .all(|(a, (p, t))| !a.rotary || p == t);
+        let extends = chainable
+            && self.pending.is_empty()
+            && self.feed == feed_before
+            && w.iter().all(|&(c, v)| match c {
+                'G' => (v - 1.0).abs() < 1e-9,
+                'M' | 'P' | 'Q' | 'E' | 'S' => false,
+                _ => true,
+            });
+        if !extends {
+            self.chain = None;
+        }
+        if let Some((from, points)) = self.chain.as_mut()
+            && super::naive::joins(from, points, &target, self.naive)
+            && matches!(q.joints.back(), Some(None))
+        {
+            // The chain's segment now ends here: one line from where the chain started.
+            if let Some(mut seg) = segment(
+                from,
+                &target,
+                1,
+                [None, None],
+                self.feed,
+                false,
+                None,
+                limits,
+                raw,
+            )? {
+                let last = q.segs.back_mut().expect("a chain has a segment");
+                seg.dio = std::mem::take(&mut last.dio);
+                seg.line = number + 1;
+                *last = seg;
+                points.push(target.clone());
+                self.pos = target;
+                return Ok(());
+            }
         }
         let small_arc = (!self.exact_stop).then_some(self.naive);
         let seg = segment(
@@ -201,8 +265,12 @@ impl Reader {
             limits,
             raw,
         )?;
-        self.pos = target;
-        let Some(mut seg) = seg else { return Ok(()) };
+        let from = std::mem::replace(&mut self.pos, target);
+        let Some(mut seg) = seg else {
+            self.chain = None;
+            return Ok(());
+        };
+        self.chain = chainable.then(|| (from, vec![self.pos.clone()]));
         seg.dio = std::mem::take(&mut self.pending);
         seg.line = number + 1;
         if let (Some(j @ None), true) = (q.joints.back_mut(), self.exact_stop) {

@@ -6,7 +6,9 @@
 //! them; the task reads ahead of motion only as far as that queue lets it. So here a segment becomes its pieces as
 //! soon as the next one is read (its junction, its scaled acceleration and its blend arcs need
 //! nothing further), and a piece runs as soon as the 50 after it are made (its exit speed
-//! plans to a stop 50 pieces on), so no more than about 51 pieces and two segments are held.
+//! plans to a stop 50 pieces on), so no more than about 51 pieces and two segments are held
+//! (three while canon's naive-CAM detector may still lengthen the last:
+//! [`super::read::Reader::chain_open`]).
 //! The one exception is a chain of parabolic blends from rest to rest, which
 //! [`super::servo::run_chain`] replays whole: whether a chain is replayed is known only at its
 //! end (every segment a line that can move, ending at a stop), so its segments and pieces wait
@@ -100,8 +102,11 @@ impl<'a> TpStream<'a> {
         self.reader
             .line(&mut self.q, self.limits, self.lines, raw)?;
         self.lines += 1;
-        // A segment's joint is final once the next one is read.
-        while self.q.segs.len() >= 2 {
+        // A segment's joint is final once the next one is final: read, and not a chain of
+        // straight feeds canon's naive-CAM detector may still lengthen (its direction, so the
+        // junction before it, moves as it grows).
+        let open = usize::from(self.reader.chain_open());
+        while self.q.segs.len() >= 2 + open {
             self.make(false);
         }
         self.run(false);
