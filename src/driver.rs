@@ -14,6 +14,17 @@ pub fn compile(path: &Path) -> Result<(Recipe, Job), (SourceMap, Failure)> {
     lase_runtime::compile(&mut lase_runtime::FsFiles, &path.to_string_lossy())
 }
 
+/// [`compile`] with the plan made in windows and dropped (`lase check`, issue 18): the job
+/// holds no segments, only its cycle time, so a job of millions of moves is checked in
+/// memory that does not grow with its plan.
+pub fn check(path: &Path) -> Result<(Recipe, Job), (SourceMap, Failure)> {
+    let (recipe, program) = program(path)?;
+    match lase_runtime::compile::plan_in_windows(program, |_, _| {}) {
+        Ok((job, _)) => Ok((recipe, job)),
+        Err(f) => Err((recipe.map, f)),
+    }
+}
+
 /// A recipe file on disk evaluated into its process program, not yet planned (`lase run
 /// --origin current` places it at the controller's position first).
 pub fn program(
@@ -37,7 +48,7 @@ pub fn ok_line(recipe: &Recipe, job: &Job) -> String {
         recipe.name(),
         job.program.ops.len(),
         job.program.machine.name,
-        lase_runtime::report::summarize(job).cycle_time_s
+        lase_runtime::report::round_sig(job.cycle_time())
     )
 }
 

@@ -35,8 +35,8 @@ pub struct RunArgs {
     /// The recipe (optional with --resume: the journal names it).
     pub file: Option<PathBuf>,
     /// Controller link URL: sim, tcp://HOST:PORT, serial://DEVICE?baud=N, or
-    /// linuxcnc://HOST:PORT[?dir=LOCAL&remote-dir=ON-CONTROLLER] (LinuxCNC over linuxcncrsh:
-    /// the program is written to DIR and opened by the controller as REMOTE-DIR/NAME.ngc).
+    /// linuxcnc://HOST:PORT[?dir=LOCAL&remote-dir=ON-CONTROLLER&timeout=SECONDS] (LinuxCNC:
+    /// the program is written to DIR, opened as REMOTE-DIR/NAME.ngc; TIMEOUT bounds each wait).
     #[arg(long)]
     pub link: Option<String>,
     /// NC dialect sent over the link: grbl (GRBL 1.1, X Y Z) or grblhal (up to six axes,

@@ -105,7 +105,8 @@ enum Command {
     /// Links: `sim` (in-process simulated GRBL/grblHAL controller, the default; options as a query:
     /// `sim://?time-scale=real&baud=115200`), `tcp://HOST:PORT`, `serial:///dev/ttyUSB0?baud=115200`,
     /// `linuxcnc://HOST:5007` (LinuxCNC 2.9 over linuxcncrsh: the program is written to a folder
-    /// the controller reads, `?dir=LOCAL&remote-dir=ON-CONTROLLER`, and run there in AUTO mode).
+    /// the controller reads, `?dir=LOCAL&remote-dir=ON-CONTROLLER`, and run there in AUTO mode;
+    /// `&timeout=SECONDS`, default 30, bounds every wait on LinuxCNC).
     /// Over tcp and serial a journal records every line sent and acknowledged (default: in the
     /// user's state directory, `$XDG_STATE_HOME/lase/journals/` or
     /// `~/.local/state/lase/journals/`, one file per recipe path; the run prints where); after
@@ -199,7 +200,7 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
 }
 
 fn cmd_check(file: &Path) -> CmdResult {
-    let (recipe, job) = driver::compile(file)?;
+    let (recipe, job) = driver::check(file)?;
     outln!("{}", driver::ok_line(&recipe, &job));
     Ok(())
 }
@@ -241,6 +242,7 @@ fn cmd_emit(
         Some(Ok(v)) => Some(v),
         None => None,
     };
+    let mut windowed = None;
     let planned = match (chosen, chosen.work()) {
         (_, Some(g)) => origin::named(program, dialect, g, given, set_origin).map(|(job, s, w)| {
             if let Some(w) = w {
@@ -249,6 +251,18 @@ fn cmd_emit(
             (job, s)
         }),
         (origin::JobOrigin::Current, _) => origin::work_frame(program, dialect),
+        _ if lase_runtime::emit::plans_in_windows(&program, dialect) => {
+            // Planned in windows that are read and dropped (issue 18): the job never holds
+            // its plan, only what the writer reads of it (`emit::PlanFacts`).
+            let mut facts = lase_runtime::emit::PlanFacts::new(&program, dialect);
+            lase_runtime::compile::plan_in_windows(program, |p, w| facts.window(p, &w)).map(
+                |(job, _)| {
+                    facts.finish(&job.program);
+                    windowed = Some(facts);
+                    (job, Vec::new())
+                },
+            )
+        }
         _ => lase_runtime::compile::plan(program).map(|job| (job, Vec::new())),
     };
     let (job, setup) = match planned {
@@ -270,7 +284,7 @@ fn cmd_emit(
         // Write`) for each line and each newline was a tenth of the time of `lase emit`.
         const BATCH: usize = 1 << 20;
         let mut batch: Vec<u8> = Vec::with_capacity(BATCH + 512);
-        let r = lase_runtime::emit::emit(&job, dialect, &options, &mut |l: &NcLine| {
+        let mut sink = |l: &NcLine| {
             lines += 1;
             if lines.is_multiple_of(1 << 16) && busy.shown() {
                 busy.say(format!("writing {dialect} NC: {lines} lines"));
@@ -295,7 +309,13 @@ fn cmd_emit(
                 batch.clear();
             }
             Ok(())
-        })
+        };
+        let r = match &windowed {
+            Some(facts) => {
+                lase_runtime::emit::emit_planned(&job, facts, dialect, &options, &mut sink)
+            }
+            None => lase_runtime::emit::emit(&job, dialect, &options, &mut sink),
+        }
         .and_then(|stats| {
             w.write_all(&batch)
                 .inspect_err(|e| io_err = Some(e.to_string()))?;
@@ -375,12 +395,60 @@ fn cmd_plan(
     use lase_runtime::link::estimate;
     let period = parse_period(period)?;
     let given_dialect = dialect.map(parse_dialect).transpose()?;
-    let (recipe, job) = driver::compile(file)?;
-    let dialect = given_dialect.unwrap_or_else(|| estimate::default_dialect(&job.program.machine));
-    let mut s = lase_runtime::report::summarize(&job);
+    let (recipe, program) = driver::program(file)?;
+    let dialect = given_dialect.unwrap_or_else(|| estimate::default_dialect(&program.machine));
+    // Every controller the report times: the one that runs the program, then the others
+    // this machine has posts for.
+    let dialects: Vec<_> = std::iter::once(dialect)
+        .chain(estimate::other_dialects(&program.machine, dialect))
+        .collect();
+    // Planned in windows that are counted and dropped (issue 18), unless a trace or the pulses
+    // are asked for (they sample the whole plan) or a post's pulse budget needs it whole: the
+    // summary and the time split are running totals (`report::PlanTotals`), and each
+    // controller's model reads its program from the emitter line by line, from what the
+    // windows left for it (`emit::PlanFacts`).
+    let windows = trace.is_none()
+        && pulses.is_none()
+        && dialects
+            .iter()
+            .all(|&d| lase_runtime::emit::plans_in_windows(&program, d));
+    let (job, totals, facts) = if windows {
+        let mut totals = lase_runtime::report::PlanTotals::new(&program);
+        let mut facts: Vec<_> = dialects
+            .iter()
+            .map(|&d| lase_runtime::emit::PlanFacts::new(&program, d))
+            .collect();
+        let planned = lase_runtime::compile::plan_in_windows(program, |p, w| {
+            totals.window(p, &w);
+            for f in &mut facts {
+                f.window(p, &w);
+            }
+        });
+        let (job, planned) = match planned {
+            Ok(p) => p,
+            Err(f) => return Err((recipe.map, f)),
+        };
+        totals.finish(&job.program, planned.length);
+        for f in &mut facts {
+            f.finish(&job.program);
+        }
+        (job, totals, Some(facts))
+    } else {
+        let job = match lase_runtime::compile::plan(program) {
+            Ok(job) => job,
+            Err(f) => return Err((recipe.map, f)),
+        };
+        let totals = lase_runtime::report::PlanTotals::of(&job);
+        (job, totals, None)
+    };
+    let cycle = |k: usize| {
+        let f = facts.as_ref().map(|f| &f[k]);
+        estimate::controller_cycle_from(&job, f, dialects[k])
+    };
+    let mut s = totals.summary(&job);
     // The controller that runs the program, first: lase's own plan is ideal, the machine
     // runs its controller's planner (issue 13).
-    let controller = estimate::controller_cycle(&job, dialect);
+    let controller = cycle(0);
     s.controller = Some(controller.clone());
     if let Some(path) = summary {
         output::write_atomic(path, |w| {
@@ -415,8 +483,8 @@ fn cmd_plan(
         );
     }
     // The other controllers this machine has posts for, by their models.
-    for d in estimate::other_dialects(&job.program.machine, dialect) {
-        let c = estimate::controller_cycle(&job, d);
+    for (k, &d) in dialects.iter().enumerate().skip(1) {
+        let c = cycle(k);
         if c.note.is_none() {
             outln!("{}", cycle_line("controller", &c));
         } else {
@@ -468,7 +536,7 @@ fn cmd_plan(
     } else {
         outln!("  pulses          {}", s.pulses);
     }
-    time_split_lines(&job, s.cycle_time_s);
+    time_split_lines(totals.time_split(&job), s.cycle_time_s);
     outln!(
         "  blocks          {} planned moves from {}",
         s.blocks,
@@ -517,8 +585,7 @@ fn cycle_line(label: &str, c: &lase_runtime::report::ControllerCycle) -> String 
 /// Where the cycle goes: lit, unlit at a feed (overscan, lead-ins), rapid, standing still; and
 /// a hint when unlit motion takes longer than the lit work, which is where a recipe can win
 /// most (a hatch fill whose rows are mostly overscan).
-fn time_split_lines(job: &lase_runtime::motion::Job, cycle_s: f64) {
-    let t = lase_runtime::report::time_split(job);
+fn time_split_lines(t: lase_runtime::report::TimeSplit, cycle_s: f64) {
     let pct = |x: f64| {
         if cycle_s > 0.0 {
             100.0 * x / cycle_s

@@ -1,4 +1,6 @@
-//! Every flat-bed and cam example run on a real, headless LinuxCNC 2.9 (`common::linuxcnc`),
+//! Every example LinuxCNC can run (flat bed, notcher, cams, the rotary chuck, the arm in joint
+//! space; nested_parts, codes and material_test only with `LASE_LINUXCNC_LONG=1`, for CI's
+//! time), one LinuxCNC session per machine, on a real, headless LinuxCNC 2.9 (`common::linuxcnc`),
 //! measured from its HAL samples (1 ms): executed cycle time against `lase plan`, the beam's
 //! edges (motion.digital-out-00) at the planned places and speeds, pulse counts
 //! (motion.digital-out-01 rising edges) against the plan, how far the lit path strays from
@@ -309,32 +311,125 @@ fn run_all(machine_name: &str, examples: &[&str]) -> Vec<Measured> {
     ms
 }
 
-/// What every run must show: each planned beam edge and pulse executed, the edges within
-/// `place` (mm, deg) of the planned point and `dv` of the planned speed, the lit path within
-/// `place` of the planned one, LinuxCNC's time in motion at most 1 % over lase's own plan's
-/// (LinuxCNC 2.9 ramps with trapezoids and rounds corners its own way, so it is faster than
-/// lase's jerk-limited, per-axis-feasible plan wherever jerk binds: the blended corners of
-/// the texture rows run in 54 % of lase's time), and its cycle and beam-on times within
-/// `model_tol` of `lase plan`'s LinuxCNC model (issue 13: 1 %).
-fn assert_close(m: &Measured, place: f64, dv: f64, model_tol: f64) {
-    assert_eq!(m.edges_executed, m.edges_planned, "{m:?}");
-    assert_eq!(m.pulses_executed, m.pulses_planned, "{m:?}");
-    assert!(m.edge_place <= place, "{m:?}");
-    assert!(m.edge_speed <= dv, "{m:?}");
-    assert!(m.deviation <= place, "{m:?}");
+/// What a run must show: each planned beam edge and pulse executed (`pulses_missing` at
+/// most missing), the edges within `place` (mm, deg) of the planned point and `dv` of the
+/// planned speed, the lit path within `place` of the planned one, LinuxCNC's time in motion
+/// at most `moving_max` times lase's own plan's (LinuxCNC 2.9 ramps with trapezoids and
+/// rounds corners its own way, so it is faster than lase's jerk-limited, per-axis-feasible
+/// plan wherever jerk binds: the blended corners of the texture rows run in 54 % of lase's
+/// time), and its cycle and beam-on times within `cycle` and `beam` of `lase plan`'s
+/// LinuxCNC model (issue 13: 1 %).
+#[derive(Debug, Clone, Copy)]
+struct Bounds {
+    place: f64,
+    dv: f64,
+    cycle: f64,
+    beam: f64,
+    moving_max: f64,
+    pulses_missing: u64,
+}
+
+impl Bounds {
+    /// Issue 13's bounds: the model within 1 %, LinuxCNC's motion at most 1 % over lase's.
+    const fn new(place: f64, dv: f64) -> Bounds {
+        Bounds {
+            place,
+            dv,
+            cycle: 0.01,
+            beam: 0.01,
+            moving_max: 1.01,
+            pulses_missing: 0,
+        }
+    }
+}
+
+fn assert_close(m: &Measured, b: Bounds) {
+    assert!(
+        m.edges_executed == m.edges_planned
+            && m.pulses_executed <= m.pulses_planned
+            && m.pulses_executed + b.pulses_missing >= m.pulses_planned,
+        "edges and pulses: {m:?}"
+    );
+    assert!(m.edge_place <= b.place, "edge place: {m:?}");
+    assert!(m.edge_speed <= b.dv, "edge speed: {m:?}");
+    assert!(m.deviation <= b.place, "lit path: {m:?}");
     let ratio = m.executed_moving_s / m.planned_moving_s;
-    assert!(ratio <= 1.01, "{m:?}");
-    // `lase plan`'s LinuxCNC model: the cycle and the beam-on time within `model_tol`.
+    assert!(
+        ratio <= b.moving_max,
+        "moving vs lase's plan {ratio}: {m:?}"
+    );
+    // `lase plan`'s LinuxCNC model: the cycle and the beam-on time.
     let vs_model = m.executed_s / m.model_s;
     assert!(
-        (vs_model - 1.0).abs() <= model_tol,
+        (vs_model - 1.0).abs() <= b.cycle,
         "cycle vs model {vs_model}: {m:?}"
     );
     let beam_vs_model = m.beam_on_executed_s / m.beam_on_model_s;
     assert!(
-        (beam_vs_model - 1.0).abs() <= model_tol,
+        (beam_vs_model - 1.0).abs() <= b.beam,
         "beam-on vs model {beam_vs_model}: {m:?}"
     );
+}
+
+/// Whether to run the long flat-bed examples too (`LASE_LINUXCNC_LONG=1`): nested_parts
+/// (60 s on LinuxCNC), codes (98 s) and material_test (165 s) would more than double the
+/// suite's LinuxCNC time, which CI's 20 minutes for everything cannot take.
+fn long_examples() -> bool {
+    std::env::var_os("LASE_LINUXCNC_LONG").is_some_and(|v| v == "1")
+}
+
+/// The flat bed's bounds per example. Measured on the real LinuxCNC 2.9 (2026-12-02, executed
+/// / model, cycle and beam-on; edge place mm, edge speed mm/s, lit path mm).
+fn flat_bed_bounds(example: &str) -> Bounds {
+    match example {
+        // LinuxCNC switches a synchronized output up to 3 ms (0.057 mm at 20 mm/s) before the
+        // point where the program places it on frame_marking and the texture rows, and 0.1 mm
+        // before it at every dial_marks tick (~5 ms); dial_marks' circle goes dark 0.31 mm
+        // after its planned end. Why is not found yet (issue 13): these bounds pin today's
+        // behaviour so that a change shows.
+        "dial_marks" => Bounds::new(0.35, 0.5),
+        // The same early switch on rows at 100 mm/s: edges 0.279 mm off, the lit path 0.245
+        // (cycle 1.0031, beam 0.9989 of the model). Pinned (issue 13).
+        "image_engrave" => Bounds::new(0.3, 0.5),
+        // Pinned (issue 13), at lit↔lit corners: its characters' strokes turn at sharp
+        // corners between short lit lines, which LinuxCNC rounds with blend arcs within
+        // G64 P0.01 (14.7 mm/s at the S's 45° turns) and the model runs slower: stroke by
+        // stroke (rest to rest) the model is 88-105 ms long on every stroke with such corners
+        // and within 2 ms on the straight ones (cycle 0.951 and beam-on 0.879 of the model;
+        // 0.913 and 0.780 before the model joined collinear lines as canon's naive-CAM
+        // detector does). The lit↔lit corners are being replanned (branch litfeed). The edges
+        // (0.600 mm, 39.4 mm/s) and the lit path (3.00 mm) miss lase's plan: a stroke's first
+        // lit line continues its lead-in, so the blend arc LinuxCNC lays over the junction
+        // takes half the 1.3 mm lead-in and the lit line's output switches 0.66 mm late, where
+        // the segment carrying it starts; at some strokes it lights at rest.
+        "serial_number" => Bounds {
+            place: 3.1,
+            dv: 40.0,
+            cycle: 0.055,
+            beam: 0.13,
+            ..Bounds::new(0.0, 0.0)
+        },
+        // Every one of its 105 pulses fires. Where two dots touch (rows y = 1.05, 1.65, 2.25,
+        // 3.75, 4.05) lase once wrote `M63 P1` and the next `M62 P1` before the same move, and
+        // LinuxCNC keeps one synchronized switch per output and segment (tp.c `tpSetDout`),
+        // so 5 pulses merged into their neighbours; the trigger now falls on a block of its
+        // own (`emit::writer::pulse`). Pinned (issue 13): cycle 1.0101 of the model; edges
+        // 0.126 mm off.
+        "codes" => Bounds {
+            cycle: 0.015,
+            ..Bounds::new(0.13, 0.5)
+        },
+        // Pinned (issue 13): beam-on 0.978 of the model (cycle 0.991), edges 0.248 mm and
+        // 12.07 mm/s off, the lit path 1.51 mm off. 1 300 of its 1 316 edges switch at cruise
+        // (20-100 mm/s; on the 20 mm/s rows 1.8 ms early at both ends, as on frame_marking);
+        // the 16 others sit in the labels' text, strokes with lit↔lit corners as in
+        // serial_number, where the beam-on deficit likely is too.
+        "material_test" => Bounds {
+            beam: 0.025,
+            ..Bounds::new(1.6, 12.5)
+        },
+        _ => Bounds::new(0.07, 0.5),
+    }
 }
 
 #[test]
@@ -342,23 +437,65 @@ fn flat_bed_examples_on_linuxcnc() {
     if !available() {
         return;
     }
-    let ms = run_all(
-        "xy_table",
-        &[
-            "frame_marking",
-            "dial_marks",
-            "texture_array",
-            "texture_array_unidirectional",
-        ],
-    );
-    for m in &ms {
-        // Measured: LinuxCNC switches a synchronized output up to 3 ms (0.057 mm at
-        // 20 mm/s) before the point where the program places it on frame_marking and the
-        // texture rows, and 0.1 mm before it at every dial_marks tick (~5 ms); dial_marks'
-        // circle goes dark 0.31 mm after its planned end. Why is not found yet (issue 13):
-        // these bounds pin today's behaviour so that a change shows.
-        let place = if m.name == "dial_marks" { 0.35 } else { 0.07 };
-        assert_close(m, place, 0.5, 0.01);
+    let mut examples = vec![
+        "frame_marking",
+        "dial_marks",
+        "texture_array",
+        "texture_array_unidirectional",
+        "air_assist",
+        "image_engrave",
+        "serial_number",
+    ];
+    if long_examples() {
+        examples.extend(["nested_parts", "codes", "material_test"]);
+    } else {
+        eprintln!("nested_parts, codes and material_test: LASE_LINUXCNC_LONG=1 runs them too");
+    }
+    for m in &run_all("xy_table", &examples) {
+        assert_close(m, flat_bed_bounds(&m.name));
+    }
+}
+
+#[test]
+fn rotary_example_on_linuxcnc() {
+    if !available() {
+        return;
+    }
+    // X along the object, A turning it, every feed move in inverse time (G93): cycle 0.9938
+    // and beam-on 0.9967 of the model. Pinned (issue 13): the edges land 0.62 (mm, deg) from
+    // the planned ones and 19.1 mm/s (deg/s) off the planned speed, on blocks of X and A
+    // at 30-107 units/s; the lit path stays within 0.25.
+    for m in &run_all("xy_rotary", &["rotary_engrave"]) {
+        assert_close(m, Bounds::new(0.65, 20.0));
+    }
+}
+
+#[test]
+fn arm_example_on_linuxcnc() {
+    if !available() {
+        return;
+    }
+    // The arm's program is in joint space (X slide, A B C joints in degrees): trivkins over
+    // its joints runs it as written, and the model times it within 1 % (cycle and beam-on
+    // 1.0000).
+    //
+    // Pinned, not fitted (issue 13): LinuxCNC runs each lit section 14.27 s where lase's plan
+    // (and the power coupled to it) says 12.64 s: moving 1.1045 of the plan, beam on 1.129.
+    // Where the arm's path bends, lase writes G93 blocks as short as 5.4 ms (0.19° of joint
+    // motion at 35 °/s, F11204) to keep the spot within the 1 µm tolerance. LinuxCNC 2.9
+    // joins moves with rotary axes only by parabolic blends (tpSetupTangent gives up on ABC
+    // motion), ramps both ends at half the acceleration, and caps the blend's speed at the
+    // segment's triangle speed sqrt(a/2 · L) (tpComputeBlendVelocity): about 13 °/s there,
+    // which the samples show (15 ms a block). The spot then moves at ~38 % of the recipe's
+    // speed on those stretches: the NC's power would have to follow LinuxCNC's speed there.
+    for m in &run_all("arm_3r", &["surface_hardening_arm"]) {
+        assert_close(
+            m,
+            Bounds {
+                moving_max: 1.11,
+                ..Bounds::new(0.05, 1.0)
+            },
+        );
     }
 }
 
@@ -370,7 +507,7 @@ fn notcher_example_on_linuxcnc() {
     // The notcher switches its beam with immediate outputs at rest (M64/M65): edges at the
     // planned stops.
     for m in &run_all("notcher", &["conrod_notch"]) {
-        assert_close(m, 0.01, 0.5, 0.01);
+        assert_close(m, Bounds::new(0.01, 0.5));
     }
 }
 
@@ -384,6 +521,6 @@ fn cam_examples_on_linuxcnc() {
     // the model replays servo period by servo period (`tp::servo`): LinuxCNC runs them
     // ~0.4 ms a block faster than their inverse times.
     for m in &run_all("cam_xwb", &["cam_hardening", "rhai_cam"]) {
-        assert_close(m, 0.05, 1.0, 0.01);
+        assert_close(m, Bounds::new(0.05, 1.0));
     }
 }

@@ -394,3 +394,92 @@ fn the_material_test_labels_read_the_grids_numbers() {
         "the labels' numbers: {out}"
     );
 }
+
+/// The trigger (`M62 P1` / `M63 P1`) as LinuxCNC's motion switches it: the synchronized
+/// switches queued before a move take effect when that move starts, and only the last one per
+/// output counts (tp.c `tpSetDout` keeps one slot per output for the next segment). `calls`
+/// are the program's events in the interpreter's order: `Some(high)` a switch of the trigger,
+/// `None` a move. Returns (rising edges, falling edges, moves that had more than one trigger
+/// switch queued).
+fn trigger_edges_per_move(calls: impl IntoIterator<Item = Option<bool>>) -> (usize, usize, usize) {
+    let (mut up, mut down, mut crowded) = (0, 0, 0);
+    let mut level = false;
+    let mut queued: Vec<bool> = Vec::new();
+    for call in calls {
+        match call {
+            Some(high) => queued.push(high),
+            None => {
+                crowded += usize::from(queued.len() > 1);
+                if let Some(&high) = queued.last() {
+                    up += usize::from(high && !level);
+                    down += usize::from(!high && level);
+                    level = high;
+                }
+                queued.clear();
+            }
+        }
+    }
+    (up, down, crowded)
+}
+
+#[test]
+fn every_data_matrix_pulse_has_its_own_trigger_edges_on_linuxcnc() {
+    // codes' Data Matrix dots touch where runs of different pitch meet (x = 16.35 on row
+    // y = 1.05): lase once lowered and raised the trigger before the same move there, and on
+    // the real LinuxCNC 5 of its 105 pulses merged into their neighbours.
+    let recipe = root().join("examples/codes.lase");
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("s.json");
+    let (code, _, err) = lase(&[
+        "plan",
+        recipe.to_str().unwrap(),
+        "--summary",
+        json.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    let planned = summary["pulses"].as_u64().unwrap() as usize;
+    assert_eq!(planned, 105);
+
+    let ngc = emit_ok(&recipe, "linuxcnc");
+    // From the NC text: a block's outputs come before its motion (rs274ngc's order).
+    let calls = ngc.lines().flat_map(|line| {
+        let w = nc_words(line);
+        let trigger = w.contains(&('P', 1.0));
+        let switches: Vec<Option<bool>> = w
+            .iter()
+            .filter(|&&(c, v)| trigger && c == 'M' && (v == 62.0 || v == 63.0))
+            .map(|&(_, v)| Some(v == 62.0))
+            .collect();
+        let moves = w.iter().any(|(c, _)| "XYZABC".contains(*c));
+        switches.into_iter().chain(moves.then_some(None))
+    });
+    assert_eq!(trigger_edges_per_move(calls), (planned, planned, 0));
+
+    // The same from LinuxCNC's own interpreter, where it is installed.
+    let f = dir.path().join("codes.ngc");
+    std::fs::write(&f, &ngc).unwrap();
+    if let Ok(out) = rs274_g(&f) {
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success() && text.contains("PROGRAM_END"),
+            "{text}"
+        );
+        let calls = text.lines().filter_map(|l| {
+            if l.contains("SET_MOTION_OUTPUT_BIT(1)") {
+                Some(Some(true))
+            } else if l.contains("CLEAR_MOTION_OUTPUT_BIT(1)") {
+                Some(Some(false))
+            } else if ["STRAIGHT_FEED", "STRAIGHT_TRAVERSE", "ARC_FEED"]
+                .iter()
+                .any(|m| l.contains(m))
+            {
+                Some(None)
+            } else {
+                None
+            }
+        });
+        assert_eq!(trigger_edges_per_move(calls), (planned, planned, 0));
+    }
+}

@@ -4,6 +4,7 @@
 //! ```text
 //! cargo run --release --example bench_plan -- 1000000
 //! cargo run --release --example bench_plan -- --sweep
+//! cargo run --release --example bench_plan -- 1000000 --windows
 //! cargo run --release --example bench_plan -- --polyline path.csv [--jd 0.01] [--v 250]
 //!     [--a 2000] [--j 50000] [--profile trapezoid|scurve]
 //! cargo run --release --example bench_plan -- --path pieces.txt [--arc-tol 0.002] [...]
@@ -19,6 +20,9 @@
 //! while planning, scratch included, over N) and the cycle time. Small N are planned more times
 //! (at least 3, about 2 M segments in all) so the clock has something to measure.
 //! `--sweep` runs N = 10⁴, 10⁵, 10⁶ and 10⁷, to show the cost per segment stays flat.
+//! `--windows` plans in windows (`planner::plan_along_windows`, what `lase check` and `lase
+//! emit` do), each window read into the fingerprint and dropped: the fingerprint is the whole
+//! plan's, and the bytes held after planning are none.
 //!
 //! The second form plans the polyline in a CSV file (one `x,y` point in mm per line, the first
 //! is the start) and prints `{"segments": n, "duration_s": t, ...}` as JSON.
@@ -32,7 +36,8 @@
 
 use lase_runtime::motion::arc_points;
 use lase_runtime::planner::{
-    AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind, Segment, plan,
+    Along, AxisLimits, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind, Segment, plan,
+    plan_along_windows,
 };
 use std::time::Instant;
 
@@ -57,6 +62,8 @@ struct Options {
     jd: f64,
     arc_tol: f64,
     profile: Option<ProfileKind>,
+    /// Plan in windows (`planner::plan_along_windows`), each read and dropped.
+    windows: bool,
 }
 
 fn main() {
@@ -68,6 +75,7 @@ fn main() {
         jd: 0.01,
         arc_tol: 0.002,
         profile: None,
+        windows: false,
     };
     let mut n = 1_000_000usize;
     let mut polyline: Option<String> = None;
@@ -96,6 +104,7 @@ fn main() {
             "--polyline" => polyline = it.next().cloned(),
             "--path" => pieces = it.next().cloned(),
             "--sweep" => sweep = true,
+            "--windows" => opts.windows = true,
             s => {
                 n = s
                     .parse()
@@ -211,13 +220,42 @@ fn oriented_path(n: usize) -> Vec<Move> {
 
 /// FNV-1a over the bits of every number of the plan: equal fingerprints mean bit-identical
 /// plans (a refactoring of the planner must keep it).
+/// `moves` planned in windows (`planner::plan_along_windows`), each handed to `each`.
+fn plan_in_windows(
+    moves: &[Move],
+    lim: &AxisLimits,
+    cfg: &PlannerConfig,
+    each: impl FnMut(Plan),
+) -> lase_runtime::planner::Planned {
+    let along = moves.iter().map(|m| (*m, Along::default()));
+    plan_along_windows([0.0; MAX_AXES], along, lim, cfg, each)
+        .unwrap_or_else(|e| fail(&format!("planning failed: {e}")))
+}
+
 fn fingerprint(p: &Plan) -> u64 {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    let mut eat = |x: u64| {
-        for b in x.to_le_bytes() {
-            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    };
+    let mut h = FNV;
+    fingerprint_segments(&mut h, p);
+    fingerprint_end(&mut h, p.duration());
+    h
+}
+
+const FNV: u64 = 0xcbf2_9ce4_8422_2325;
+
+fn fingerprint_eat(h: &mut u64, x: u64) {
+    for b in x.to_le_bytes() {
+        *h = (*h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
+    }
+}
+
+/// The plan's duration closes the fingerprint.
+fn fingerprint_end(h: &mut u64, duration: f64) {
+    fingerprint_eat(h, duration.to_bits());
+}
+
+/// Feeds a plan's (or a window's) segments into a fingerprint: the windows of a plan feed the
+/// whole plan's.
+fn fingerprint_segments(h: &mut u64, p: &Plan) {
+    let mut eat = |x: u64| fingerprint_eat(h, x);
     for (i, s) in p.segments().iter().enumerate() {
         for x in [
             s.t_start, s.s_start, s.length, s.v_entry, s.v_peak, s.v_exit, s.t_j1, s.t_a1,
@@ -230,8 +268,6 @@ fn fingerprint(p: &Plan) -> u64 {
             eat(x.to_bits());
         }
     }
-    eat(p.duration().to_bits());
-    h
 }
 
 fn throughput(n: usize, o: &Options) {
@@ -273,6 +309,22 @@ fn throughput(n: usize, o: &Options) {
             let (live0, total0) = (ALLOC.allocated(), ALLOC.total_allocated());
             let t0 = Instant::now();
             let c0 = cpu_time();
+            if o.windows {
+                // Planned in windows, each dropped once it is read (the fingerprint is taken
+                // after the timed runs, as the whole plan's is).
+                let planned = plan_in_windows(moves, &lim, &cfg, |w| {
+                    std::hint::black_box(&w);
+                });
+                best = best.min(t0.elapsed().as_secs_f64());
+                if let (Some(c0), Some(c1)) = (c0, cpu_time()) {
+                    cpu_total += c1 - c0;
+                    cpu_runs += 1;
+                }
+                held = ALLOC.allocated().saturating_sub(live0);
+                churn = ALLOC.total_allocated().saturating_sub(total0);
+                cycle = planned.duration;
+                continue;
+            }
             let p = plan([0.0; MAX_AXES], moves, &lim, &cfg)
                 .unwrap_or_else(|e| fail(&format!("planning failed: {e}")));
             best = best.min(t0.elapsed().as_secs_f64());
@@ -285,6 +337,12 @@ fn throughput(n: usize, o: &Options) {
             cycle = p.duration();
             print = fingerprint(&p);
             std::hint::black_box(&p);
+        }
+        if o.windows {
+            let mut h = FNV;
+            let planned = plan_in_windows(moves, &lim, &cfg, |w| fingerprint_segments(&mut h, &w));
+            fingerprint_end(&mut h, planned.duration);
+            print = h;
         }
         let per_n = |b: usize| b as f64 / n.max(1) as f64;
         // The streaming look-ahead on the first 100 000 moves, for its fingerprint.

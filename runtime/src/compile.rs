@@ -412,6 +412,15 @@ pub fn plan(program: ProcessProgram) -> Result<Job, Failure> {
     plan_program(program).map_err(Failure::one)
 }
 
+/// [`plan`] in windows (`motion::plan_program_windows`): each window of the plan goes to `each`
+/// with the program as planned, and the job returned holds no segments.
+pub fn plan_in_windows(
+    program: ProcessProgram,
+    each: impl FnMut(&ProcessProgram, crate::planner::Plan),
+) -> Result<(Job, crate::planner::Planned), Failure> {
+    crate::motion::plan_program_windows(program, each).map_err(Failure::one)
+}
+
 /// load → `use` → check → evaluate → validate → plan, stopping at the first phase that fails.
 pub fn compile(files: &mut impl Files, path: &str) -> Result<(Recipe, Job), (SourceMap, Failure)> {
     let mut recipe = load(files, path)?;

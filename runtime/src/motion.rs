@@ -151,6 +151,8 @@ pub struct Job {
     pub op_axes: OpAxes,
     /// Standstill before the first move (dwells and events ahead of any motion), s.
     pub initial_dwell_s: f64,
+    /// The whole plan; from [`plan_program_windows`] a plan of no segments (its windows were
+    /// handed on), with the start, end and duration.
     pub plan: Plan,
     /// The lit sections as the recipe wrote them, located in `program.ops` (which holds the
     /// leads lase added).
@@ -253,8 +255,163 @@ pub(crate) fn tool_pose(p: P3, orient: Option<Orient>) -> ToolPose {
     }
 }
 
+/// A program with its leads added, ready to be lowered and planned (`plan_program`,
+/// `plan_program_windows`).
+struct Staged {
+    program: ProcessProgram,
+    kin: Arc<dyn Kinematics>,
+    start: Axes,
+    start_span: Span,
+    limits: AxisLimits,
+    cfg: PlannerConfig,
+    laser_switch_stops: bool,
+    arm_stops: Vec<usize>,
+    sections: Vec<LitSection>,
+    leads: Vec<Lead>,
+}
+
 /// Adds leads, lowers and plans a program.
-pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
+pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
+    plan_whole(stage(program)?)
+}
+
+/// Plans the staged program whole and judges it (`held::check_held`). Every corner between lit
+/// chords is blended first. On a machine that orients the beam, blending a lit curve's chords
+/// one by one can lower the lit speed below the programmed one (their curvature returns to
+/// zero at every chord midpoint: the arm's sections); the plan is then made again with the
+/// velocity step at those corners (`Along::step_corners`, issue 13 item 3: what is left), and
+/// judged again.
+fn plan_whole(st: Staged) -> Result<Job, MotionError> {
+    let plan_with = |st: &Staged, step_lit: bool| {
+        let expected = st
+            .program
+            .ops
+            .iter()
+            .filter(|o| o.target().is_some())
+            .count();
+        lower_and_plan(st, step_lit, |low| {
+            planner::plan_along_iter(st.start, low, expected, &st.limits, &st.cfg)
+        })
+    };
+    let (plan, op_axes, initial_dwell_s) = plan_with(&st, false)?;
+    let Staged {
+        program,
+        kin,
+        start,
+        start_span,
+        limits,
+        cfg,
+        laser_switch_stops,
+        arm_stops,
+        sections,
+        leads,
+    } = st;
+    let job = Job {
+        program,
+        kin,
+        start,
+        op_axes,
+        initial_dwell_s,
+        plan,
+        sections,
+        leads,
+    };
+    match held::check_held(&job) {
+        Ok(()) => Ok(job),
+        Err(_) if job.kin.oriented() => {
+            let Job {
+                program,
+                kin,
+                sections,
+                leads,
+                ..
+            } = job;
+            let st = Staged {
+                program,
+                kin,
+                start,
+                start_span,
+                limits,
+                cfg,
+                laser_switch_stops,
+                arm_stops,
+                sections,
+                leads,
+            };
+            let (plan, op_axes, initial_dwell_s) = plan_with(&st, true)?;
+            let job = st.into_job(op_axes, initial_dwell_s, plan);
+            held::check_held(&job)?;
+            Ok(job)
+        }
+        Err(e) => Err(e),
+    }
+}
+
+/// [`plan_program`] in windows (issue 18): the plan's segments go to `each` a window at a
+/// time (with the program as planned: leads added), as `planner::plan_along_windows` makes them, bit for bit those of the whole plan, and
+/// are not kept. The job returned has every field of [`plan_program`]'s but for its plan, which
+/// holds no segments (only the start, end and duration; the totals are in [`planner::Planned`]).
+///
+/// On an oriented machine the plan is made whole and handed on as one window, since
+/// `held::check_held` reads every lit section's segments before a job may run.
+pub fn plan_program_windows(
+    program: ProcessProgram,
+    each: impl FnMut(&ProcessProgram, Plan),
+) -> Result<(Job, planner::Planned), MotionError> {
+    plan_program_windows_sized(program, planner::MIN_WINDOW, each)
+}
+
+/// [`plan_program_windows`] with look-ahead passes from `min_window` segments on
+/// (`planner::plan_along_windows_sized`).
+#[doc(hidden)]
+pub fn plan_program_windows_sized(
+    program: ProcessProgram,
+    min_window: usize,
+    mut each: impl FnMut(&ProcessProgram, Plan),
+) -> Result<(Job, planner::Planned), MotionError> {
+    let st = stage(program)?;
+    if st.kin.oriented() {
+        let mut job = plan_whole(st)?;
+        let planned = planner::Planned {
+            segments: job.plan.segments().len(),
+            duration: job.plan.duration(),
+            length: job.plan.length(),
+            end: job.plan.end(),
+        };
+        let summary = Plan::without_segments(&job.plan);
+        let plan = std::mem::replace(&mut job.plan, summary);
+        if planned.segments > 0 {
+            each(&job.program, plan);
+        }
+        return Ok((job, planned));
+    }
+    let (planned, op_axes, initial_dwell_s) = lower_and_plan(&st, false, |low| {
+        planner::plan_along_windows_sized(st.start, low, &st.limits, &st.cfg, min_window, |w| {
+            each(&st.program, w)
+        })
+    })?;
+    let n_axes = st.cfg.n_axes;
+    let plan = Plan::summary(st.start, planned.end, planned.duration, n_axes);
+    Ok((st.into_job(op_axes, initial_dwell_s, plan), planned))
+}
+
+impl Staged {
+    fn into_job(self, op_axes: OpAxes, initial_dwell_s: f64, plan: Plan) -> Job {
+        Job {
+            program: self.program,
+            kin: self.kin,
+            start: self.start,
+            op_axes,
+            initial_dwell_s,
+            plan,
+            sections: self.sections,
+            leads: self.leads,
+        }
+    }
+}
+
+/// Adds the leads and derives the planner's inputs.
+fn stage(mut program: ProcessProgram) -> Result<Staged, MotionError> {
     let kin: Arc<dyn Kinematics> = Arc::from(kinematics::for_machine(&program.machine));
     let n_axes = kin.axis_count();
     if !kin.circular_arcs() {
@@ -329,85 +486,44 @@ pub fn plan_program(mut program: ProcessProgram) -> Result<Job, MotionError> {
     drop(index);
     // The re-arms of a flying GRBL post, on the ops as emitted (leads included).
     let arm_stops = beam::switch_stops(&program.ops, &program.machine.post).before_op;
-    let plan_with = |program: ProcessProgram,
-                     kin: Arc<dyn Kinematics>,
-                     sections: Vec<LitSection>,
-                     leads: Vec<Lead>,
-                     step_lit: bool| {
-        lower_and_plan(Planning {
-            program,
-            kin,
-            start,
-            limits: &limits,
-            cfg: &cfg,
-            laser_switch_stops,
-            arm_stops: &arm_stops,
-            sections,
-            leads,
-            step_lit,
-        })
-    };
-    let job = plan_with(program, kin, sections, leads, false)?;
-    match held::check_held(&job) {
-        Ok(()) => Ok(job),
-        // Every corner between lit chords is blended first. On a machine that orients the
-        // beam, blending a lit curve's chords one by one can lower the lit speed below the
-        // programmed one (their curvature returns to zero at every chord midpoint: the arm's
-        // sections); the plan is then made again with the velocity step at those corners
-        // (`Along::step_corners`, issue 13 item 3: what is left), and judged again.
-        Err(_) if job.kin.oriented() => {
-            let Job {
-                program,
-                kin,
-                sections,
-                leads,
-                ..
-            } = job;
-            let job = plan_with(program, kin, sections, leads, true)?;
-            held::check_held(&job)?;
-            Ok(job)
-        }
-        Err(e) => Err(e),
-    }
-}
-
-/// What `lower_and_plan` needs beyond the program.
-struct Planning<'a> {
-    program: ProcessProgram,
-    kin: Arc<dyn Kinematics>,
-    start: Axes,
-    limits: &'a AxisLimits,
-    cfg: &'a PlannerConfig,
-    laser_switch_stops: bool,
-    arm_stops: &'a [usize],
-    sections: Vec<LitSection>,
-    leads: Vec<Lead>,
-    /// Corners between lit moves keep the velocity step (`Along::step_corners`).
-    step_lit: bool,
-}
-
-/// Lowers the program (leads added) op by op into the planner: the job, not yet judged by
-/// `held`.
-fn lower_and_plan(p: Planning<'_>) -> Result<Job, MotionError> {
-    let Planning {
+    Ok(Staged {
         program,
         kin,
         start,
+        start_span,
         limits,
         cfg,
         laser_switch_stops,
         arm_stops,
         sections,
         leads,
-        step_lit,
-    } = p;
-    let n_axes = kin.axis_count();
-    let start_span = program.ops.first().map(|o| o.span).unwrap_or_default();
-    let expected = program.ops.iter().filter(|o| o.target().is_some()).count();
-    let mut low = Lowering {
-        kin: &*kin,
-        program: &program,
+    })
+}
+
+/// Lowers the staged program as `plan` reads its moves (`step_lit`: corners between lit moves
+/// keep the velocity step, `Along::step_corners`); returns what `plan` made, the axes each
+/// op ends at and the standstill before the first move. A motion error anywhere in the program
+/// comes before the planner's.
+fn lower_and_plan<R>(
+    st: &Staged,
+    step_lit: bool,
+    plan: impl FnOnce(&mut Lowering<'_>) -> Result<R, planner::PlanError>,
+) -> Result<(R, OpAxes, f64), MotionError> {
+    let Staged {
+        program,
+        kin,
+        start,
+        start_span,
         laser_switch_stops,
+        arm_stops,
+        ..
+    } = st;
+    let (start, start_span) = (*start, *start_span);
+    let n_axes = kin.axis_count();
+    let mut low = Lowering {
+        kin: &**kin,
+        program,
+        laser_switch_stops: *laser_switch_stops,
         arm_stops,
         step_lit,
         next_op: 0,
@@ -421,7 +537,7 @@ fn lower_and_plan(p: Planning<'_>) -> Result<Job, MotionError> {
         error: None,
         last_tag: 0,
     };
-    let planned = planner::plan_along_iter(start, &mut low, expected, limits, cfg);
+    let planned = plan(&mut low);
     // The op whose move the planner refused: the move it read last.
     let refused = low.last_tag as usize;
     if planned.is_err() {
@@ -433,23 +549,14 @@ fn lower_and_plan(p: Planning<'_>) -> Result<Job, MotionError> {
         return Err(e);
     }
     let (op_axes, initial_dwell_s) = (low.op_axes, low.initial_dwell_s);
-    let plan = planned.map_err(|e| {
+    let planned = planned.map_err(|e| {
         let span = planner_error_move(&e)
             .and_then(|_| program.ops.get(refused))
             .map(|o: &Op| o.span)
             .unwrap_or(start_span);
         MotionError::Planner(PlannerFailure { error: e, span })
     })?;
-    Ok(Job {
-        program,
-        kin,
-        start,
-        op_axes,
-        initial_dwell_s,
-        plan,
-        sections,
-        leads,
-    })
+    Ok((planned, op_axes, initial_dwell_s))
 }
 
 /// Every arc replaced by its chords within the chord tolerance (the points [`arc_points`]

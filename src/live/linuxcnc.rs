@@ -7,8 +7,8 @@ use crate::driver::{self, Failure};
 use lase_runtime::emit::Dialect;
 use lase_runtime::link::job::JobLines;
 use lase_runtime::link::journal::{self, Journal};
-use lase_runtime::link::linuxcnc::Rsh;
 use lase_runtime::link::linuxcnc::job::{self as lcjob, LinuxCncJob, Placement, Resumed};
+use lase_runtime::link::linuxcnc::{LIVE_TIMEOUT, Rsh};
 use lase_runtime::link::stream::{Control, Outcome, Progress};
 use lase_runtime::link::{LinkError, LinkUrl};
 use std::path::{Path, PathBuf};
@@ -26,6 +26,7 @@ pub(super) fn run(
         port,
         dir,
         remote_dir,
+        timeout,
     } = url
     else {
         unreachable!("called for linuxcnc links only");
@@ -67,7 +68,21 @@ pub(super) fn run(
         ));
     }
     let map = recipe.map.clone();
-    let fail = |e: LinkError| (map.clone(), Failure::one(e));
+    let fail = |e: LinkError| {
+        let e = match e {
+            // Before the job runs: linuxcncrsh took the connection but LinuxCNC does not
+            // answer (GRBL's cable-and-baud help does not fit).
+            LinkError::Timeout {
+                waiting_for,
+                seconds,
+            } => LinkError::NotReady {
+                reason: format!("LinuxCNC did not answer within {seconds} s while {waiting_for}"),
+                help: "linuxcncrsh took the connection but LinuxCNC did not answer: its task (milltask) may have stopped or the computer may be overloaded; check LinuxCNC's terminal, restart LinuxCNC if needed, or allow longer with linuxcnc://HOST:PORT?timeout=SECONDS".into(),
+            },
+            e => e,
+        };
+        (map.clone(), Failure::one(e))
+    };
     // LinuxCNC runs the program from a file, so the whole text is made here (the GRBL
     // stream makes its lines as they go).
     let source_map = &recipe.map;
@@ -96,10 +111,8 @@ pub(super) fn run(
         })?,
         poll: Duration::from_millis(50),
     };
-    let mut rsh = Rsh::connect(host, *port).map_err(fail)?;
-    // LinuxCNC's user interface runs beside motion without real-time priority: a silence of
-    // seconds is load, not a lost link.
-    rsh.set_reply_timeout(Duration::from_secs(30));
+    let timeout = timeout.map_or(LIVE_TIMEOUT, Duration::from_secs_f64);
+    let mut rsh = Rsh::connect_with(host, *port, timeout).map_err(fail)?;
     let name = recipe.name();
     let mut journal = match resumed {
         Some((path, state)) => {
@@ -167,10 +180,25 @@ pub(super) fn run(
     if report.outcome != Outcome::Done {
         let resume = match &journal_name {
             Some(j) => format!(
-                "LinuxCNC goes on with the program by itself; reconnect and follow (or continue) it with `lase run --resume {j}`"
+                "LinuxCNC goes on with the program by itself while it runs; reconnect and follow (or continue) it with `lase run --resume {j}`. If LinuxCNC itself stopped answering (its task, milltask, gone: a program RUNNING that never moves, commands unanswered), check the machine and restart LinuxCNC first; the resume then re-approaches and runs on from the first unfinished line"
             ),
             None => "this run kept no journal and cannot be resumed".into(),
         };
+        let mut report = report;
+        if let Outcome::Lost(e) = &report.outcome {
+            // What LinuxCNC was last seen doing: the line before the one it reported running.
+            let last = match report.acked {
+                0 => "no line had run yet".to_string(),
+                n => format!("the last line seen done was {n}: `{}`", text[n - 1]),
+            };
+            let why = match e {
+                LinkError::Lost { reason } => reason.clone(),
+                e => e.to_string(),
+            };
+            report.outcome = Outcome::Lost(LinkError::Lost {
+                reason: format!("{why}; {last}"),
+            });
+        }
         return Err((map.clone(), job_failure(report, &lines, resume)));
     }
     println!(

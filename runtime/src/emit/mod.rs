@@ -18,6 +18,7 @@
 //! a run; dwells, M-codes and events between two lit moves happen with the beam on (a pierce
 //! dwell), and power changes between lit moves are written before the next lit move.
 
+mod facts;
 mod format;
 pub mod modal;
 pub mod reapproach;
@@ -31,6 +32,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
+pub use facts::{PlanFacts, plans_in_windows};
 pub use format::{degrees, number};
 
 /// An NC dialect lase can write.
@@ -326,19 +328,48 @@ pub fn emit(
     options: &EmitOptions<'_>,
     sink: &mut dyn FnMut(&NcLine) -> std::io::Result<()>,
 ) -> Result<EmitStats, EmitError> {
+    emit_with(job, None, dialect, options, sink)
+}
+
+/// [`emit`] of a job planned in windows (`motion::plan_program_windows`, whose plan holds no
+/// segments): what the writer reads of the plan is in `facts`, gathered from the windows
+/// ([`PlanFacts`]). The job must be one [`plans_in_windows`] allows.
+pub fn emit_planned(
+    job: &Job,
+    facts: &PlanFacts,
+    dialect: Dialect,
+    options: &EmitOptions<'_>,
+    sink: &mut dyn FnMut(&NcLine) -> std::io::Result<()>,
+) -> Result<EmitStats, EmitError> {
+    emit_with(job, Some(facts), dialect, options, sink)
+}
+
+fn emit_with(
+    job: &Job,
+    facts: Option<&PlanFacts>,
+    dialect: Dialect,
+    options: &EmitOptions<'_>,
+    sink: &mut dyn FnMut(&NcLine) -> std::io::Result<()>,
+) -> Result<EmitStats, EmitError> {
     if !options.live {
         validate::check_settles(&job.program, dialect)?;
     }
-    let checked = validate::validate(job, dialect)?;
-    validate::check_pulse_budget(job, dialect, checked.post)?;
+    let checked = validate::validate(job, dialect, facts)?;
+    if facts.is_none() {
+        // A post with a budget plans whole (`plans_in_windows`).
+        validate::check_pulse_budget(job, dialect, checked.post)?;
+    }
     // Settled rows go out relative to their settled start (`relative`), whether a live link
     // or the control settles them.
     let rows = relative::row_ranges(&job.program);
     let mut stats = if rows.is_empty() {
-        writer::write(job, dialect, options, &checked, sink)?
+        writer::write(job, facts, dialect, options, &checked, sink)?
     } else {
         let mut r = relative::Rows::new(&job.program, rows, sink);
-        let mut stats = writer::write(job, dialect, options, &checked, &mut |l: &NcLine| r.put(l))?;
+        let mut stats =
+            writer::write(job, facts, dialect, options, &checked, &mut |l: &NcLine| {
+                r.put(l)
+            })?;
         r.finish(&mut stats);
         stats
     };
@@ -379,4 +410,40 @@ pub fn emit_to_string_with(
         Ok(())
     })?;
     Ok(out)
+}
+
+/// [`emit_to_string`]'s lines handed to `each` one at a time instead (the controller models of
+/// `lase plan`, which read a program line by line and never hold it, issue 18): exactly the
+/// lines `emit_to_string(job, dialect)?.lines()` yields. `facts`: the job was planned in
+/// windows ([`emit_planned`]). Stops at the first line `each` refuses, with its reason; an
+/// emit error is given as its text.
+pub fn emit_nc_lines(
+    job: &Job,
+    facts: Option<&PlanFacts>,
+    dialect: Dialect,
+    each: &mut dyn FnMut(&str) -> Result<(), String>,
+) -> Result<(), String> {
+    let mut refused = None;
+    let emitted = emit_with(
+        job,
+        facts,
+        dialect,
+        &EmitOptions::default(),
+        &mut |l: &NcLine| {
+            // `str::lines` of the text with its `\n`: split at each `\n`, a `\r` before it
+            // dropped.
+            for raw in l.text.split('\n') {
+                if let Err(why) = each(raw.strip_suffix('\r').unwrap_or(raw)) {
+                    refused = Some(why);
+                    return Err(std::io::Error::other("refused"));
+                }
+            }
+            Ok(())
+        },
+    );
+    match (refused, emitted) {
+        (Some(why), _) => Err(why),
+        (None, Err(e)) => Err(e.to_string()),
+        (None, Ok(_)) => Ok(()),
+    }
 }

@@ -3,9 +3,10 @@
 //! no post line the plan switches on the fly stops the machine.
 
 use super::format::{self, LaserWords};
-use super::{Dialect, EmitError, EmitWarning};
+use super::{Dialect, EmitError, EmitWarning, PlanFacts};
 use crate::machine::{AxisKind, DialectPost, Machine};
 use crate::motion::Job;
+use crate::planner::Segment;
 use crate::program::PulseMode;
 use crate::program::{Coupling, Op, OpKind};
 use lase_lang::Span;
@@ -143,7 +144,11 @@ fn too_long(dialect: Dialect, line: &str, span: Span, what: &str) -> Result<(), 
     }
 }
 
-pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitError> {
+pub(super) fn validate<'j>(
+    job: &'j Job,
+    dialect: Dialect,
+    facts: Option<&PlanFacts>,
+) -> Result<Checked<'j>, EmitError> {
     let program = &job.program;
     let machine = &program.machine;
     let ops = &program.ops;
@@ -185,7 +190,7 @@ pub(super) fn validate(job: &Job, dialect: Dialect) -> Result<Checked<'_>, EmitE
         check_coupling(post, key, machine, dialect, coupled.span)?;
     }
     if dialect == Dialect::LinuxCnc {
-        check_flying_switches(job, key, post)?;
+        check_flying_switches(job, key, post, facts)?;
     }
     for (i, op) in ops.iter().enumerate() {
         match &op.kind {
@@ -514,14 +519,49 @@ fn synchronized_word(code: u32) -> Option<u32> {
     }
 }
 
+/// `(op, speed where its first segment starts, speed where its last ends)` of every op with
+/// segments in `segs` (a plan's, in op order).
+pub(super) fn op_speeds(segs: &[Segment]) -> impl Iterator<Item = (usize, f64, f64)> + '_ {
+    segs.chunk_by(|a, b| a.tag == b.tag)
+        .map(|c| (c[0].tag as usize, c[0].v_entry, c[c.len() - 1].v_exit))
+}
+
+/// Whether a post line the plan may switch on the fly holds an immediate output word
+/// (`check_flying_switches`): only then do the planned speeds matter to validation.
+pub(super) fn has_immediate_words(post: &DialectPost) -> bool {
+    [
+        &post.laser_on,
+        &post.laser_off,
+        &post.power,
+        &post.pulse_on,
+        &post.pulse_off,
+    ]
+    .iter()
+    .any(|lines| {
+        lines.iter().any(|t| {
+            format::m_words(t)
+                .into_iter()
+                .any(|c| synchronized_word(c).is_some())
+        })
+    })
+}
+
 /// Every post line LinuxCNC runs where the plan keeps moving (a flying beam switch of style b,
 /// a power change inside a lit section, a pulse edge by distance) must keep motion
 /// synchronized: with an immediate word the machine would stop there, switch at rest, and the
 /// lit section would start or end at the wrong speed. Where the plan itself stops (a machine
 /// whose switch needs rest, a dwell, an M-code) immediate words are fine.
-fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(), EmitError> {
+fn check_flying_switches(
+    job: &Job,
+    key: &str,
+    post: &DialectPost,
+    facts: Option<&PlanFacts>,
+) -> Result<(), EmitError> {
+    if !has_immediate_words(post) {
+        // Nothing here could stop the machine: no speeds needed (`PlanFacts` gathers none).
+        return Ok(());
+    }
     let ops = &job.program.ops;
-    let segs = job.plan.segments();
     let spans = &post.spans;
     let lines = |what: &'static str| -> (&[String], &[Span]) {
         match what {
@@ -570,20 +610,17 @@ fn check_flying_switches(job: &Job, key: &str, post: &DialectPost) -> Result<(),
     // bytes an op, the most emitting a long job held (issue 18). A lit op's section ends unless
     // the next op that plans motion is lit too, so its `laser_off` is checked on reaching that
     // op (or the end), before anything of it: the checks run in op order, as ever.
-    let mut next_seg = 0;
+    // A plan made in windows left its speeds in `facts`; a whole plan is walked.
+    let speeds: Box<dyn Iterator<Item = (usize, f64, f64)> + '_> = match facts {
+        Some(f) => Box::new(f.op_speeds()),
+        None => Box::new(op_speeds(job.plan.segments())),
+    };
     let mut lit_before: Option<(&Op, f64)> = None;
-    for (i, op) in ops.iter().enumerate() {
-        while segs.get(next_seg).is_some_and(|s| (s.tag as usize) < i) {
-            next_seg += 1;
-        }
-        let first = next_seg;
-        while segs.get(next_seg).is_some_and(|s| s.tag as usize == i) {
-            next_seg += 1;
-        }
-        if first == next_seg || op.target().is_none() {
+    for (i, v0, v1) in speeds {
+        let op = &ops[i];
+        if op.target().is_none() {
             continue;
         }
-        let (v0, v1) = (segs[first].v_entry, segs[next_seg - 1].v_exit);
         if let Some((before, v_out)) = lit_before.take()
             && op.laser().is_none()
         {

@@ -178,6 +178,7 @@ struct Modal {
 
 pub(super) fn write(
     job: &Job,
+    facts: Option<&super::PlanFacts>,
     dialect: Dialect,
     options: &EmitOptions<'_>,
     checked: &Checked<'_>,
@@ -370,7 +371,7 @@ pub(super) fn write(
                     continue;
                 }
                 // An image row is written one block per pixel run (`row`); any other op as is.
-                let pieces = row::pieces(job, i, m.pos, m.q, !dialect.is_grbl_family());
+                let pieces = row::pieces(job, facts, i, m.pos, m.q, !dialect.is_grbl_family());
                 let n_pieces = pieces.len();
                 for (k, piece) in pieces.into_iter().enumerate() {
                     let (op, q_end, blocks) = (&*piece.op, piece.q, piece.blocks);
@@ -428,7 +429,7 @@ pub(super) fn write(
                         let cap = if dialect.is_grbl_family() || op.laser().is_some() || more {
                             None
                         } else {
-                            lead_cap(job, i, &ops[i + 1..], to)
+                            lead_cap(job, facts, i, &ops[i + 1..], to)
                         };
                         out.put_with(
                             |line| {
@@ -651,9 +652,19 @@ fn part_way(
 /// block starts, after that blend: a lead-in written at its full feed carried 14.8 mm/s over
 /// frame_marking's beam edge, where the plan (and the held lit block) say 9.9. `None` at a
 /// stop (the controller stops there anyway) and where the plan keeps the feed.
-fn lead_cap(job: &Job, i: usize, rest: &[Op], to: P3) -> Option<f64> {
+fn lead_cap(
+    job: &Job,
+    facts: Option<&super::PlanFacts>,
+    i: usize,
+    rest: &[Op],
+    to: P3,
+) -> Option<f64> {
     if !next_move_lit(rest, to) {
         return None;
+    }
+    // A plan made in windows left it in `facts` (`emit::PlanFacts`).
+    if let Some(f) = facts {
+        return f.exit_below_feed(i);
     }
     let seg = job.plan.segments()[power::op_segments(job, i)].last()?;
     (seg.v_exit > 0.0 && seg.v_exit < seg.feed).then_some(seg.v_exit)

@@ -43,12 +43,14 @@ pub use crate::host::{Host, StdlibOnly};
 /// example takes; a recipe that needs more is computing, not describing a job, and an
 /// exponential recursion (`f(n - 1) + f(n - 1)`) reaches it long before it would finish.
 const STEP_BUDGET: u64 = 20_000_000;
-/// Ops (moves, dot-mode stops, machine events) a program may hold. Half a million is some
-/// 200 MB through planning and emitting in a debug build and an NC program that streams for
-/// hours, far beyond any real job (a million-spot raster on the fly is a few thousand ops). A
-/// loop that produces more is stopped at the statement that passes it; a path or a scan that
-/// would is refused before any of its ops is made (`bounds::room_for_ops`).
-const MAX_OPS: usize = 500_000;
+/// Ops (moves, dot-mode stops, machine events) a program may hold. Two million holds issue 18's
+/// million short moves from a `for` loop with room to spare; at the budget `lase check`, `plan`
+/// and `emit` (planned in windows) hold some 180 MB, the commands that keep the whole plan
+/// (`run`, `trace`, the REPL) some 450 MB, and the NC program streams for hours — far beyond a
+/// real job (a million-spot raster on the fly is a few thousand ops). A loop that produces more
+/// is stopped at the statement that passes it; a path or a scan that would is refused before any
+/// of its ops is made (`bounds::room_for_ops`).
+const MAX_OPS: usize = 2_000_000;
 /// Pixel runs the image rows of a program may carry (`scan image`): a run is 8 B inside its
 /// row's op and one NC block when written, so 20 million (a 4096 × 4096 photo at one run per
 /// pixel, passes aside) is some 160 MB held and an NC program of a few hundred MB, written as

@@ -32,6 +32,18 @@ pub fn default_dialect(machine: &crate::machine::Machine) -> Dialect {
 
 /// The time of the controller that runs `job` written in `dialect`.
 pub fn controller_cycle(job: &Job, dialect: Dialect) -> ControllerCycle {
+    controller_cycle_from(job, None, dialect)
+}
+
+/// [`controller_cycle`] of a job planned whole (`facts` `None`) or in windows (`facts`
+/// gathered from them for `dialect`, `emit::PlanFacts`). Either way the program goes from the
+/// emitter to the model line by line and the model holds only its controller's queue
+/// (`linuxcnc::tp::TpStream`, `sim::motion::ModelStream`; issue 18).
+pub fn controller_cycle_from(
+    job: &Job,
+    facts: Option<&crate::emit::PlanFacts>,
+    dialect: Dialect,
+) -> ControllerCycle {
     let own = |note: String| ControllerCycle {
         dialect: dialect.name().into(),
         model: OWN_PLAN.into(),
@@ -43,7 +55,7 @@ pub fn controller_cycle(job: &Job, dialect: Dialect) -> ControllerCycle {
     let plural = |n: usize, what: &str| format!("{n} {what}{}", if n == 1 { "" } else { "s" });
     match dialect {
         Dialect::Grbl | Dialect::GrblHal => {
-            match super::sim::motion::controller_time_in(job, dialect) {
+            match super::sim::motion::controller_time_from(job, facts, dialect) {
                 Some(Ok(c)) => ControllerCycle {
                     dialect: dialect.name().into(),
                     model: c.model.into(),
@@ -60,7 +72,7 @@ pub fn controller_cycle(job: &Job, dialect: Dialect) -> ControllerCycle {
                 None => own(format!("the machine has no {dialect} post")),
             }
         }
-        Dialect::LinuxCnc => match super::linuxcnc::tp::controller_time(job) {
+        Dialect::LinuxCnc => match super::linuxcnc::tp::controller_time_from(job, facts) {
             Some(Ok(t)) => ControllerCycle {
                 dialect: dialect.name().into(),
                 model: super::linuxcnc::tp::MODEL.into(),

@@ -1,5 +1,5 @@
 //! Link URLs: `sim[://?options]`, `tcp://host:port`, `serial:///dev/ttyUSB0?baud=115200`,
-//! `linuxcnc://host:port[?dir=LOCAL&remote-dir=ON-CONTROLLER]`.
+//! `linuxcnc://host:port[?dir=LOCAL&remote-dir=ON-CONTROLLER&timeout=SECONDS]`.
 
 use super::LinkError;
 use super::sim::{Faults, SimOptions, TimeScale};
@@ -19,12 +19,16 @@ pub enum LinkUrl {
         baud: u32,
     },
     /// LinuxCNC over linuxcncrsh: the program is a file the controller opens, written in
-    /// `dir` and opened as `remote_dir` (see `linuxcnc::job::Placement`).
+    /// `dir` and opened as `remote_dir` (see `linuxcnc::job::Placement`). `timeout` (s,
+    /// default `linuxcnc::LIVE_TIMEOUT`) bounds every wait on linuxcncrsh: a reply, and a
+    /// running program whose status stands still before lase checks that LinuxCNC's task
+    /// still takes commands (`linuxcnc::job::follow`).
     LinuxCnc {
         host: String,
         port: u16,
         dir: Option<String>,
         remote_dir: Option<String>,
+        timeout: Option<f64>,
     },
 }
 
@@ -132,14 +136,24 @@ impl LinkUrl {
                 if host.is_empty() {
                     return Err(bad("expected linuxcnc://HOST:PORT"));
                 }
-                let (mut dir, mut remote_dir) = (None, None);
+                let (mut dir, mut remote_dir, mut timeout) = (None, None, None);
                 for (k, v) in params {
                     match k {
                         "dir" if !v.is_empty() => dir = Some(v.to_string()),
                         "remote-dir" if !v.is_empty() => remote_dir = Some(v.to_string()),
+                        "timeout" => {
+                            timeout = Some(
+                                v.parse::<f64>()
+                                    .ok()
+                                    .filter(|t| t.is_finite() && *t > 0.0 && *t <= 3600.0)
+                                    .ok_or_else(|| {
+                                        bad("timeout is a number of seconds, more than 0 and at most 3600")
+                                    })?,
+                            )
+                        }
                         other => {
                             return Err(bad(&format!(
-                                "unknown linuxcnc option `{other}` (dir=LOCAL, remote-dir=ON-CONTROLLER)"
+                                "unknown linuxcnc option `{other}` (dir=LOCAL, remote-dir=ON-CONTROLLER, timeout=SECONDS)"
                             )));
                         }
                     }
@@ -152,6 +166,7 @@ impl LinkUrl {
                     port,
                     dir,
                     remote_dir,
+                    timeout,
                 })
             }
             "tcp" => {
@@ -237,6 +252,7 @@ impl fmt::Display for LinkUrl {
                 port,
                 dir,
                 remote_dir,
+                timeout,
             } => {
                 let host = if host.contains(':') {
                     format!("[{host}]")
@@ -244,10 +260,15 @@ impl fmt::Display for LinkUrl {
                     host.clone()
                 };
                 write!(f, "linuxcnc://{host}:{port}")?;
-                let q: Vec<String> = [("dir", dir), ("remote-dir", remote_dir)]
-                    .into_iter()
-                    .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k}={v}")))
-                    .collect();
+                let timeout = timeout.map(|t| t.to_string());
+                let q: Vec<String> = [
+                    ("dir", dir),
+                    ("remote-dir", remote_dir),
+                    ("timeout", &timeout),
+                ]
+                .into_iter()
+                .filter_map(|(k, v)| v.as_ref().map(|v| format!("{k}={v}")))
+                .collect();
                 if !q.is_empty() {
                     write!(f, "?{}", q.join("&"))?;
                 }
@@ -271,6 +292,7 @@ mod tests {
             "sim://?rx-buffer=256",
             "linuxcnc://127.0.0.1:5007",
             "linuxcnc://cnc:5008?dir=/mnt/cnc&remote-dir=/home/cnc/nc",
+            "linuxcnc://cnc:5007?timeout=2.5",
         ] {
             let parsed = LinkUrl::parse(u).unwrap();
             assert_eq!(LinkUrl::parse(&parsed.to_string()).unwrap(), parsed, "{u}");
@@ -288,6 +310,8 @@ mod tests {
             "linuxcnc://cnc:5007"
         );
         assert!(LinkUrl::parse("linuxcnc://cnc:5007?upload=1").is_err());
+        assert!(LinkUrl::parse("linuxcnc://cnc:5007?timeout=0").is_err());
+        assert!(LinkUrl::parse("linuxcnc://cnc:5007?timeout=soon").is_err());
         assert!(LinkUrl::parse("ftp://x").is_err());
         assert!(LinkUrl::parse("sim://?time-scale=fast").is_err());
     }

@@ -38,7 +38,7 @@
 
 use super::Job;
 use crate::planner::Segment;
-use crate::program::{Coupling, Laser};
+use crate::program::{Coupling, Laser, ProcessProgram};
 
 /// Largest speed change inside one sub-block, as a fraction of the programmed feed.
 pub const POWER_STEP: f64 = 0.01;
@@ -69,14 +69,19 @@ pub struct PowerBlock {
 /// pulsed: a pulse train's spacing is the emitter's), the same cuts at that power where the
 /// plan holds the move below its feed somewhere; empty where it is written as one block.
 pub fn lit_blocks(job: &Job, op: usize) -> Vec<PowerBlock> {
-    let Some(laser) = job.program.ops.get(op).and_then(|o| o.laser()) else {
+    lit_blocks_of(&job.program, op, &job.plan.segments()[op_segments(job, op)])
+}
+
+/// [`lit_blocks`] of op `op` of `program` whose plan segments are `segs` (all of them, in
+/// order): what `emit::PlanFacts` computes from a plan made in windows.
+pub fn lit_blocks_of(program: &ProcessProgram, op: usize, segs: &[Segment]) -> Vec<PowerBlock> {
+    let Some(laser) = program.ops.get(op).and_then(|o| o.laser()) else {
         return Vec::new();
     };
-    let segs = &job.plan.segments()[op_segments(job, op)];
     let mut blocks = match laser.couple {
-        Coupling::Speed => coupled_blocks(job, op),
+        Coupling::Speed => coupled_blocks_of(laser, segs),
         Coupling::None if laser.pulse.is_some() => return Vec::new(),
-        Coupling::None => speed_blocks(laser, segs)
+        Coupling::None => coupled_blocks_of(laser, segs)
             .into_iter()
             .map(|b| PowerBlock {
                 power_w: laser.power_w,
@@ -87,7 +92,7 @@ pub fn lit_blocks(job: &Job, op: usize) -> Vec<PowerBlock> {
     };
     // LinuxCNC stops between a rapid and a feed (tp.c's tpCheckCanonType), where lase's plan
     // may blend them: a lit move next to a rapid starts or ends at rest there.
-    let ops = &job.program.ops;
+    let ops = &program.ops;
     let moving = |o: &&crate::program::Op| o.target().is_some();
     let rapid = |o: Option<&crate::program::Op>| {
         o.is_some_and(|o| matches!(o.kind, crate::program::OpKind::Rapid { .. }))
@@ -201,13 +206,12 @@ pub fn coupled_blocks(job: &Job, op: usize) -> Vec<PowerBlock> {
     if laser.couple != Coupling::Speed {
         return Vec::new();
     }
-    let range = op_segments(job, op);
-    let segs = &job.plan.segments()[range];
-    speed_blocks(laser, segs)
+    coupled_blocks_of(laser, &job.plan.segments()[op_segments(job, op)])
 }
 
-/// The blocks of one lit op's segments, cut at speed steps, each with the coupled power.
-fn speed_blocks(laser: &Laser, segs: &[Segment]) -> Vec<PowerBlock> {
+/// [`coupled_blocks`] of a coupled lit op whose plan segments are `segs` (all of them, in
+/// order): what `emit::PlanFacts` computes from a plan made in windows.
+pub fn coupled_blocks_of(laser: &Laser, segs: &[Segment]) -> Vec<PowerBlock> {
     let Some(s0) = segs.first().map(|s| s.s_start) else {
         return Vec::new();
     };

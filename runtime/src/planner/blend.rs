@@ -70,8 +70,12 @@
 //! a segment boundary, where the plan switches ops exactly as before.
 
 use super::lookahead::Kin;
-use super::plan::NO_BLEND;
+use super::plan::{NO_BLEND, Segment};
 use super::{Axes, AxisLimits, MAX_AXES, Prepared};
+
+mod judge;
+pub(super) use judge::{MoveSource, READS_AHEAD, READS_BEHIND, junction_at};
+use judge::{Whole, shape_at};
 
 /// Share of each axis's acceleration (and jerk) the blend's curvature may use; the rest is for
 /// changing the path speed on it.
@@ -618,6 +622,8 @@ pub(crate) struct MoveInfos {
     /// Each move's `part_dir` from `dirs_from` on (empty until a length is not Euclidean).
     dirs: Vec<[f64; 3]>,
     dirs_from: usize,
+    /// The index of the move `flags[0]` belongs to (`forget_before`).
+    first: usize,
     /// The last move's `part_dir`, for the move after it.
     last_dir: [f64; 3],
 }
@@ -637,7 +643,7 @@ impl MoveInfos {
     }
 
     pub(crate) fn push(&mut self, m: MoveInfo) {
-        let i = self.flags.len();
+        let i = self.first + self.flags.len();
         if self.dirs.is_empty() && !m.euclidean {
             // From the move before this one: the first junction that may read a direction.
             self.dirs_from = i.saturating_sub(1);
@@ -661,7 +667,7 @@ impl MoveInfos {
     /// Move `i`'s info (`part_dir` zero where no junction reads it).
     #[inline]
     pub(crate) fn get(&self, i: usize) -> MoveInfo {
-        let f = self.flags[i];
+        let f = self.flags[i - self.first];
         let part_dir = i
             .checked_sub(self.dirs_from)
             .and_then(|k| self.dirs.get(k))
@@ -675,12 +681,24 @@ impl MoveInfos {
             lit_before: f & LIT_BEFORE != 0,
         }
     }
+
+    /// Drops what moves before `i` had (the planner in windows has judged their junctions),
+    /// keeping the last direction kept, so that `get` answers for later moves as it would have.
+    pub(crate) fn forget_before(&mut self, i: usize) {
+        let k = i.saturating_sub(self.first).min(self.flags.len());
+        self.flags.drain(..k);
+        self.first += k;
+        let d = i
+            .saturating_sub(self.dirs_from)
+            .min(self.dirs.len().saturating_sub(1));
+        self.dirs.drain(..d);
+        self.dirs_from += d;
+    }
 }
 
 /// Splits every move of `p` at the blends of its corners (module doc): the second half of the
 /// blend at its start, its straight middle, the first half of the blend at its end, each with
 /// its limits and entry cap; corners that cannot be rounded get entry cap 0 (a stop).
-#[allow(clippy::needless_range_loop)] // one index over parallel per-segment arrays
 pub(super) fn split(
     mut p: Prepared,
     info: &MoveInfos,
@@ -691,139 +709,33 @@ pub(super) fn split(
 ) -> Prepared {
     let n = n_axes;
     let count = p.segments.len();
-    let point = |p: &Prepared, i: usize| -> Axes {
-        if i >= count {
-            return p.end;
-        }
-        let mut q = start;
-        q[..n].copy_from_slice(&p.points[i * n..(i + 1) * n]);
-        q
-    };
-    // The junction after each segment. Computed where it is needed instead of kept in a
-    // table: a `Junction` with its blend is about 220 bytes, more than the plan's own segment,
-    // kin and point of a move together (issue 18's memory per move). `shape_at` is its blend's
-    // geometry (or what it is instead), `junction_at` the blend with its shared curvatures
-    // and limits. The segments hold each move's look-ahead data (`Segment::kin`); the
-    // closures take the plan as an argument, so the caps can be written in place below.
-    let shape_at = |p: &Prepared, i: usize| -> Result<Blend, Unrounded> {
-        let kin = |k: usize| p.segments[k].kin();
-        if i + 1 >= count || kin(i).len == 0.0 || kin(i + 1).len == 0.0 {
-            return Err(Unrounded::Stop);
-        }
-        let (info_i, info_next) = (info.get(i), info.get(i + 1));
-        if info_next.stop_before {
-            return Err(Unrounded::Stop);
-        }
-        if info_next.stepped_before {
-            return Err(Unrounded::Stepped);
-        }
-        // `Δq / length` of move k, from the points (as `prepare` computed it: not kept, it
-        // would be 48 bytes a move).
-        let rate = |k: usize| -> Axes {
-            let (a, b) = (point(p, k), point(p, k + 1));
-            let mut r = Axes::ZERO;
-            for axis in 0..n {
-                r[axis] = (b[axis] - a[axis]) / kin(k).len;
-            }
-            r
-        };
-        let (rate_i, rate_next) = (rate(i), rate(i + 1));
-        let (kin_i, kin_next) = (kin(i), kin(i + 1));
-        let turn = part_turn(&info_i.part_dir, &info_next.part_dir);
-        shape(
-            &point(p, i + 1),
-            &Side {
-                dir: &rate_i,
-                kin: &kin_i,
-                euclidean: info_i.euclidean,
-            },
-            &Side {
-                dir: &rate_next,
-                kin: &kin_next,
-                euclidean: info_next.euclidean,
-            },
-            delta,
-            turn,
-            info_next.lit_before,
-            n,
-        )
-    };
-    // The curvature the blends at both ends of move `m` would share at its midpoint: where
-    // they abut (the move is a chord wholly inside them) on a Cartesian path (the deviation
-    // below is the spot's there).
-    let raw_g = |p: &Prepared, m: usize| -> Option<Axes> {
-        if m == 0 || m + 1 >= count || !(info.get(m - 1).euclidean && info.get(m).euclidean) {
-            return None;
-        }
-        if !info.get(m + 1).euclidean {
-            return None;
-        }
-        let (a, b) = (shape_at(p, m - 1).ok()?, shape_at(p, m).ok()?);
-        let abut = a.reach + b.reach >= p.segments[m].kin().len * (1.0 - ABUT);
-        (abut && curve_like(&a, &b, n)).then(|| shared_curvature(&a, &b))
-    };
-    // Whether both blends keep within the corner tolerance with curvature `g` at the midpoint
-    // of move `m`, whatever their other ends share (so each end is decided on its own).
-    let within = |b: &Blend, g0: &[Axes], g1: &[Axes]| {
-        g0.iter().all(|g0| {
-            g1.iter()
-                .all(|g1| b.deviation(g0, g1, n) <= delta * (1.0 + 1e-9))
-        })
-    };
-    // The level of curvature shared at the midpoint of move `m` (`Blend::shared`), ramped in
-    // at a run's ends: the blend that leaves a straight piece into a run of chords bends from
-    // zero, and one that bent to the full curvature within one chord would need more jerk
-    // than the smoothstep; so the k-th midpoint from the nearer end of the run gets k/LEVELS
-    // of its curvature.
-    let level_at = |p: &Prepared, m: usize| -> Option<(u8, Axes)> {
-        raw_g(p, m)?;
-        // Midpoints of the run on either side, as far as it takes to see a run of MIN_RUN.
-        let mut back = 0;
-        while back < MIN_RUN && m > back + 1 && raw_g(p, m - 1 - back).is_some() {
-            back += 1;
-        }
-        let mut fwd = 0;
-        while fwd < MIN_RUN && raw_g(p, m + 1 + fwd).is_some() {
-            fwd += 1;
-        }
-        if back + fwd + 1 < MIN_RUN {
-            return None;
-        }
-        let level = 1 + back.min(fwd).min(usize::from(LEVELS - 1)) as u8;
-        let (a, b) = (shape_at(p, m - 1).ok()?, shape_at(p, m).ok()?);
-        Some((level, shared_at(&a, &b, level)))
-    };
-    let scaled_g = |p: &Prepared, m: usize| level_at(p, m).map(|(_, g)| g);
-    // The curvature the blends at both ends of move `m` share at its midpoint: where they
-    // sample one curve (`raw_g`) and stay within the corner tolerance with it, whatever their
-    // other ends share.
-    let shared_g = |p: &Prepared, m: usize| -> Option<(u8, Axes)> {
-        let (level, g) = level_at(p, m)?;
-        let (a, b) = (shape_at(p, m - 1).ok()?, shape_at(p, m).ok()?);
-        let z = Axes::ZERO;
-        let before = [z, scaled_g(p, m - 1).unwrap_or(z)];
-        let after = [z, scaled_g(p, m + 1).unwrap_or(z)];
-        (within(&a, &before, &[g]) && within(&b, &[g], &after)).then_some((level, g))
-    };
-    let junction_at = |p: &Prepared, i: usize| -> Junction {
-        let mut blend = match shape_at(p, i) {
-            Ok(b) => b,
-            Err(other) => return other.into(),
-        };
-        let (l0, g0) = shared_g(p, i).unwrap_or((0, Axes::ZERO));
-        let (l1, g1) = shared_g(p, i + 1).unwrap_or((0, Axes::ZERO));
-        blend.shared = l0 | (l1 << 4);
-        let (kin_i, kin_next) = (p.segments[i].kin(), p.segments[i + 1].kin());
-        with_limits(blend, &g0, &g1, &kin_i, &kin_next, limits, n)
+    let junction_after = |p: &Prepared, i: usize| {
+        let src = Whole { p, info, start, n };
+        junction_at(&src, i, delta, limits, n)
     };
     // How many corners are rounded (a blend's limits leave it a stop only where the axis
     // limits allow no motion at all: the count only sizes the output and tells whether there is
     // any, and `junction_at` decides each corner below).
-    let extra = (0..count).filter(|&i| shape_at(&p, i).is_ok()).count();
+    let extra = (0..count)
+        .filter(|&i| {
+            shape_at(
+                &Whole {
+                    p: &p,
+                    info,
+                    start,
+                    n,
+                },
+                i,
+                delta,
+                n,
+            )
+            .is_ok()
+        })
+        .count();
     if extra == 0 {
         // Nothing to round: only the entry caps change, in place (no second copy of the plan).
         // A move's cap is written after the junction before it is judged, and a junction reads
-        // no cap.
+        // no cap. The same caps as `Splitter::split_move` gives a move without blends.
         let mut prev_v = 0.0f64;
         let mut before = Junction::Stop;
         for i in 0..count {
@@ -831,15 +743,15 @@ pub(super) fn split(
             if k.len == 0.0 {
                 prev_v = 0.0;
             } else {
-                let cap = match (i > 0).then_some(before) {
-                    Some(Junction::Straight) => k.v.min(prev_v),
-                    Some(Junction::Stepped) => k.cap.min(prev_v),
+                let cap = match before {
+                    Junction::Straight => k.v.min(prev_v),
+                    Junction::Stepped => k.cap.min(prev_v),
                     _ => 0.0,
                 };
                 p.segments[i].set_kin(&Kin { cap, ..k });
                 prev_v = k.v;
             }
-            before = junction_at(&p, i);
+            before = junction_after(&p, i);
         }
         return p;
     }
@@ -849,25 +761,63 @@ pub(super) fn split(
         end: p.end,
         blends: Vec::with_capacity(extra),
     };
-    // The speed limit of the sub-segment emitted last (0: at rest).
-    let mut prev_v = 0.0f64;
-    // The blend the previous move ended in, with its limits.
-    let mut blend_in: Option<(usize, f64, f64, f64)> = None;
-    // The junctions before and after move `i`.
-    let mut before = Junction::Stop;
-    let mut after = junction_at(&p, 0);
+    let mut splitter = Splitter::default();
     for i in 0..count {
-        if i > 0 {
-            before = after;
-            after = junction_at(&p, i);
+        let after = junction_after(&p, i);
+        let at = Whole {
+            p: &p,
+            info,
+            start,
+            n,
         }
-        let (seg, k) = (p.segments[i], p.segments[i].kin());
+        .point(i);
+        splitter.split_move(p.segments[i], &at, after, &mut out, n);
+    }
+    out
+}
+
+/// `split`, one move at a time: what it remembers of the moves before.
+pub(super) struct Splitter {
+    /// The speed limit of the sub-segment emitted last (0: at rest).
+    prev_v: f64,
+    /// The blend the previous move ended in, its index among the plan's blends, and its limits.
+    blend_in: Option<(Blend, u32, f64, f64, f64)>,
+    /// The junction before the next move.
+    before: Junction,
+    /// How many blends were made.
+    pub(super) blends: u32,
+}
+
+impl Default for Splitter {
+    fn default() -> Self {
+        Splitter {
+            prev_v: 0.0,
+            blend_in: None,
+            before: Junction::Stop,
+            blends: 0,
+        }
+    }
+}
+
+impl Splitter {
+    /// Splits the next move, `seg` from `at`, whose end junction is `after`, into `out`
+    /// (blends go to `out.blends`, numbered from the first this splitter made).
+    pub(super) fn split_move(
+        &mut self,
+        seg: Segment,
+        at: &Axes,
+        after: Junction,
+        out: &mut Prepared,
+        n: usize,
+    ) {
+        let before = std::mem::replace(&mut self.before, after);
+        let k = seg.kin();
         if k.len == 0.0 {
             out.segments.push(seg);
-            out.points.extend_from_slice(&point(&p, i)[..n]);
-            prev_v = 0.0;
-            blend_in = None;
-            continue;
+            out.points.extend_from_slice(&at[..n]);
+            self.prev_v = 0.0;
+            self.blend_in = None;
+            return;
         }
         let first = out.segments.len();
         let push =
@@ -880,53 +830,59 @@ pub(super) fn split(
                 out.segments.push(s);
                 out.points.extend_from_slice(&at[..n]);
             };
-        let l_in = blend_in.map_or(0.0, |(b, ..)| out.blends[b].reach);
+        let l_in = self.blend_in.map_or(0.0, |(b, ..)| b.reach);
         let (l_out, out_limits) = match after {
             Junction::Blend { blend, v, a, j } => (blend.reach, Some((blend, v, a, j))),
             _ => (0.0, None),
         };
         // Entry cap of the move's first sub-segment, when no blend leads into it.
-        let cap_before = match (i > 0).then_some(before) {
-            Some(Junction::Straight) => k.v.min(prev_v),
-            Some(Junction::Stepped) => k.cap.min(prev_v),
+        let cap_before = match before {
+            Junction::Straight => k.v.min(self.prev_v),
+            Junction::Stepped => k.cap.min(self.prev_v),
             _ => 0.0,
         };
-        if let Some((b, bv, ba, bj)) = blend_in {
+        if let Some((b, index, bv, ba, bj)) = self.blend_in {
             let v = k.v.min(bv);
-            let at = out.blends[b].point(0.5);
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(&mut out, l_in, lim, v.min(prev_v), 2 * b as u32 + 1, at);
-            prev_v = v;
+            push(
+                out,
+                l_in,
+                lim,
+                v.min(self.prev_v),
+                2 * index + 1,
+                b.point(0.5),
+            );
+            self.prev_v = v;
         }
         let mid = k.len - l_in - l_out;
         if mid > 1e-9 * k.len {
-            let (cap, at) = match blend_in {
-                Some((b, ..)) => (k.v.min(prev_v), out.blends[b].point(1.0)),
-                None => (cap_before, point(&p, i)),
+            let (cap, from) = match self.blend_in {
+                Some((b, ..)) => (k.v.min(self.prev_v), b.point(1.0)),
+                None => (cap_before, *at),
             };
-            push(&mut out, mid, (k.v, k.a, k.j), cap, NO_BLEND, at);
-            prev_v = k.v;
+            push(out, mid, (k.v, k.a, k.j), cap, NO_BLEND, from);
+            self.prev_v = k.v;
         }
-        blend_in = None;
+        self.blend_in = None;
         if let Some((blend, bv, ba, bj)) = out_limits {
-            let b = out.blends.len();
+            let index = self.blends;
+            self.blends += 1;
             out.blends.push(blend);
             let v = k.v.min(bv);
             let cap = if out.segments.len() == first {
                 cap_before
             } else {
-                v.min(prev_v)
+                v.min(self.prev_v)
             };
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(&mut out, l_out, lim, cap, 2 * b as u32, blend.point(0.0));
-            prev_v = v;
-            blend_in = Some((b, bv, ba, bj));
+            push(out, l_out, lim, cap, 2 * index, blend.point(0.0));
+            self.prev_v = v;
+            self.blend_in = Some((blend, index, bv, ba, bj));
         }
         if let Some(last) = out.segments.last_mut() {
             last.dwell = seg.dwell;
         }
     }
-    out
 }
 
 #[cfg(test)]

@@ -35,8 +35,13 @@
 //!    table of the axes in use; [`Plan::sample`] evaluates it exactly (on a blend, along the
 //!    blend curve).
 //!
-//! Memory: 120 bytes of segment and `8 · n_axes` of points per move (136 bytes for two axes,
-//! 168 for six), and nothing else per move: the look-ahead reads each move's limits from its
+//! In windows ([`plan_along_windows`], `window`): the same steps run as the moves come in,
+//! each on a small buffer, and the look-ahead hands on a prefix of segments once no later move
+//! can change it, so the caller reads the plan a window at a time and it never exists whole;
+//! the windows are the whole plan, bit for bit.
+//!
+//! Memory of a whole plan: 120 bytes of segment and `8 · n_axes` of points per move (136 bytes
+//! for two axes, 168 for six), and nothing else per move: the look-ahead reads each move's limits from its
 //! segment before timing it (`lookahead::KinTable`), and the corner blends' per-move input is
 //! a byte of flags (`blend::MoveInfos`) while the corners are judged. A blended corner adds two
 //! segments and a 160-byte [`Blend`].
@@ -47,7 +52,8 @@
 //! jerk-limited ramp over several straight-enough moves would lift that.
 //!
 //! Module map: `error` (diagnostics), `junction` (corner speeds), `lookahead` (speed passes),
-//! `profile` (1-D closed forms), `plan` (segments and sampling), `blend` (corner blends).
+//! `profile` (1-D closed forms), `plan` (segments and sampling), `blend` (corner blends),
+//! `window` (planning in windows).
 
 mod blend;
 mod error;
@@ -55,10 +61,12 @@ mod junction;
 mod lookahead;
 mod plan;
 mod profile;
+mod window;
 
 pub use blend::{Blend, REACH_MAX as BLEND_REACH_MAX};
 pub use error::PlanError;
 pub use plan::{Plan, Sample, Segment};
+pub use window::{MIN_WINDOW, Planned, plan_along_windows, plan_along_windows_sized};
 
 use lookahead::Kin;
 
@@ -387,6 +395,7 @@ pub fn plan_along_iter(
         duration,
         n_axes: cfg.n_axes,
         blends,
+        blend_base: 0,
     })
 }
 
@@ -462,8 +471,6 @@ fn validate(start: Axes, limits: &AxisLimits, cfg: &PlannerConfig) -> Result<(),
 ///
 /// A stop needs no flag of its own: the move after it gets entry cap 0, which is all the
 /// look-ahead passes need to stop there (the program's end is a stop by position).
-// `!(x > 0.0)` so NaN fails; axis loops index several parallel arrays.
-#[allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
 fn prepare(
     start: Axes,
     moves: impl Iterator<Item = (Move, Along)>,
@@ -472,35 +479,123 @@ fn prepare(
     cfg: &PlannerConfig,
 ) -> Result<Prepared, PlanError> {
     let n_axes = cfg.n_axes;
-    let scurve = cfg.profile == ProfileKind::SCurve;
-    let mut segments: Vec<Segment> = Vec::with_capacity(expected);
-    let mut points: Vec<f64> = Vec::with_capacity(expected * n_axes);
-    let mut q = start;
-    // The previous move ends at a stop point (or there is none yet).
-    let mut prev_stop = true;
-    let mut prev_dir = Axes::ZERO;
-    let mut prev_euclidean = true;
-    // Centripetal cap (v²) and rounding-circle reach of the previous move's entry corner.
-    let blending = cfg.corners == Corners::Blend;
-    let mut info = blend::MoveInfos::with_capacity(if blending { expected } else { 0 });
-    let mut prev_along = Along::default();
-    let mut prev_corner = junction::Corner::AT_REST;
-    let mut prev_d_in = 0.0;
-    let mut inv_a = [0.0; MAX_AXES];
-    for axis in 0..n_axes {
-        inv_a[axis] = 1.0 / limits.a[axis];
-    }
-    let corners = junction::CornerModel {
-        delta: cfg.junction_deviation,
-        inv_a,
-        path_a: cfg.path_a,
-        n_axes,
+    let mut raw = Raw {
+        segments: Vec::with_capacity(expected),
+        points: Vec::with_capacity(expected * n_axes),
+        info: blend::MoveInfos::with_capacity(if cfg.corners == Corners::Blend {
+            expected
+        } else {
+            0
+        }),
     };
+    let mut prep = Preparer::new(start, limits, cfg);
     for (index, (mv, here)) in moves.enumerate() {
+        prep.push(index, &mv, here, &mut raw)?;
+    }
+    let Raw {
+        segments,
+        points,
+        info,
+    } = raw;
+    let prepared = Prepared {
+        segments,
+        points,
+        end: prep.q,
+        blends: Vec::new(),
+    };
+    Ok(if prep.blending {
+        blend::split(
+            prepared,
+            &info,
+            start,
+            cfg.junction_deviation,
+            limits,
+            n_axes,
+        )
+    } else {
+        prepared
+    })
+}
+
+/// The moves `Preparer` made and not yet handed on: segment skeletons (each holding its move's
+/// look-ahead data, `Segment::kin`), their start points and the corner blends' flags.
+pub(super) struct Raw {
+    pub(super) segments: Vec<Segment>,
+    pub(super) points: Vec<f64>,
+    pub(super) info: blend::MoveInfos,
+}
+
+/// `prepare`, one move at a time: what it remembers of the move before. The last segment it
+/// made is not final until the next move comes (a stop or a dwell that follows it, a chord's
+/// curve limits), so whoever takes segments out of [`Raw`] leaves the last one in it.
+pub(super) struct Preparer<'a> {
+    limits: &'a AxisLimits,
+    cfg: &'a PlannerConfig,
+    n_axes: usize,
+    scurve: bool,
+    pub(super) blending: bool,
+    corners: junction::CornerModel,
+    /// Where the last move ended (the plan's end once every move is in).
+    pub(super) q: Axes,
+    /// The previous move ends at a stop point (or there is none yet).
+    prev_stop: bool,
+    prev_dir: Axes,
+    prev_euclidean: bool,
+    prev_along: Along,
+    /// Centripetal cap (v²) and rounding-circle reach of the previous move's entry corner.
+    prev_corner: junction::Corner,
+    prev_d_in: f64,
+}
+
+impl<'a> Preparer<'a> {
+    pub(super) fn new(start: Axes, limits: &'a AxisLimits, cfg: &'a PlannerConfig) -> Self {
+        let n_axes = cfg.n_axes;
+        let mut inv_a = [0.0; MAX_AXES];
+        for (inv, a) in inv_a.iter_mut().zip(&limits.a).take(n_axes) {
+            *inv = 1.0 / a;
+        }
+        Preparer {
+            limits,
+            cfg,
+            n_axes,
+            scurve: cfg.profile == ProfileKind::SCurve,
+            blending: cfg.corners == Corners::Blend,
+            corners: junction::CornerModel {
+                delta: cfg.junction_deviation,
+                inv_a,
+                path_a: cfg.path_a,
+                n_axes,
+            },
+            q: start,
+            prev_stop: true,
+            prev_dir: Axes::ZERO,
+            prev_euclidean: true,
+            prev_along: Along::default(),
+            prev_corner: junction::Corner::AT_REST,
+            prev_d_in: 0.0,
+        }
+    }
+
+    /// Move number `index` of the input into `raw` (or into its last segment).
+    // `!(x > 0.0)` so NaN fails; axis loops index several parallel arrays.
+    #[allow(clippy::neg_cmp_op_on_partial_ord, clippy::needless_range_loop)]
+    pub(super) fn push(
+        &mut self,
+        index: usize,
+        mv: &Move,
+        here: Along,
+        raw: &mut Raw,
+    ) -> Result<(), PlanError> {
+        let Raw {
+            segments,
+            points,
+            info,
+        } = raw;
         if u32::try_from(index).is_err() {
             return Err(PlanError::TooManyMoves { count: index + 1 });
         }
-        let mv = &mv;
+        let (n_axes, scurve, blending) = (self.n_axes, self.scurve, self.blending);
+        let (limits, cfg) = (self.limits, self.cfg);
         let bad = |field, value, why| PlanError::BadMove {
             index,
             field,
@@ -530,7 +625,7 @@ fn prepare(
         let mut dq = Axes::ZERO;
         let mut norm2 = 0.0;
         for axis in 0..MAX_AXES {
-            dq[axis] = mv.target[axis] - q[axis];
+            dq[axis] = mv.target[axis] - self.q[axis];
             if dq[axis] != 0.0 && axis >= n_axes {
                 return Err(PlanError::UnusedAxis {
                     index,
@@ -553,16 +648,16 @@ fn prepare(
             // motion the program is at rest already, so only a dwell needs a segment.
             if let Some(seg) = segments.last_mut() {
                 seg.dwell += mv.dwell_after;
-                prev_stop |= stop;
+                self.prev_stop |= stop;
             } else if mv.dwell_after > 0.0 {
                 segments.push(skeleton(0.0, mv, index));
-                points.extend_from_slice(&q[..n_axes]);
+                points.extend_from_slice(&self.q[..n_axes]);
                 if blending {
                     info.push(blend::MoveInfo::REST);
                 }
-                prev_stop = true;
+                self.prev_stop = true;
             }
-            continue;
+            return Ok(());
         }
         if norm2 == 0.0 {
             return Err(PlanError::LengthWithoutMotion {
@@ -604,21 +699,29 @@ fn prepare(
             dir[axis] = dq[axis] / scale;
         }
         // Both moves keep the velocity-step model at their corner (`Along::step_corners`).
-        let stepped = here.step_corners && prev_along.step_corners;
+        let stepped = here.step_corners && self.prev_along.step_corners;
         // The previous move's look-ahead data, kept in its segment until it is timed.
         let mut prev_kin = segments.last().map(Segment::kin);
         let (entry_cap, corner, d_in) = match prev_kin.as_mut() {
             // Blended corners are judged once every move is known (`blend::split`).
-            Some(prev) if blending && !prev_stop && !stepped => {
+            Some(prev) if blending && !self.prev_stop && !stepped => {
                 (v.min(prev.v), junction::Corner::AT_REST, 0.0)
             }
-            Some(prev) if !prev_stop => {
-                let c = if euclidean && prev_euclidean {
-                    corners.corner(&prev_dir, &dir, prev.a, a, prev.len, mv.length)
+            Some(prev) if !self.prev_stop => {
+                let c = if euclidean && self.prev_euclidean {
+                    self.corners
+                        .corner(&self.prev_dir, &dir, prev.a, a, prev.len, mv.length)
                 } else {
                     // A unit direction is `Δq / length` to within the tolerance: either kind
                     // of move enters the per-axis rule as it is.
-                    corners.corner_per_axis(&prev_dir, &dir, prev.a, a, prev.len, mv.length)
+                    self.corners.corner_per_axis(
+                        &self.prev_dir,
+                        &dir,
+                        prev.a,
+                        a,
+                        prev.len,
+                        mv.length,
+                    )
                 };
                 let d = if c.centripetal_v2 == f64::INFINITY {
                     0.0
@@ -632,8 +735,11 @@ fn prepare(
                 } else {
                     0.5 * prev.len.min(mv.length)
                 };
-                if prev_d_in > 0.0 && d > 0.0 && prev_d_in + d >= prev.len * (1.0 - CURVED_TOL) {
-                    curve_limits(prev, &prev_corner, &c);
+                if self.prev_d_in > 0.0
+                    && d > 0.0
+                    && self.prev_d_in + d >= prev.len * (1.0 - CURVED_TOL)
+                {
+                    curve_limits(prev, &self.prev_corner, &c);
                     if let Some(seg) = segments.last_mut() {
                         seg.set_kin(prev);
                     }
@@ -642,15 +748,15 @@ fn prepare(
             }
             _ => (0.0, junction::Corner::AT_REST, 0.0),
         };
-        prev_corner = corner;
-        prev_d_in = d_in;
+        self.prev_corner = corner;
+        self.prev_d_in = d_in;
         if blending {
             info.push(blend::MoveInfo {
                 euclidean,
-                stop_before: prev_stop,
+                stop_before: self.prev_stop,
                 part_dir: here.part_dir,
-                stepped_before: stepped && !prev_stop,
-                lit_before: here.lit && prev_along.lit && !prev_stop,
+                stepped_before: stepped && !self.prev_stop,
+                lit_before: here.lit && self.prev_along.lit && !self.prev_stop,
             });
         }
         let mut seg = skeleton(mv.length, mv, index);
@@ -662,31 +768,14 @@ fn prepare(
             cap: entry_cap,
         });
         segments.push(seg);
-        points.extend_from_slice(&q[..n_axes]);
-        prev_stop = stop;
-        prev_along = here;
-        prev_dir = dir;
-        prev_euclidean = euclidean;
-        q = mv.target;
+        points.extend_from_slice(&self.q[..n_axes]);
+        self.prev_stop = stop;
+        self.prev_along = here;
+        self.prev_dir = dir;
+        self.prev_euclidean = euclidean;
+        self.q = mv.target;
+        Ok(())
     }
-    let prepared = Prepared {
-        segments,
-        points,
-        end: q,
-        blends: Vec::new(),
-    };
-    Ok(if blending {
-        blend::split(
-            prepared,
-            &info,
-            start,
-            cfg.junction_deviation,
-            limits,
-            n_axes,
-        )
-    } else {
-        prepared
-    })
 }
 
 /// What `prepare` hands to the look-ahead.

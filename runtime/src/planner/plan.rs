@@ -221,9 +221,32 @@ pub struct Plan {
     pub(crate) n_axes: usize,
     /// The corner blends segments refer to (`Segment::blend`).
     pub(crate) blends: Vec<Blend>,
+    /// The number of the plan's first blend: 0 for a whole plan, that of the first blend a
+    /// window's segments refer to for a window (`planner::plan_along_windows`).
+    pub(crate) blend_base: u32,
 }
 
 impl Plan {
+    /// A plan of no segments that says where a program planned in windows starts and ends and
+    /// how long it takes (`motion::plan_program_windows`: its windows were handed on).
+    pub fn summary(start: Axes, end: Axes, duration: f64, n_axes: usize) -> Plan {
+        Plan {
+            segments: Vec::new(),
+            points: Vec::new(),
+            start,
+            end,
+            duration,
+            n_axes,
+            blends: Vec::new(),
+            blend_base: 0,
+        }
+    }
+
+    /// [`Plan::summary`] of `plan`.
+    pub fn without_segments(plan: &Plan) -> Plan {
+        Plan::summary(plan.start, plan.end, plan.duration, plan.n_axes)
+    }
+
     /// Total duration in s, dwells included.
     pub fn duration(&self) -> f64 {
         self.duration
@@ -278,12 +301,19 @@ impl Plan {
         if b == NO_BLEND {
             return None;
         }
-        Some((self.blends.get((b / 2) as usize)?, b % 2 == 1))
+        let k = (b / 2).checked_sub(self.blend_base)?;
+        Some((self.blends.get(k as usize)?, b % 2 == 1))
     }
 
-    /// The axis curvatures `q''` at the start and the end of blend `b`: shared with the blend
-    /// before or after it where they abut on a chord of a curve (`Blend::shared`), else zero.
+    /// The axis curvatures `q''` at the start and the end of blend `b` (numbered in the whole
+    /// plan): shared with the blend before or after it where they abut on a chord of a curve
+    /// (`Blend::shared`), else zero. A window (`plan_along_windows`) holds the blends its own
+    /// segments follow and the one before them where the planner still had it; a neighbour
+    /// it lacks counts as unshared, so sample a plan planned whole where that matters (traces).
     pub fn blend_curvatures(&self, b: usize) -> (Axes, Axes) {
+        let Some(b) = b.checked_sub(self.blend_base as usize) else {
+            return (Axes::ZERO, Axes::ZERO);
+        };
         let Some(blend) = self.blends.get(b) else {
             return (Axes::ZERO, Axes::ZERO);
         };

@@ -123,14 +123,23 @@ pub(crate) fn reach(v0: f64, len: f64, a: f64, j: f64) -> f64 {
 /// slowing to a low speed. The set of entries that can end at or below `e` is therefore
 /// `[0, max(reach(e), reach(0))]`; taking that maximum keeps the relation monotone in `e`,
 /// which the streaming window relies on (a longer window only ever raises caps).
+///
+/// `reach(e)` is not computed where it cannot win: where the ramp from `e` up to `reach(0)`
+/// needs more than `len` (by a relative margin of 1e-9, some five orders of magnitude above
+/// the rounding of either side), `reach(e) < reach(0)` and the maximum is `reach(0)`, bit for
+/// bit. A ramp's distance costs one root, `reach` a root, a cube root and three divisions, and
+/// on cornered paths of short moves the slow corners put most entries in that dip
+/// (`bench_plan`'s cornered path: 74 % of the backward pass's moves).
 #[inline]
 pub(crate) fn entry_limit(e: f64, len: f64, a: f64, j: f64) -> f64 {
-    let r = reach(e, len, a, j);
     if j == f64::INFINITY {
-        r
-    } else {
-        r.max(reach(0.0, len, a, j))
+        return reach(e, len, a, j);
     }
+    let r0 = reach(0.0, len, a, j);
+    if e < r0 && ramp_distance(e, r0 - e, a, j) > len * (1.0 + 1e-9) {
+        return r0;
+    }
+    reach(e, len, a, j).max(r0)
 }
 
 /// The exit speed the forward pass commits: the highest speed `≤ e` that a move of length
@@ -139,7 +148,7 @@ pub(crate) fn entry_limit(e: f64, len: f64, a: f64, j: f64) -> f64 {
 /// Accelerating: `min(e, reach(v_in))`. Slowing: `e` itself when the ramp `e → v_in` fits;
 /// otherwise `v_in` was admitted through the `reach(0)` branch of [`entry_limit`], and the
 /// answer is the largest `w < e` whose ramp `w → v_in` fits, found by bisection on
-/// `ramp_distance(w, v_in − w) ≤ len`, which holds on `[0, w_lo]` below `e`.
+/// `ramp_distance(w, v_in − w) ≤ len`, which holds on `[0, w_lo]` below `e` ([`bisect_fit`]).
 #[inline]
 pub(crate) fn exit_speed(v_in: f64, e: f64, len: f64, a: f64, j: f64) -> f64 {
     if v_in <= e {
@@ -152,11 +161,30 @@ pub(crate) fn exit_speed(v_in: f64, e: f64, len: f64, a: f64, j: f64) -> f64 {
         return e;
     }
     let len_ok = len * (1.0 + 1e-12);
-    let fits = |w: f64| ramp_distance(w, v_in - w, a, j) <= len_ok;
-    if !fits(0.0) {
+    if !(ramp_distance(0.0, v_in, a, j) <= len_ok) {
         // `v_in ≤ reach(0, len)` up to rounding; rest is the closest admissible answer.
         return 0.0;
     }
+    bisect_fit(v_in, e, len_ok, a, j, fit_band(v_in, e, len_ok, a, j))
+}
+
+/// No band: every step of [`bisect_fit`] computes its ramp.
+const NO_BAND: (f64, f64) = (f64::NEG_INFINITY, f64::INFINITY);
+
+/// The bisection of [`exit_speed`]: the largest `w` in `[0, e]` (to `1e-15 · e`) with
+/// `ramp_distance(w, v_in − w) ≤ len_ok`, from `fits(0)`. Inside `band = (lo, hi)` each step
+/// computes the ramp; below `lo` it fits and above `hi` it does not without computing it
+/// ([`fit_band`] proves both), so the steps go the very same way and the answer is the same.
+fn bisect_fit(v_in: f64, e: f64, len_ok: f64, a: f64, j: f64, band: (f64, f64)) -> f64 {
+    let fits = |w: f64| {
+        if w <= band.0 {
+            true
+        } else if w >= band.1 {
+            false
+        } else {
+            ramp_distance(w, v_in - w, a, j) <= len_ok
+        }
+    };
     let (mut lo, mut hi) = (0.0, e);
     for _ in 0..64 {
         let mid = 0.5 * (lo + hi);
@@ -170,6 +198,70 @@ pub(crate) fn exit_speed(v_in: f64, e: f64, len: f64, a: f64, j: f64) -> f64 {
         }
     }
     lo
+}
+
+/// Relative margin on a computed ramp distance in [`fit_band`]: about a hundred times the
+/// rounding of `ramp_distance` (a few operations, each within half an ulp; its input
+/// `v_in − w` rounds within one, which moves the distance by at most 1.5 ulps).
+const FIT_MARGIN: f64 = 1e-13;
+
+/// `(lo, hi)` within `[0, e]` such that `ramp_distance(w, v_in − w) ≤ len_ok` as computed holds
+/// for every `w ≤ lo` and fails for every `w ≥ hi`, close around the crossing; [`NO_BAND`]
+/// where that cannot be shown. The bisection then computes about 5 ramps instead of about 50
+/// (3 % of the S-curve moves of `bench_plan`'s cornered path bisect, 50 steps each: as many
+/// ramp distances as all other moves' look-ahead together).
+///
+/// Why it holds: `g(w) = ramp_distance(w, v_in − w)` is concave on `[0, v_in]` (each of its two
+/// pieces is, and it is C¹ where they meet: `lead_distance`), so each of its superlevel sets
+/// `{g > c}` is an interval. The crossing is bracketed by regula falsi (Illinois), then widened
+/// to `lo`, `hi` (by what g's slope there needs to change by the margin), and checked: `g(lo) ≤ len_ok · (1 − m)` puts `lo` outside
+/// `{g > len_ok · (1 − m/2)}`, while `g(hi) ≥ len_ok · (1 + m)` puts `hi > lo` inside it, so the
+/// whole interval lies above `lo` and every `w ≤ lo` has `g(w)` at least `m/2` below `len_ok`,
+/// far more than rounding. Likewise `g(hi)` and `g(e)` both `≥ len_ok · (1 + m)` put `[hi, e]`
+/// inside `{g > len_ok · (1 + m/2)}`.
+fn fit_band(v_in: f64, e: f64, len_ok: f64, a: f64, j: f64) -> (f64, f64) {
+    let g = |w: f64| ramp_distance(w, v_in - w, a, j) - len_ok;
+    let (below, above) = (-FIT_MARGIN * len_ok, FIT_MARGIN * len_ok);
+    let (mut x0, mut f0) = (0.0, g(0.0));
+    let (mut x1, mut f1) = (e, g(e));
+    if !(f0 <= below && f1 >= above) {
+        return NO_BAND;
+    }
+    let f_e = f1;
+    let mut last = 0i8;
+    for _ in 0..16 {
+        let x = x1 - f1 * (x1 - x0) / (f1 - f0);
+        if !(x > x0 && x < x1) {
+            break;
+        }
+        let fx = g(x);
+        if fx <= 0.0 {
+            (x0, f0) = (x, fx);
+            if last < 0 {
+                f1 *= 0.5;
+            }
+            last = -1;
+        } else {
+            (x1, f1) = (x, fx);
+            if last > 0 {
+                f0 *= 0.5;
+            }
+            last = 1;
+        }
+        if x1 - x0 <= 1e-14 * e {
+            break;
+        }
+    }
+    // Wide enough that g changes by twice the margin on either side: by concavity g's slope
+    // at the crossing is at least that of the chord from there to e.
+    let slope = f_e / (e - x1);
+    let step = (4.0 * above / slope).max(1e-13 * e);
+    let (lo, hi) = ((x0 - step).max(0.0), (x1 + step).min(e));
+    if lo < hi && g(lo) <= below && g(hi) >= above {
+        (lo, hi)
+    } else {
+        NO_BAND
+    }
 }
 
 /// Timing of one move along its path: ramp up from `v0` to `vp`, cruise at `vp`, ramp down
@@ -186,6 +278,20 @@ pub(crate) struct Shape {
     pub t_a2: f64,
 }
 
+/// A move of length `len` is surely too short to ramp from `v0` up to `vmax ≥ max(v0, v1)` and
+/// back to `v1`, without computing the ramps: even constant-acceleration ramps, shorter than
+/// any jerk-limited one (`t_j ≥ 0` adds distance; without a constant phase
+/// `(2v + dv)·√(dv/J) ≥ (2v + dv)·dv/2a` as `dv ≤ a²/J`), need
+/// `((vmax² − v0²) + (vmax² − v1²)) / 2a` more than `len`, by a relative 1e-9 that rounding
+/// (a few ulps: the differences of squares are formed as products of exact-ish differences)
+/// cannot reach. Most moves of a cornered path are far too short to reach their feed, and this
+/// spares `shape` two ramp distances each (a root and divisions) before it solves their peak.
+#[inline]
+fn too_short_to_cruise(len: f64, v0: f64, v1: f64, vmax: f64, a: f64) -> bool {
+    let d = (vmax - v0) * (vmax + v0) + (vmax - v1) * (vmax + v1);
+    d > 2.0 * a * len * (1.0 + 1e-9)
+}
+
 /// Relative tolerance of the peak-speed solve on the distance equation.
 const PEAK_REL_TOL: f64 = 1e-14;
 
@@ -199,6 +305,7 @@ pub(crate) fn shape(len: f64, v0: f64, v1: f64, vmax: f64, a: f64, j: f64) -> Sh
     let vp = if len <= 0.0 {
         hi
     } else if vmax.is_finite()
+        && !too_short_to_cruise(len, v0, v1, vmax, a)
         && ramp_distance(v0, vmax - v0, a, j) + ramp_distance(v1, vmax - v1, a, j) <= len
     {
         vmax
@@ -541,6 +648,113 @@ mod tests {
                 assert!(d <= l * (1.0 + 1e-12), "e={e} v_in={v_in} w={w} d={d}");
             }
         }
+    }
+
+    /// Deterministic uniform numbers in [0, 1) (xorshift64).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    #[test]
+    fn entry_limit_is_the_larger_reach_bit_for_bit() {
+        // Lengths from 1 µm to 1 m, a and J over four decades (and unlimited a), exit caps
+        // from 0 to twice the speed reached from rest: every answer is the very max of the two
+        // reaches, whether or not `entry_limit` computed both.
+        let mut rnd = uniform(0x2545_f491_4f6c_dd1d);
+        let (mut skipped, cases) = (0, 200_000);
+        for k in 0..cases {
+            let len = 10f64.powf(-3.0 + 6.0 * rnd());
+            let a = if k % 10 == 0 {
+                INF
+            } else {
+                10f64.powf(1.0 + 4.0 * rnd())
+            };
+            let j = 10f64.powf(3.0 + 4.0 * rnd());
+            let r0 = reach(0.0, len, a, j);
+            let e = if k % 7 == 0 { 0.0 } else { 2.0 * r0 * rnd() };
+            let want = reach(e, len, a, j).max(r0);
+            assert_eq!(
+                entry_limit(e, len, a, j).to_bits(),
+                want.to_bits(),
+                "e={e} len={len} a={a} j={j}"
+            );
+            if e < r0 && ramp_distance(e, r0 - e, a, j) > len * (1.0 + 1e-9) {
+                skipped += 1;
+            }
+        }
+        // The shortcut was taken often enough to be tested (29 507 of 200 000 here: caps drawn
+        // up to twice reach(0), so most lie above the dip).
+        assert!(
+            skipped > cases / 10,
+            "{skipped} of {cases} skipped reach(e)"
+        );
+    }
+
+    #[test]
+    fn banded_bisection_is_the_plain_one_bit_for_bit() {
+        // Moves entered faster than their exit cap allows to keep, admitted through reach(0)
+        // (`entry_limit`): the bisection with its band ends where the plain one does.
+        let mut rnd = uniform(0x9e37_79b9_7f4a_7c15);
+        let (mut banded, mut cases) = (0, 0);
+        while cases < 20_000 {
+            let len = 10f64.powf(-3.0 + 5.0 * rnd());
+            let a = if rnd() < 0.1 {
+                INF
+            } else {
+                10f64.powf(1.0 + 4.0 * rnd())
+            };
+            let j = 10f64.powf(3.0 + 4.0 * rnd());
+            let r0 = reach(0.0, len, a, j);
+            let v_in = r0 * rnd().sqrt();
+            let e = v_in * rnd();
+            let len_ok = len * (1.0 + 1e-12);
+            if v_in <= reach(e, len, a, j) || ramp_distance(0.0, v_in, a, j) > len_ok {
+                continue;
+            }
+            cases += 1;
+            let band = fit_band(v_in, e, len_ok, a, j);
+            banded += usize::from(band != NO_BAND);
+            let plain = bisect_fit(v_in, e, len_ok, a, j, NO_BAND);
+            assert_eq!(
+                exit_speed(v_in, e, len, a, j).to_bits(),
+                plain.to_bits(),
+                "v_in={v_in} e={e} len={len} a={a} j={j} band={band:?}"
+            );
+        }
+        assert!(banded > cases * 9 / 10, "{banded} of {cases} banded");
+    }
+
+    #[test]
+    fn moves_too_short_to_cruise_could_not_cruise() {
+        // Wherever the shortcut says a move cannot cruise at vmax, its ramps as computed need
+        // more than its length; and it does say so for most short moves.
+        let mut rnd = uniform(0x5851_f42d_4c95_7f2d);
+        let (mut said, cases) = (0, 100_000);
+        for _ in 0..cases {
+            let len = 10f64.powf(-3.0 + 5.0 * rnd());
+            let a = 10f64.powf(1.0 + 4.0 * rnd());
+            let j = if rnd() < 0.2 {
+                INF
+            } else {
+                10f64.powf(3.0 + 4.0 * rnd())
+            };
+            let vmax = 10f64.powf(4.0 * rnd());
+            let (v0, v1) = (vmax * rnd(), vmax * rnd());
+            if too_short_to_cruise(len, v0, v1, vmax, a) {
+                said += 1;
+                let d = ramp_distance(v0, vmax - v0, a, j) + ramp_distance(v1, vmax - v1, a, j);
+                assert!(
+                    d > len,
+                    "len={len} v0={v0} v1={v1} vmax={vmax} a={a} j={j}: {d}"
+                );
+            }
+        }
+        assert!(said > cases / 4, "{said} of {cases}");
     }
 
     #[test]

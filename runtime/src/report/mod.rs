@@ -19,7 +19,9 @@ mod trace;
 
 pub use plot::{DOT_LIMIT, PNG_SCALE, PlotOptions, SpeedUnit, plot_png, plot_svg, svg_to_png};
 pub use pulses::{PulseEvent, PulseEvents, pulse_events, write_pulses};
-pub use summary::{AxisPeaks, ControllerCycle, Summary, TimeSplit, summarize, time_split};
+pub use summary::{
+    AxisPeaks, ControllerCycle, PlanTotals, Summary, TimeSplit, summarize, time_split,
+};
 pub use trace::write_trace;
 
 use crate::motion::Job;
@@ -147,7 +149,7 @@ pub(super) fn standstills(job: &Job) -> Vec<Standstill> {
 
 /// Rounds to 9 significant digits, so goldens do not change with the last bits of a platform's
 /// libm.
-pub(crate) fn round_sig(x: f64) -> f64 {
+pub fn round_sig(x: f64) -> f64 {
     if !x.is_finite() || x == 0.0 {
         return x;
     }

@@ -1,11 +1,12 @@
 //! The plan summary: cycle time, lengths, laser time, pulse count and the peak axis speed,
 //! acceleration and jerk, computed exactly from the plan's segments.
 
-use super::pulses::sections;
-use super::{dwell_lit, round_sig, segment_is_rapid, segment_laser};
+use super::pulses::Section;
+use super::round_sig;
 use crate::axes::to_external;
 use crate::motion::Job;
-use crate::program::Ramp;
+use crate::planner::{Plan, Segment};
+use crate::program::{Laser, OpKind, ProcessProgram, Pulse, Ramp};
 use serde::Serialize;
 use std::collections::BTreeMap;
 
@@ -89,99 +90,229 @@ fn fire_pulses(job: &Job) -> (u64, f64) {
         })
 }
 
-/// Summarizes a planned job.
+/// Summarizes a planned job: [`PlanTotals`] over its whole plan.
 ///
 /// Axis peaks: along a straight move `q(s) = q0 + u·s`, so every axis quantity is `|u_k|`
 /// times the path quantity, and the path peaks of a segment are its `v_peak`, its ramp
 /// accelerations and, for an S-curve, the jerk `a_p / t_j` of its jerk phases. Speed jumps at
 /// junctions (the corner model) are not counted as acceleration.
 pub fn summarize(job: &Job) -> Summary {
-    let plan = &job.plan;
-    let machine = &job.program.machine;
-    let segs = plan.segments();
-    let scurve = job.program.planner.ramp == Ramp::Scurve;
-    let n_axes = machine.axes.len();
-    let mut v = vec![0.0f64; n_axes];
-    let mut a = vec![0.0f64; n_axes];
-    let mut j = vec![0.0f64; n_axes];
-    let (mut rapid, mut lit_len, mut lit_time) = (0.0, 0.0, 0.0);
-    for (i, seg) in segs.iter().enumerate() {
-        if segment_is_rapid(job, i) {
-            rapid += seg.length;
+    PlanTotals::of(job).summary(job)
+}
+
+/// What the summary and the time split count, gathered segment by segment as the plan passes:
+/// whole ([`PlanTotals::of`]) or a window at a time (issue 18: `lase plan` of a job of millions
+/// of moves, `motion::plan_program_windows`), in the same order and with the same arithmetic,
+/// so both give the same numbers to the last bit. A segment is counted once the next one has
+/// arrived: whether the beam stays on through its dwell, and whether its lit section goes on,
+/// depend on the next segment's laser.
+#[derive(Debug)]
+pub struct PlanTotals {
+    scurve: bool,
+    /// Peak speed, acceleration and jerk per axis.
+    peaks: Vec<[f64; 3]>,
+    rapid_len: f64,
+    lit_len: f64,
+    /// Lit time in the summary's order of sums; the time split's parts.
+    lit_time: f64,
+    split: [f64; 3],
+    blocks: usize,
+    last_move: Option<u32>,
+    /// The segment waiting for the next one, and its index in the whole plan.
+    waiting: Option<(Segment, usize)>,
+    seen: usize,
+    /// The lit section with pulses that is open: its first segment's pulse, start time and
+    /// path distance, and its first segment.
+    section: Option<(Pulse, f64, f64, usize)>,
+    pulses_moving: u64,
+    /// Path length, once known.
+    length: f64,
+}
+
+impl PlanTotals {
+    /// Ready for the segments of `program`'s plan.
+    pub fn new(program: &ProcessProgram) -> PlanTotals {
+        PlanTotals {
+            scurve: program.planner.ramp == Ramp::Scurve,
+            peaks: vec![[0.0; 3]; program.machine.axes.len()],
+            rapid_len: 0.0,
+            lit_len: 0.0,
+            lit_time: 0.0,
+            split: [0.0; 3],
+            blocks: 0,
+            last_move: None,
+            waiting: None,
+            seen: 0,
+            section: None,
+            pulses_moving: 0,
+            length: 0.0,
         }
-        if segment_laser(job, i).is_some() {
-            lit_len += seg.length;
-            lit_time += seg.motion_duration();
-            if dwell_lit(job, i) {
-                lit_time += seg.dwell;
+    }
+
+    /// The totals of a job planned whole.
+    pub fn of(job: &Job) -> PlanTotals {
+        let mut t = PlanTotals::new(&job.program);
+        t.window(&job.program, &job.plan);
+        t.finish(&job.program, job.plan.length());
+        t
+    }
+
+    /// Counts a window of `program`'s plan (its segments in order, after the last window's).
+    pub fn window(&mut self, program: &ProcessProgram, plan: &Plan) {
+        for (i, seg) in plan.segments().iter().enumerate() {
+            // One block per planned move: a move blended at its corners is up to three
+            // segments (`planner::blend`), all with the move's index.
+            if self.last_move != Some(seg.move_index) {
+                self.blocks += 1;
+                self.last_move = Some(seg.move_index);
+            }
+            let u = plan.direction(i);
+            let acc = seg.accel_peak().max(seg.decel_peak());
+            let jerk = {
+                let up = if seg.t_j1 > 0.0 {
+                    seg.accel_peak() / seg.t_j1
+                } else {
+                    0.0
+                };
+                let down = if seg.t_j2 > 0.0 {
+                    seg.decel_peak() / seg.t_j2
+                } else {
+                    0.0
+                };
+                up.max(down)
+            };
+            for (k, p) in self.peaks.iter_mut().enumerate() {
+                let uk = u[k].abs();
+                p[0] = p[0].max(uk * seg.v_peak);
+                p[1] = p[1].max(uk * acc);
+                p[2] = p[2].max(uk * jerk);
+            }
+            if let Some((prev, at)) = self.waiting.take() {
+                self.count(program, &prev, at, laser_of(program, seg));
+            }
+            self.waiting = Some((*seg, self.seen));
+            self.seen += 1;
+        }
+    }
+
+    /// After the last window: `length` is the plan's path length.
+    pub fn finish(&mut self, program: &ProcessProgram, length: f64) {
+        if let Some((prev, at)) = self.waiting.take() {
+            self.count(program, &prev, at, None);
+        }
+        self.length = length;
+    }
+
+    /// Counts segment `seg` (number `at` of the plan), `next` the laser of the one after it.
+    fn count(&mut self, program: &ProcessProgram, seg: &Segment, at: usize, next: Option<&Laser>) {
+        let laser = laser_of(program, seg);
+        let rapid = program
+            .ops
+            .get(seg.tag as usize)
+            .is_some_and(|op| matches!(op.kind, OpKind::Rapid { .. }));
+        // The beam stays on through the dwell between two lit moves.
+        let dwell_lit = laser.is_some() && next.is_some();
+        if rapid {
+            self.rapid_len += seg.length;
+        }
+        let t = seg.motion_duration();
+        if laser.is_some() {
+            self.lit_len += seg.length;
+            self.lit_time += t;
+            if dwell_lit {
+                self.lit_time += seg.dwell;
+            }
+            self.split[0] += t;
+            if dwell_lit {
+                self.split[0] += seg.dwell;
+            }
+        } else if rapid {
+            self.split[2] += t;
+        } else {
+            self.split[1] += t;
+        }
+        // Lit sections with pulses (`pulses::sections`): one opens at a lit segment with a
+        // pulse setting and goes on while the beam stays on into a segment with the same one.
+        let pulse = laser.and_then(|l| l.pulse.as_ref());
+        if self.section.is_none()
+            && let Some(p) = pulse
+        {
+            self.section = Some((p.clone(), seg.t_start, seg.s_start, at));
+        }
+        if let Some((p, t0, s0, first)) = &self.section {
+            let goes_on = dwell_lit && next.and_then(|l| l.pulse.as_ref()) == Some(p);
+            if !goes_on {
+                self.pulses_moving += Section {
+                    first: *first,
+                    last: at,
+                    mode: p.mode,
+                    t0: *t0,
+                    t1: seg.t_start + seg.motion_duration(),
+                    s0: *s0,
+                    s1: seg.s_start + seg.length,
+                }
+                .count();
+                self.section = None;
             }
         }
-        let u = plan.direction(i);
-        let acc = seg.accel_peak().max(seg.decel_peak());
-        let jerk = {
-            let up = if seg.t_j1 > 0.0 {
-                seg.accel_peak() / seg.t_j1
-            } else {
-                0.0
-            };
-            let down = if seg.t_j2 > 0.0 {
-                seg.decel_peak() / seg.t_j2
-            } else {
-                0.0
-            };
-            up.max(down)
-        };
-        for k in 0..n_axes {
-            let uk = u[k].abs();
-            v[k] = v[k].max(uk * seg.v_peak);
-            a[k] = a[k].max(uk * acc);
-            j[k] = j[k].max(uk * jerk);
+    }
+
+    /// The time split of the job whose plan was counted.
+    pub fn time_split(&self, job: &Job) -> TimeSplit {
+        let [lit, feed, rapid] = self.split;
+        TimeSplit {
+            lit_s: lit,
+            unlit_feed_s: feed,
+            rapid_s: rapid,
+            still_s: (job.cycle_time() - lit - feed - rapid).max(0.0),
         }
     }
-    let axes = machine
-        .axes
-        .iter()
-        .enumerate()
-        .map(|(k, axis)| {
-            let ext = |x: f64| round_sig(to_external(axis.kind, x));
-            (
-                axis.name.clone(),
-                AxisPeaks {
-                    v_max: ext(v[k]),
-                    a_max: ext(a[k]),
-                    j_max: scurve.then(|| ext(j[k])),
-                },
-            )
-        })
-        .collect();
-    let moving = sections(job).iter().map(|s| s.count()).sum::<u64>();
-    let (standstill, fire_time) = fire_pulses(job);
-    Summary {
-        recipe: job.program.recipe.clone(),
-        machine: machine.name.clone(),
-        ramp: job.program.planner.ramp,
-        cycle_time_s: round_sig(job.cycle_time()),
-        controller: None,
-        path_length_mm: round_sig(plan.length()),
-        rapid_length_mm: round_sig(rapid),
-        laser_on_length_mm: round_sig(lit_len),
-        laser_on_time_s: round_sig(lit_time),
-        pulses: moving + standstill,
-        pulses_moving: moving,
-        pulses_standstill: standstill,
-        standstill_fire_time_s: round_sig(fire_time),
-        // One block per planned move: a move blended at its corners is up to three segments
-        // (`planner::blend`), all with the move's index.
-        blocks: job
-            .plan
-            .segments()
+
+    /// The summary of the job whose plan was counted.
+    pub fn summary(&self, job: &Job) -> Summary {
+        let machine = &job.program.machine;
+        let axes = machine
+            .axes
             .iter()
-            .enumerate()
-            .filter(|(i, s)| *i == 0 || job.plan.segments()[i - 1].move_index != s.move_index)
-            .count(),
-        ops: job.program.ops.len(),
-        axes,
+            .zip(&self.peaks)
+            .map(|(axis, p)| {
+                let ext = |x: f64| round_sig(to_external(axis.kind, x));
+                (
+                    axis.name.clone(),
+                    AxisPeaks {
+                        v_max: ext(p[0]),
+                        a_max: ext(p[1]),
+                        j_max: self.scurve.then(|| ext(p[2])),
+                    },
+                )
+            })
+            .collect();
+        let (standstill, fire_time) = fire_pulses(job);
+        let moving = self.pulses_moving;
+        Summary {
+            recipe: job.program.recipe.clone(),
+            machine: machine.name.clone(),
+            ramp: job.program.planner.ramp,
+            cycle_time_s: round_sig(job.cycle_time()),
+            controller: None,
+            path_length_mm: round_sig(self.length),
+            rapid_length_mm: round_sig(self.rapid_len),
+            laser_on_length_mm: round_sig(self.lit_len),
+            laser_on_time_s: round_sig(self.lit_time),
+            pulses: moving + standstill,
+            pulses_moving: moving,
+            pulses_standstill: standstill,
+            standstill_fire_time_s: round_sig(fire_time),
+            blocks: self.blocks,
+            ops: job.program.ops.len(),
+            axes,
+        }
     }
+}
+
+/// The laser of `seg`'s op (None when unlit).
+fn laser_of<'p>(program: &'p ProcessProgram, seg: &Segment) -> Option<&'p Laser> {
+    program.ops.get(seg.tag as usize)?.laser()
 }
 
 /// Where a job's cycle time goes, s: lit motion (and dwells between lit moves), unlit motion
@@ -206,24 +337,5 @@ impl TimeSplit {
 /// The [`TimeSplit`] of a planned job, from the same segments and rules as [`summarize`]'s
 /// laser-on time (so `lit_s` is its `laser_on_time_s`).
 pub fn time_split(job: &Job) -> TimeSplit {
-    let (mut lit, mut feed, mut rapid) = (0.0, 0.0, 0.0);
-    for (i, seg) in job.plan.segments().iter().enumerate() {
-        let t = seg.motion_duration();
-        if segment_laser(job, i).is_some() {
-            lit += t;
-            if dwell_lit(job, i) {
-                lit += seg.dwell;
-            }
-        } else if segment_is_rapid(job, i) {
-            rapid += t;
-        } else {
-            feed += t;
-        }
-    }
-    TimeSplit {
-        lit_s: lit,
-        unlit_feed_s: feed,
-        rapid_s: rapid,
-        still_s: (job.cycle_time() - lit - feed - rapid).max(0.0),
-    }
+    PlanTotals::of(job).time_split(job)
 }

@@ -3,7 +3,7 @@
 //! bounded-memory test (`tests/plan_memory.rs`) and the benchmark (`examples/bench_moves.rs`).
 
 /// The recipe of `n` moves (`n` even; a `for` loop writes at most the evaluator's op budget,
-/// 500 000).
+/// 2 000 000).
 pub fn recipe(n: usize) -> String {
     format!(
         "machine xy_table\n\

@@ -11,7 +11,11 @@
 //!   grblHAL, as lase writes it) has no synchronized output: in laser mode the S word changes
 //!   without a stop, so the high block is written at the section's power and the low block at
 //!   `S0`, and the high block is kept to half the spot diameter (a dot, not a dash). A post
-//!   without `pulse_on` lines gates each pulse with the beam's own on/off lines.
+//!   without `pulse_on` lines gates each pulse with the beam's own on/off lines. No block
+//!   carries two switches of the trigger: LinuxCNC keeps only the last one per output and
+//!   segment, so where a train ends high and the next one rises on its first block (touching
+//!   dots in runs of different pitch), the trigger falls earlier, on a block of its own
+//!   ([`lower_before_the_next_train`]).
 //! * With `pso` lines in the post the controller fires by distance itself: the lines are
 //!   written (with the pitch) when a section with a new pitch starts, and the lit moves are
 //!   written as plain blocks with the beam on.
@@ -122,6 +126,43 @@ fn continues(ops: &[Op], i: usize) -> bool {
         .is_some_and(|o| o.laser().is_some() && o.laser().and_then(|l| l.pulse.as_ref()) == pulse)
 }
 
+/// Whether the next op that moves starts a train of its own, with a rising trigger edge on
+/// its first block: lit, pulsed by distance without PSO, and not `ops[i]`'s train going on.
+fn next_train_starts(ops: &[Op], i: usize, post: &DialectPost) -> bool {
+    post.pso.is_empty()
+        && !continues(ops, i)
+        && ops[i + 1..]
+            .iter()
+            .find(|o| o.target().is_some())
+            .and_then(distance_pitch)
+            .is_some()
+}
+
+/// A section that ends with the trigger high, where the next one raises it on its first block
+/// (two dots that touch, in runs of different pitch: codes' Data Matrix), would lower and
+/// raise it before the same block. LinuxCNC keeps one synchronized switch per output and
+/// segment, the last one queued (tp.c `tpSetDout`: `syncdio.dios[index]` is a single slot
+/// that `tpAddLine` hands to the next segment), so the trigger would stay high and the second
+/// pulse never fire. The last high piece is halved instead: the trigger falls on a block of
+/// its own, half the gate before the section's end, and the next pulse still rises where it
+/// belongs. The gate is half a pitch and the piece at least its half, so the split always
+/// fits; the pulses' places do not move.
+fn lower_before_the_next_train(cuts: &mut Vec<(f64, bool)>, len: f64, eps: f64) {
+    let Some(&(end, true)) = cuts.last() else {
+        return;
+    };
+    let start = cuts.len().checked_sub(2).map_or(0.0, |k| cuts[k].0);
+    if end < len - eps {
+        return;
+    }
+    let mid = 0.5 * (start + end);
+    if mid > start + eps {
+        let n = cuts.len();
+        cuts[n - 1] = (mid, true);
+        cuts.push((end, false));
+    }
+}
+
 /// Writes lit op `ops[i]` cut at its pulse positions (see the module header).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn write_gated(
@@ -177,6 +218,9 @@ pub(super) fn write_gated(
     }
     if pos < len - eps {
         cuts.push((len, false));
+    }
+    if !goes_on && !g.dialect.is_grbl_family() && next_train_starts(ops, i, g.post) {
+        lower_before_the_next_train(&mut cuts, len, eps);
     }
     train.next_mm = (at(k) - len).max(0.0);
     let mut trigger = train.trigger;

@@ -25,10 +25,21 @@ pub(super) struct Piece<'a> {
 
 /// The pieces of motion op `i` starting at `from` (axes `from_q`); `split` asks for the lit
 /// sub-blocks (`power::lit_blocks`: the coupled power's, and the planned speed's).
-pub(super) fn pieces(job: &Job, i: usize, from: P3, from_q: Axes, split: bool) -> Vec<Piece<'_>> {
+pub(super) fn pieces<'j>(
+    job: &'j Job,
+    facts: Option<&crate::emit::PlanFacts>,
+    i: usize,
+    from: P3,
+    from_q: Axes,
+    split: bool,
+) -> Vec<Piece<'j>> {
     let op = &job.program.ops[i];
     let blocks = if split {
-        power::lit_blocks(job, i)
+        // A plan made in windows left them in `facts` (`emit::PlanFacts`).
+        match facts {
+            Some(f) => f.lit_blocks(i),
+            None => power::lit_blocks(job, i),
+        }
     } else {
         Vec::new()
     };

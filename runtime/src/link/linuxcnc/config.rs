@@ -113,6 +113,43 @@ pub(crate) fn max_linear_velocity(machine: &Machine) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// How many digital outputs motion must have (`num_dio`): one past the highest `P` of any
+/// `M62`–`M65` the machine's LinuxCNC lines write (beam, pulses, events, switched outputs such
+/// as the xy_table's air assist on `M62 P2`), and at least the two the sampler records. A
+/// program writing an output motion lacks fails in LinuxCNC's interpreter.
+fn digital_outputs(machine: &Machine) -> u32 {
+    let mut lines: Vec<&String> = Vec::new();
+    if let Some(p) = machine.post.get("linuxcnc") {
+        lines.extend(p.laser_on.iter().chain(&p.laser_off).chain(&p.power));
+        lines.extend(p.pulse_on.iter().chain(&p.pulse_off).chain(&p.pso));
+    }
+    for e in machine.events.values() {
+        lines.extend(e.codes.get("linuxcnc").into_iter().flatten());
+    }
+    for o in machine.outputs.values() {
+        if let Some(l) = o.posts.get("linuxcnc") {
+            lines.extend(l.on.iter().chain(&l.off));
+        }
+    }
+    let index = |line: &str| -> Option<u32> {
+        let up = line.to_ascii_uppercase();
+        let words: Vec<&str> = up.split_whitespace().collect();
+        // M62-M65: the digital outputs, synchronized or immediate.
+        let digital = words.iter().any(|w| {
+            w.strip_prefix('M')
+                .and_then(|n| n.parse::<u32>().ok())
+                .is_some_and(|n| (62..=65).contains(&n))
+        });
+        let p = words.iter().find_map(|w| w.strip_prefix('P')?.parse().ok());
+        p.filter(|_| digital)
+    };
+    lines
+        .iter()
+        .filter_map(|l| index(l))
+        .map(|p| p + 1)
+        .fold(2, u32::max)
+}
+
 pub fn generate(machine: &Machine, options: &ConfigOptions) -> Config {
     let letters = letters(machine);
     let coords: String = letters.iter().collect();
@@ -194,11 +231,12 @@ pub fn generate(machine: &Machine, options: &ConfigOptions) -> Config {
     let mut hal = format!(
         "# HAL for lase machine `{name}`: simulated joints, sampled every servo period.\n\
          loadrt [KINS]KINEMATICS\n\
-         loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS num_dio=2 num_aio={num_aio}\n\
+         loadrt [EMCMOT]EMCMOT servo_period_nsec=[EMCMOT]SERVO_PERIOD num_joints=[KINS]JOINTS num_dio={num_dio} num_aio={num_aio}\n\
          loadrt sampler depth={depth} cfg={cfg}\n\
          addf motion-command-handler servo-thread\n\
          addf motion-controller servo-thread\n",
         name = machine.name,
+        num_dio = digital_outputs(machine),
         depth = options.sampler_depth,
         cfg = "f".repeat(n) + "bbfs" + "f".repeat(scales.len()).as_str(),
     );
@@ -261,6 +299,25 @@ mod tests {
     }
 
     #[test]
+    fn the_arm_gets_trivkins_over_its_joints_in_degrees() {
+        // The arm's program is in joint space (X slide, A B C joints): trivkins maps each
+        // letter to its joint, the rotary joints in degrees.
+        let m = crate::machine::parse_machine(lase_stdlib::machine("arm_3r").unwrap(), 0).unwrap();
+        let c = generate(&m, &ConfigOptions::default());
+        assert!(
+            c.ini
+                .contains("KINEMATICS = trivkins coordinates=XABC\nJOINTS = 4\n")
+        );
+        assert!(c.ini.contains("COORDINATES = X A B C\n"));
+        assert!(c.ini.contains("[AXIS_B]\nMAX_VELOCITY = 90\nMAX_ACCELERATION = 900\nMIN_LIMIT = -175\nMAX_LIMIT = 175\n"), "{}", c.ini);
+        for j in 1..=3 {
+            assert!(c.ini.contains(&format!("[JOINT_{j}]\nTYPE = ANGULAR\n")));
+        }
+        assert!(c.ini.contains("[JOINT_0]\nTYPE = LINEAR\n"));
+        assert!(c.hal.contains("num_dio=2 num_aio=1\n"), "{}", c.hal);
+    }
+
+    #[test]
     fn scales_read_x_and_y_through_sum2_on_the_settle_inputs() {
         let m =
             crate::machine::parse_machine(lase_stdlib::machine("xy_table").unwrap(), 0).unwrap();
@@ -275,7 +332,8 @@ mod tests {
             },
         );
         // Two inputs beside the power output; the sampler records them after the program line.
-        assert!(c.hal.contains("num_dio=2 num_aio=2\n"), "{}", c.hal);
+        // Three digital outputs: beam, pulses and the air assist's `M62 P2`.
+        assert!(c.hal.contains("num_dio=3 num_aio=2\n"), "{}", c.hal);
         assert!(c.hal.contains("cfg=ffbbfsff"), "{}", c.hal);
         assert!(
             c.hal.contains(

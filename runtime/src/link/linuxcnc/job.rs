@@ -198,6 +198,13 @@ fn refused_program(job: &LinuxCncJob<'_>, message: String) -> LinkError {
 
 /// Follows a started job until LinuxCNC is idle again: journals each line it has passed,
 /// hands every poll to `observer` (which may hold, resume or abort), and says how it ended.
+///
+/// Every wait ends: each reply within the session's reply timeout ([`Rsh::reply_timeout`]),
+/// else the job ends `Lost` with what was waited for. A LinuxCNC whose task (milltask) has
+/// died keeps answering `get` from its last status, a program RUNNING forever: when a running
+/// program's status has not changed for the reply timeout (a long `G4` or an `M66` wait can
+/// do that too), lase asks whether the task still takes commands ([`Rsh::probe_task`]); one
+/// that does not ends the job `Lost` as well, where it would otherwise be followed forever.
 pub fn follow(
     rsh: &mut Rsh,
     job: &LinuxCncJob<'_>,
@@ -210,6 +217,9 @@ pub fn follow(
     let mut held = false;
     let mut seen_running = false;
     let mut last_sync = Instant::now();
+    // The last status that changed, and since when it has stood still.
+    let mut last_seen: Option<RunStatus> = None;
+    let mut still_since = Instant::now();
     let report = |outcome, done, note: Option<String>| Report {
         outcome,
         acked: done,
@@ -240,6 +250,32 @@ pub fn follow(
             Err(e) => return report(lost(e), done, None),
         }
         seen_running |= st.program != ProgramStatus::Idle;
+        if last_seen.as_ref() != Some(&st) {
+            last_seen = Some(st.clone());
+            still_since = Instant::now();
+        } else if st.program == ProgramStatus::Running
+            && still_since.elapsed() >= rsh.reply_timeout()
+        {
+            let still = still_since.elapsed().as_secs_f64();
+            if let Err(e) = rsh.probe_task() {
+                let e = match e {
+                    LinkError::Timeout { seconds, .. } => LinkError::Timeout {
+                        waiting_for: format!(
+                            "LinuxCNC reported its program RUNNING at line {} with nothing moving for {still:.1} s, and lase waited for its task to take `{}` (its task, milltask, has likely stopped)",
+                            st.line,
+                            rsh.last_sent()
+                        ),
+                        seconds,
+                    },
+                    e => e,
+                };
+                if let Some(j) = journal.as_deref_mut() {
+                    let _ = j.sync();
+                }
+                return report(lost(e), done, None);
+            }
+            still_since = Instant::now();
+        }
         if st.program == ProgramStatus::Idle
             && (seen_running || t0.elapsed() > Duration::from_secs(2))
         {

@@ -35,6 +35,12 @@ pub const DEFAULT_PORT: u16 = 5007;
 /// commands wait for the task to receive them (its default wait mode).
 pub const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
 
+/// How long `lase run` waits for linuxcncrsh by default (`linuxcnc://…?timeout=SECONDS`):
+/// for each reply, and for a running program's status to change before it asks whether
+/// LinuxCNC's task still takes commands ([`Rsh::probe_task`]). LinuxCNC's user interface runs
+/// beside motion without real-time priority: a silence of seconds is load, not a lost link.
+pub const LIVE_TIMEOUT: Duration = Duration::from_secs(30);
+
 /// What `get program_status` says.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ProgramStatus {
@@ -61,6 +67,8 @@ pub struct Rsh {
     pending: Vec<u8>,
     url: String,
     reply_timeout: Duration,
+    /// The last command written: what a reply that does not come was waited for.
+    last_sent: String,
 }
 
 impl std::fmt::Debug for Rsh {
@@ -80,6 +88,11 @@ impl Rsh {
     /// Connects to linuxcncrsh at `host:port` and takes control: hello, echo off, verbose on,
     /// enable.
     pub fn connect(host: &str, port: u16) -> Result<Rsh, LinkError> {
+        Rsh::connect_with(host, port, REPLY_TIMEOUT)
+    }
+
+    /// As [`Rsh::connect`], each reply (the greeting's too) within `reply_timeout`.
+    pub fn connect_with(host: &str, port: u16, reply_timeout: Duration) -> Result<Rsh, LinkError> {
         let url = format!("linuxcnc://{host}:{port}");
         let t = TcpTransport::connect(host, port).map_err(|e| match e {
             LinkError::Connect { reason, .. } => LinkError::Connect {
@@ -92,16 +105,25 @@ impl Rsh {
             },
             e => e,
         })?;
-        Rsh::over(Box::new(t), url)
+        Rsh::over_with(Box::new(t), url, reply_timeout)
     }
 
     /// The session over any transport (tests use a pipe or a failing wrapper).
     pub fn over(transport: Box<dyn Transport>, url: String) -> Result<Rsh, LinkError> {
+        Rsh::over_with(transport, url, REPLY_TIMEOUT)
+    }
+
+    fn over_with(
+        transport: Box<dyn Transport>,
+        url: String,
+        reply_timeout: Duration,
+    ) -> Result<Rsh, LinkError> {
         let mut rsh = Rsh {
             transport,
             pending: Vec::new(),
             url,
-            reply_timeout: REPLY_TIMEOUT,
+            reply_timeout,
+            last_sent: String::new(),
         };
         rsh.write("hello EMC lase 1.0")?;
         let hello = rsh.line()?;
@@ -133,13 +155,24 @@ impl Rsh {
         self.reply_timeout = timeout;
     }
 
+    /// How long each reply may take.
+    pub fn reply_timeout(&self) -> Duration {
+        self.reply_timeout
+    }
+
+    /// The last command sent to linuxcncrsh.
+    pub fn last_sent(&self) -> &str {
+        &self.last_sent
+    }
+
     fn write(&mut self, command: &str) -> Result<(), LinkError> {
+        self.last_sent = command.to_string();
         let mut bytes = command.as_bytes().to_vec();
         bytes.extend_from_slice(b"\r\n");
         self.transport
             .write_all(&bytes)
             .map_err(|e| LinkError::Lost {
-                reason: e.to_string(),
+                reason: format!("sending `{command}` to linuxcncrsh: {e}"),
             })
     }
 
@@ -164,7 +197,7 @@ impl Rsh {
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
                 return Err(LinkError::Timeout {
-                    waiting_for: "a linuxcncrsh reply".into(),
+                    waiting_for: format!("waiting for linuxcncrsh's reply to `{}`", self.last_sent),
                     seconds: self.reply_timeout.as_secs_f64(),
                 });
             }
@@ -173,7 +206,10 @@ impl Rsh {
                 .transport
                 .read(&mut buf, left.min(Duration::from_millis(100)))
                 .map_err(|e| LinkError::Lost {
-                    reason: e.to_string(),
+                    reason: format!(
+                        "linuxcncrsh: {e} while lase waited for its reply to `{}`",
+                        self.last_sent
+                    ),
                 })?;
             if self.pending.len() + n > 64 * 1024 {
                 return Err(protocol(
@@ -264,6 +300,22 @@ impl Rsh {
             abs_pos,
             joints,
         })
+    }
+
+    /// Whether LinuxCNC's task still takes commands: `set optional_stop` with the value it
+    /// has (`get optional_stop`), so nothing changes. linuxcncrsh answers every `get` from the
+    /// last status the task published, so a task that has died (seen: milltask gone, its
+    /// program RUNNING forever) still "answers" them; a `set`, though, waits until the task
+    /// has received it (emcrsh.cc, `sendSetOptionalStop` → `emcCommandWaitReceived`, with no
+    /// time limit of its own), so its reply not coming within the reply timeout is the sign.
+    /// A refusal (NAK) is an answer: the task is there.
+    pub fn probe_task(&mut self) -> Result<(), LinkError> {
+        let value = self.get("optional_stop")?;
+        let value = if value.trim() == "1" { "1" } else { "0" };
+        match self.set(&format!("optional_stop {value}")) {
+            Ok(()) | Err(LinkError::NotReady { .. }) => Ok(()),
+            Err(e) => Err(e),
+        }
     }
 
     /// Asks LinuxCNC itself to shut down (linuxcncrsh `shutdown`): how a harness that started

@@ -18,7 +18,14 @@
 //!   chord strays less than the naive CAM tolerance (`G64 Q`, else `P`) from it runs as that
 //!   chord: canon's `ARC_FEED` sends it as two lines through its middle
 //!   (`chord_deviation < naivecamTolerance`), which the naive CAM detector joins into one
-//!   (dial_marks' 0.25 mm arcs turn at their chord ends).
+//!   (dial_marks' 0.25 mm arcs turn at their chord ends). The same detector joins straight
+//!   feeds (`see_segment`/`linkable`/`flush_segments`, [`naive::joins`]): in G64 with Q (else P)
+//!   above 0, consecutive G94 lines that move no rotary axis run as one line from the
+//!   chain's start while every chained point stays within Q of it (at most 100 points); a
+//!   new F, any output word (synchronized ones flush the chain before they queue), a rapid,
+//!   an arc or a dwell ends the chain. Measured: serial_number's strokes, short lines
+//!   continuing their lead-ins, run at the feed as one segment (cycle 0.913 → 0.951 of the
+//!   model with it).
 //! - **Term conditions** (`tpAddLine`/`tpAddCircle` → `tpCheckCanonType`, `tpHandleBlendArc`),
 //!   parabolic by default under `G64`:
 //!   - *stop* between a rapid and a feed (`tpCheckCanonType`), at a reversal sharper than 178°
@@ -60,8 +67,9 @@
 //!   from swallowing the segment that carries them.
 //!
 //! Measured against the real controller (`tests/linuxcnc.rs`), every example it runs is within
-//! 1 % of the model in cycle and beam-on time. Not modelled: feed override, spindle sync, the
-//! naive CAM detector's merging of collinear lines (collinear, so time-neutral), the servo
+//! 1 % of the model in cycle and beam-on time, but for the disagreements `tests/linuxcnc.rs`
+//! pins and names. Not modelled: feed override, spindle sync, the naive CAM detector joining
+//! a flattened arc with its neighbours, the servo
 //! period's quantisation outside parabolic chains, and blend arcs in 3D or next to arcs
 //! beyond their chord. Of its constants, only `DRAIN_CYCLES` is measured rather than read
 //! from LinuxCNC's source: it is task's latency, not the planner's.
@@ -138,7 +146,7 @@ impl TpLimits {
         let max_linear_v = super::config::max_linear_velocity(machine);
         let beam_output = machine.post.get("linuxcnc").and_then(|p| {
             p.laser_on.iter().find_map(|l| {
-                let w = words(l).ok()?;
+                let w = read::words(l).ok()?;
                 w.iter()
                     .find(|(c, v)| *c == 'M' && (*v == 62.0 || *v == 64.0))?;
                 w.iter().find(|(c, _)| *c == 'P').map(|(_, p)| *p as u32)
@@ -172,53 +180,29 @@ pub struct TpTime {
 /// The LinuxCNC time of a job: `None` when the machine has no LinuxCNC post, `Err` with the
 /// reason when the program cannot be written or read.
 pub fn controller_time(job: &crate::motion::Job) -> Option<Result<TpTime, String>> {
-    let machine = &job.program.machine;
-    machine.post.get("linuxcnc")?;
-    Some((|| {
-        let nc = crate::emit::emit_to_string(job, crate::emit::Dialect::LinuxCnc)
-            .map_err(|e| e.to_string())?;
-        let limits = TpLimits::for_machine(
-            machine,
-            f64::from(super::config::ConfigOptions::default().servo_period_ns) * 1e-9,
-        );
-        run_program(&nc, &limits)
-    })())
+    controller_time_from(job, None)
 }
 
-/// The words of one line: letters (upper case) and their numbers, comments dropped.
-fn words(line: &str) -> Result<Vec<(char, f64)>, String> {
-    let mut text = String::new();
-    let mut depth = 0;
-    for c in line.chars() {
-        match c {
-            ';' if depth == 0 => break,
-            '(' => depth += 1,
-            ')' if depth > 0 => depth -= 1,
-            _ if depth > 0 || c.is_whitespace() => {}
-            _ => text.push(c.to_ascii_uppercase()),
-        }
-    }
-    let mut out = Vec::new();
-    let b = text.as_bytes();
-    let mut i = 0;
-    while i < b.len() {
-        let letter = b[i] as char;
-        if !letter.is_ascii_alphabetic() {
-            return Err(format!("`{line}`: `{letter}` is not a word"));
-        }
-        let start = i + 1;
-        let mut j = start;
-        while j < b.len() && (b[j].is_ascii_digit() || b[j] == b'.' || b[j] == b'-' || b[j] == b'+')
-        {
-            j += 1;
-        }
-        let v: f64 = text[start..j]
-            .parse()
-            .map_err(|_| format!("`{line}`: `{letter}` has no number"))?;
-        out.push((letter, v));
-        i = j;
-    }
-    Ok(out)
+/// [`controller_time`] of a job planned whole (`facts` `None`) or in windows (`facts` from
+/// them): the program streamed line by line through [`TpStream`], never held (issue 18);
+/// [`TpTime::starts`] is left empty.
+pub fn controller_time_from(
+    job: &crate::motion::Job,
+    facts: Option<&crate::emit::PlanFacts>,
+) -> Option<Result<TpTime, String>> {
+    let machine = &job.program.machine;
+    machine.post.get("linuxcnc")?;
+    let limits = TpLimits::for_machine(
+        machine,
+        f64::from(super::config::ConfigOptions::default().servo_period_ns) * 1e-9,
+    );
+    let mut model = TpStream::new(&limits, &[], false);
+    Some(
+        crate::emit::emit_nc_lines(job, facts, crate::emit::Dialect::LinuxCnc, &mut |l| {
+            model.line(l)
+        })
+        .map(|()| model.finish()),
+    )
 }
 
 /// A segment the planner queues, in its own length unit (see the module doc).
@@ -254,319 +238,6 @@ enum Joint {
     /// Through at most `cap` (the previous segment's unit), the next entering at `ratio` times
     /// the previous one's exit speed.
     Through { cap: f64, ratio: f64 },
-}
-
-/// The program as the planner's queue sees it.
-#[derive(Debug, Default)]
-struct Queue {
-    segs: Vec<Seg>,
-    /// `joints[i]` follows `segs[i]`.
-    joints: Vec<Option<Joint>>,
-    /// Immediate output changes at the stop after segment `i` (or before the first: `None`).
-    immediate: Vec<(Option<usize>, u32, bool)>,
-    /// Dwells before the first segment.
-    stops: usize,
-}
-
-/// Reads the NC text into segments and the stops between them.
-fn read(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<(Queue, Vec<f64>), String> {
-    let n = limits.axes.len();
-    let index = |c: char| limits.axes.iter().position(|a| a.letter == c);
-    let mut q = Queue::default();
-    let mut pos: Vec<f64> = (0..n)
-        .map(|k| start.get(k).copied().unwrap_or(0.0))
-        .collect();
-    let mut motion = 0u32;
-    let mut feed = 0.0;
-    let mut inverse_time = false;
-    let mut exact_stop = false;
-    let mut tolerance = 0.0;
-    // G64 Q, the naive CAM detector's tolerance: P when Q is not given.
-    let mut naive = 0.0;
-    let mut pending: Vec<(u32, bool)> = Vec::new();
-    let mut tolerances = Vec::new();
-    // Ends the current chain: a stop after the last segment (or before the first).
-    fn stop(q: &mut Queue, dwell: f64) {
-        match q.joints.last_mut() {
-            Some(j @ None) => *j = Some(Joint::Stop { dwell, drain: true }),
-            Some(Some(Joint::Stop { dwell: d, .. })) => *d += dwell,
-            _ => q.stops += usize::from(dwell > 0.0),
-        }
-    }
-    for (number, raw) in nc.lines().enumerate() {
-        let w = words(raw)?;
-        if w.is_empty() {
-            continue;
-        }
-        let mut target = pos.clone();
-        let mut moved = false;
-        let mut center = [None, None];
-        let mut dwell = None;
-        let mut p_word = None;
-        for &(c, v) in &w {
-            match c {
-                'G' => match (v * 10.0).round() as i64 {
-                    0 => motion = 0,
-                    10 => motion = 1,
-                    20 => motion = 2,
-                    30 => motion = 3,
-                    40 => dwell = Some(0.0),
-                    930 => inverse_time = true,
-                    940 => inverse_time = false,
-                    610 | 611 => exact_stop = true,
-                    640 => exact_stop = false,
-                    170 | 210 | 900 | 910 | 400 | 490 | 800 | 540 => {}
-                    _ => return Err(format!("`{raw}`: G{v} is not modelled")),
-                },
-                'F' => feed = v,
-                'P' => p_word = Some(v),
-                'Q' | 'E' | 'S' | 'N' | 'K' => {}
-                'I' => center[0] = Some(v),
-                'J' => center[1] = Some(v),
-                'M' => {}
-                c => match index(c) {
-                    Some(k) => {
-                        target[k] = v;
-                        moved = true;
-                    }
-                    None => return Err(format!("`{raw}`: the machine has no axis {c}")),
-                },
-            }
-        }
-        let has_g = |g: f64| w.iter().any(|&(c, v)| c == 'G' && (v - g).abs() < 1e-9);
-        if has_g(64.0) {
-            tolerance = p_word.unwrap_or(0.0);
-            naive = w
-                .iter()
-                .find(|(c, _)| *c == 'Q')
-                .map_or(tolerance, |(_, q)| *q);
-        }
-        // Outputs come before the block's motion (rs274ngc's order of execution).
-        for &(c, v) in &w {
-            if c != 'M' {
-                continue;
-            }
-            match v as i64 {
-                62 | 63 => pending.push((p_word.unwrap_or(0.0) as u32, v as i64 == 62)),
-                67 => {}
-                64 | 65 => {
-                    stop(&mut q, 0.0);
-                    let at = q.segs.len().checked_sub(1);
-                    q.immediate
-                        .push((at, p_word.unwrap_or(0.0) as u32, v as i64 == 64));
-                }
-                2 | 30 => stop(&mut q, 0.0),
-                // Any other M-code is run by the task after motion has ended.
-                _ => stop(&mut q, 0.0),
-            }
-        }
-        if dwell.is_some() {
-            stop(&mut q, p_word.unwrap_or(0.0));
-            continue;
-        }
-        if !moved {
-            continue;
-        }
-        let small_arc = (!exact_stop).then_some(naive);
-        let seg = segment(
-            &pos,
-            &target,
-            motion,
-            center,
-            feed,
-            inverse_time,
-            small_arc,
-            limits,
-            raw,
-        )?;
-        pos = target;
-        let Some(mut seg) = seg else { continue };
-        seg.dio = std::mem::take(&mut pending);
-        seg.line = number + 1;
-        if let (Some(j @ None), true) = (q.joints.last_mut(), exact_stop) {
-            // G61: the term condition STOP, inside the planner.
-            *j = Some(Joint::Stop {
-                dwell: 0.0,
-                drain: false,
-            });
-        }
-        q.segs.push(seg);
-        q.joints.push(None);
-        tolerances.push(tolerance);
-    }
-    Ok((q, tolerances))
-}
-
-/// The segment from `from` to `to`, `None` when nothing moves.
-#[allow(clippy::too_many_arguments)]
-fn segment(
-    from: &[f64],
-    to: &[f64],
-    motion: u32,
-    center: [Option<f64>; 2],
-    feed: f64,
-    inverse_time: bool,
-    small_arc: Option<f64>,
-    limits: &TpLimits,
-    raw: &str,
-) -> Result<Option<Seg>, String> {
-    let axes = &limits.axes;
-    let d: Vec<f64> = from.iter().zip(to).map(|(a, b)| b - a).collect();
-    let xyz_of = |v: &[f64]| -> [f64; 3] {
-        let mut out = [0.0; 3];
-        for (k, a) in axes.iter().enumerate() {
-            if let Some(i) = "XYZ".find(a.letter) {
-                out[i] = v[k];
-            }
-        }
-        out
-    };
-    let mut acc_bound = [0.0; 3];
-    for a in axes {
-        if let Some(i) = "XYZ".find(a.letter) {
-            acc_bound[i] = a.a;
-        }
-    }
-    let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-    let dxyz = xyz_of(&d);
-    let lin = norm(&dxyz);
-    let rot: f64 = norm(
-        &axes
-            .iter()
-            .zip(&d)
-            .filter(|(a, _)| a.rotary)
-            .map(|(_, v)| *v)
-            .collect::<Vec<_>>(),
-    );
-    let rotary = rot > POS_EPSILON;
-    if motion >= 2 {
-        // An arc in the XY plane (G17, the only plane lase writes).
-        let (ix, iy) = (
-            axes.iter().position(|a| a.letter == 'X'),
-            axes.iter().position(|a| a.letter == 'Y'),
-        );
-        let (Some(ix), Some(iy)) = (ix, iy) else {
-            return Err(format!("`{raw}`: an arc needs X and Y"));
-        };
-        let c = [
-            from[ix] + center[0].unwrap_or(0.0),
-            from[iy] + center[1].unwrap_or(0.0),
-        ];
-        let r0 = [from[ix] - c[0], from[iy] - c[1]];
-        let r1 = [to[ix] - c[0], to[iy] - c[1]];
-        let radius = r0[0].hypot(r0[1]);
-        let mut sweep = (r0[0] * r1[1] - r0[1] * r1[0]).atan2(r0[0] * r1[0] + r0[1] * r1[1]);
-        let ccw = motion == 3;
-        if ccw && sweep <= 1e-12 {
-            sweep += std::f64::consts::TAU;
-        } else if !ccw && sweep >= -1e-12 {
-            sweep -= std::f64::consts::TAU;
-        }
-        let len = radius * sweep.abs();
-        if len < POS_EPSILON {
-            return Ok(None);
-        }
-        // In blending mode an arc whose chord strays less than the naive CAM tolerance from it
-        // runs as that chord: measured, dial_marks' 0.25 mm arcs turn at their chord ends.
-        let sagitta = radius * (1.0 - (sweep.abs() / 2.0).cos());
-        let as_chord =
-            small_arc.is_some_and(|tol| sweep.abs() <= std::f64::consts::PI && sagitta < tol);
-        if as_chord {
-            return segment(
-                from,
-                to,
-                1,
-                [None, None],
-                feed,
-                inverse_time,
-                None,
-                limits,
-                raw,
-            );
-        }
-        let tangent = |r: [f64; 2]| -> [f64; 3] {
-            let s = if ccw { 1.0 } else { -1.0 };
-            let l = r[0].hypot(r[1]).max(1e-300);
-            [-s * r[1] / l, s * r[0] / l, 0.0]
-        };
-        let (vx, vy) = (axes[ix].v, axes[iy].v);
-        let (ax, ay) = (axes[ix].a, axes[iy].a);
-        let acc = ax.min(ay);
-        let req = if inverse_time {
-            (len * feed).max(0.1) / 60.0
-        } else {
-            feed / 60.0
-        };
-        let vmax = vx
-            .min(vy)
-            .min(limits.max_linear_v)
-            .min((ACC_RATIO_NORMAL * acc * radius).sqrt())
-            .min(len / limits.cycle_s);
-        return Ok(Some(Seg {
-            len,
-            req: req.min(vmax),
-            vmax,
-            acc,
-            rapid: false,
-            arc: true,
-            rotary,
-            u0: tangent(r0),
-            u1: tangent(r1),
-            dio: Vec::new(),
-            acc_bound,
-            line: 0,
-        }));
-    }
-    // A line: its length is X Y Z's, or the rotary axes' when X Y Z stay.
-    let len = if lin > POS_EPSILON { lin } else { rot };
-    if len < POS_EPSILON {
-        return Ok(None);
-    }
-    // canon: the time each axis needs at its limit; the line's limit is its length over the
-    // longest.
-    let t_v = axes
-        .iter()
-        .zip(&d)
-        .map(|(a, x)| x.abs() / a.v)
-        .fold(0.0, f64::max);
-    let t_a = axes
-        .iter()
-        .zip(&d)
-        .map(|(a, x)| x.abs() / a.a)
-        .fold(0.0, f64::max);
-    let mut vmax = len / t_v.max(1e-300);
-    if lin > POS_EPSILON {
-        vmax = vmax.min(limits.max_linear_v);
-    }
-    vmax = vmax.min(len / limits.cycle_s);
-    let acc = len / t_a.max(1e-300);
-    let rapid = motion == 0;
-    let req = if rapid {
-        vmax
-    } else if inverse_time {
-        (len * feed).max(0.1) / 60.0
-    } else {
-        feed / 60.0
-    };
-    let u = if lin > POS_EPSILON {
-        [dxyz[0] / lin, dxyz[1] / lin, dxyz[2] / lin]
-    } else {
-        [0.0; 3]
-    };
-    Ok(Some(Seg {
-        len,
-        req: req.min(vmax),
-        vmax,
-        acc,
-        rapid,
-        arc: false,
-        rotary,
-        u0: u,
-        u1: u,
-        dio: Vec::new(),
-        acc_bound,
-        line: 0,
-    }))
 }
 
 fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
@@ -720,6 +391,85 @@ struct Piece {
     seg: usize,
 }
 
+/// The pieces segment `i` runs as (itself trimmed by the blend arcs at its ends, then the
+/// blend arc into the next, if any), at acceleration `a`, with `trim_start` taken by the
+/// blend arc before it; returns what its own blend arc takes from the next segment.
+///
+/// Blend arcs take their share of each side; what is left of a segment runs at most its
+/// length per servo period (tcClampVelocityByLength), which is how two blend arcs that meet
+/// in the middle of a segment they may not swallow nearly stop the machine there.
+fn seg_pieces(
+    i: usize,
+    s: &Seg,
+    (kind, queued): (Option<Kind>, Option<Joint>),
+    a: f64,
+    trim_start: f64,
+    cycle: f64,
+    pieces: &mut impl Extend<Piece>,
+) -> f64 {
+    let trim_end = match kind {
+        Some(Kind::Arc { d, .. }) => d,
+        _ => 0.0,
+    };
+    let len = (s.len - trim_start - trim_end).max(0.0);
+    // blendCheckConsume: a line without synced outputs (`tcCanConsume`) whose remainder would
+    // take fewer than GAP_CYCLES servo periods at the next blend arc's speed becomes part of
+    // that arc (its `line_length`) and runs at the arc's speed, not at its own length per servo
+    // period (a lit arc's short sub-blocks, each a chord).
+    let consumed = match kind {
+        Some(Kind::Arc { v, .. }) => {
+            (!s.arc && s.dio.is_empty() && len < GAP_CYCLES * cycle * v).then_some(v)
+        }
+        _ => None,
+    };
+    let v_top = match consumed {
+        Some(v) => s.req.min(s.vmax).min(v),
+        None => s.req.min(s.vmax).min(len.max(1e-6 * s.len) / cycle),
+    };
+    let joint = match (kind, queued) {
+        (_, Some(j)) => j,
+        (None, None) | (Some(Kind::Stop), _) => Joint::Stop {
+            dwell: 0.0,
+            drain: false,
+        },
+        (Some(Kind::Tangent { cap, .. }), _) => Joint::Through { cap, ratio: 1.0 },
+        (Some(Kind::Arc { v, .. }), _) => Joint::Through { cap: v, ratio: 1.0 },
+        (Some(Kind::Parabolic { va, vb }), _) => Joint::Through {
+            cap: va,
+            ratio: vb / va,
+        },
+    };
+    pieces.extend([Piece {
+        len: len.max(1e-12),
+        v_top,
+        acc: a,
+        dio: s.dio.clone(),
+        joint,
+        seg: i,
+    }]);
+    let Some(Kind::Arc { v, d, r, phi }) = kind else {
+        return 0.0;
+    };
+    // The blend arc (TC_SPHERICAL: half the acceleration along it), tangent to both.
+    let blend_acc = s
+        .acc_bound
+        .iter()
+        .copied()
+        .filter(|x| *x > 0.0)
+        .fold(f64::INFINITY, f64::min)
+        * ACC_RATIO_TANGENTIAL;
+    let len = r * phi;
+    pieces.extend([Piece {
+        len: len.max(1e-12),
+        v_top: v.min(len / cycle),
+        acc: blend_acc,
+        dio: Vec::new(),
+        joint: Joint::Through { cap: v, ratio: 1.0 },
+        seg: i,
+    }]);
+    d
+}
+
 /// Runs LinuxCNC's planner model over an NC program, the machine starting at axis zero.
 pub fn run_program(nc: &str, limits: &TpLimits) -> Result<TpTime, String> {
     run_program_from(nc, limits, &[])
@@ -728,8 +478,11 @@ pub fn run_program(nc: &str, limits: &TpLimits) -> Result<TpTime, String> {
 /// [`run_program`] with the machine starting at `start` (machine axis order, external
 /// units; missing axes at zero): a program's first move is as long as the controller finds it.
 pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<TpTime, String> {
-    let (q, tolerances) = read(nc, limits, start)?;
-    let n = q.segs.len();
+    let q = read::read(nc, limits, start)?;
+    let segs = Vec::from(q.segs);
+    let joints = Vec::from(q.joints);
+    let tolerances = Vec::from(q.tolerances);
+    let n = segs.len();
     if n == 0 {
         return Ok(TpTime {
             total_s: 0.0,
@@ -739,11 +492,11 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
             starts: Vec::new(),
         });
     }
-    let segs = &q.segs;
+    let segs = &segs;
     let cycle = limits.cycle_s;
     // Each junction, and each segment's acceleration as tpGetScaledAccel scales it.
     let kinds: Vec<Option<Kind>> = (0..n)
-        .map(|i| match q.joints[i] {
+        .map(|i| match joints[i] {
             None if i + 1 < n => Some(junction(&segs[i], &segs[i + 1], tolerances[i + 1], cycle)),
             _ => None,
         })
@@ -767,95 +520,32 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
             // immediate output or any M-code, or the program ends) keeps its default,
             // parabolic, term condition.
             None => {
-                half[i] |=
-                    i + 1 == n || matches!(q.joints[i], Some(Joint::Stop { drain: true, .. }))
+                half[i] |= i + 1 == n || matches!(joints[i], Some(Joint::Stop { drain: true, .. }))
             }
             _ => {}
         }
     }
-    // Blend arcs take their share of each side; what is left of a segment runs at most its
-    // length per servo period (tcClampVelocityByLength), which is how two blend arcs that
-    // meet in the middle of a segment they may not swallow nearly stop the machine there.
+    // Blend arcs take their share of each side (`seg_pieces`).
     let mut pieces: Vec<Piece> = Vec::with_capacity(n);
     let mut piece_of_seg = Vec::with_capacity(n);
     let mut trim_start = 0.0;
     for i in 0..n {
         piece_of_seg.push(pieces.len());
-        let s = &segs[i];
         let a = if half[i] { acc[i] * 0.5 } else { acc[i] };
-        let trim_end = match kinds[i] {
-            Some(Kind::Arc { d, .. }) => d,
-            _ => 0.0,
-        };
-        let len = (s.len - trim_start - trim_end).max(0.0);
-        // blendCheckConsume: a line without synced outputs (`tcCanConsume`) whose remainder
-        // would take fewer than GAP_CYCLES servo periods at the next blend arc's speed becomes
-        // part of that arc (its `line_length`) and runs at the arc's speed, not at its own
-        // length per servo period (a lit arc's short sub-blocks, each a chord).
-        let consumed = match kinds[i] {
-            Some(Kind::Arc { v, .. }) => {
-                (!s.arc && s.dio.is_empty() && len < GAP_CYCLES * cycle * v).then_some(v)
-            }
-            _ => None,
-        };
-        let v_top = match consumed {
-            Some(v) => s.req.min(s.vmax).min(v),
-            None => s.req.min(s.vmax).min(len.max(1e-6 * s.len) / cycle),
-        };
-        let joint = match (kinds[i], q.joints[i]) {
-            (_, Some(j)) => j,
-            (None, None) | (Some(Kind::Stop), _) => Joint::Stop {
-                dwell: 0.0,
-                drain: false,
-            },
-            (Some(Kind::Tangent { cap, .. }), _) => Joint::Through { cap, ratio: 1.0 },
-            (Some(Kind::Arc { v, .. }), _) => Joint::Through { cap: v, ratio: 1.0 },
-            (Some(Kind::Parabolic { va, vb }), _) => Joint::Through {
-                cap: va,
-                ratio: vb / va,
-            },
-        };
-        pieces.push(Piece {
-            len: len.max(1e-12),
-            v_top,
-            acc: a,
-            dio: s.dio.clone(),
-            joint,
-            seg: i,
-        });
-        trim_start = 0.0;
-        if let Some(Kind::Arc { v, d, r, phi }) = kinds[i] {
-            // The blend arc (TC_SPHERICAL: half the acceleration along it), tangent to both.
-            let blend_acc = s
-                .acc_bound
-                .iter()
-                .copied()
-                .filter(|x| *x > 0.0)
-                .fold(f64::INFINITY, f64::min)
-                * ACC_RATIO_TANGENTIAL;
-            let len = r * phi;
-            pieces.push(Piece {
-                len: len.max(1e-12),
-                v_top: v.min(len / cycle),
-                acc: blend_acc,
-                dio: Vec::new(),
-                joint: Joint::Through { cap: v, ratio: 1.0 },
-                seg: i,
-            });
-            trim_start = d;
-        }
+        trim_start = seg_pieces(
+            i,
+            &segs[i],
+            (kinds[i], joints[i]),
+            a,
+            trim_start,
+            cycle,
+            &mut pieces,
+        );
     }
     let m = pieces.len();
     // Chains of parabolic blends run servo period by servo period (`servo`).
-    let chain_time = servo::chain_times(
-        segs,
-        &kinds,
-        &q.joints,
-        &tolerances,
-        &piece_of_seg,
-        m,
-        cycle,
-    );
+    let chain_time =
+        servo::chain_times(segs, &kinds, &joints, &tolerances, &piece_of_seg, m, cycle);
     // Backward (tpRunOptimization): each piece's highest exit speed, planning to a stop at
     // most OPTIMIZATION_DEPTH pieces ahead.
     let entry_of = |k: usize, exit: f64| {
@@ -943,6 +633,10 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
     })
 }
 
+mod naive;
+mod read;
 mod servo;
+mod stream;
+pub use stream::TpStream;
 #[cfg(test)]
 mod tests;

@@ -47,8 +47,11 @@
 
 use super::gcode::{self, Gc, Step};
 use crate::link::{AxisPos, MAX_AXES, Plane};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, VecDeque};
 use std::fmt;
+
+mod stream;
+pub use stream::ModelStream;
 
 /// GRBL's `MINIMUM_FEED_RATE` (config.h): 1 mm/min.
 pub const MINIMUM_FEED_RATE: f64 = 1.0 / 60.0;
@@ -547,6 +550,7 @@ impl fmt::Display for ModelError {
 impl std::error::Error for ModelError {}
 
 /// What the planner buffer receives, in order.
+#[derive(Debug)]
 enum Item {
     Block(Block),
     /// The planner empties and the machine stops.
@@ -579,80 +583,124 @@ impl Gate {
     }
 
     /// `protocol_auto_cycle_start`: the queued blocks start once the bytes read so far are.
-    fn start(&mut self, items: &mut [Item], byte_s: f64) {
+    fn start(&mut self, items: &mut Items, byte_s: f64) {
         if self.open
             && let Some(k) = self.wait_at
         {
-            items[k] = Item::Wait(self.bytes as f64 * byte_s);
+            // The wait is still buffered: the executor stops before a wait the gate holds.
+            items.q[k - items.base] = Item::Wait(self.bytes as f64 * byte_s);
         }
         self.open = false;
     }
 }
 
-/// Runs a G-code program (as lase streams it) through the model from `start`: each line
-/// through the simulator's interpreter, as GRBL's protocol loop would hand it over (comments
-/// and spaces dropped, upper-cased), then planned and executed.
-pub fn run_program(program: &str, limits: &Limits, start: AxisPos) -> Result<Timeline, ModelError> {
-    let mut gc = Gc::new(start, limits.axes);
-    let mut planner = Planner::new(limits.clone(), start);
-    let mut items = Vec::new();
-    let mut pending_blocks = 0usize;
-    // The machine stands at the start: nothing moves before the first cycle start.
-    let mut gate = Gate::at_rest();
-    for (i, raw) in program.lines().enumerate() {
-        let line_no = i as u64 + 1;
-        if gate.open {
+/// What the planner buffer has received and not yet executed, indexed from the first item
+/// ever received (the gate points back at the wait it fills in).
+#[derive(Default)]
+struct Items {
+    q: VecDeque<Item>,
+    /// The index of `q[0]`.
+    base: usize,
+}
+
+impl Items {
+    /// Items received so far.
+    fn count(&self) -> usize {
+        self.base + self.q.len()
+    }
+
+    fn push(&mut self, item: Item) {
+        self.q.push_back(item);
+    }
+}
+
+/// GRBL's protocol loop and parser reading a program line by line into planner items.
+struct Reader<'a> {
+    limits: &'a Limits,
+    gc: Gc,
+    planner: Planner,
+    pending_blocks: usize,
+    gate: Gate,
+    lines: u64,
+}
+
+impl<'a> Reader<'a> {
+    fn new(limits: &'a Limits, start: AxisPos) -> Reader<'a> {
+        Reader {
+            limits,
+            gc: Gc::new(start, limits.axes),
+            planner: Planner::new(limits.clone(), start),
+            pending_blocks: 0,
+            // The machine stands at the start: nothing moves before the first cycle start.
+            gate: Gate::at_rest(),
+            lines: 0,
+        }
+    }
+
+    /// The next line, through the simulator's interpreter as GRBL's protocol loop would hand
+    /// it over (comments and spaces dropped, upper-cased), into the planner.
+    fn line(&mut self, raw: &str, items: &mut Items) -> Result<(), ModelError> {
+        let limits = self.limits;
+        self.lines += 1;
+        let line_no = self.lines;
+        if self.gate.open {
             // Every byte of the line, its newline too, goes through `serial_read`.
-            gate.bytes += raw.len() as u64 + 1;
+            self.gate.bytes += raw.len() as u64 + 1;
         }
         let line = strip(raw);
         if line.is_empty() || line.starts_with(b"$") {
-            continue;
+            return Ok(());
         }
-        let block = gcode::execute(&line, &gc, limits.laser_mode).map_err(|code| ModelError {
-            line: line_no,
-            code,
-            text: raw.trim().to_string(),
-        })?;
+        let block =
+            gcode::execute(&line, &self.gc, limits.laser_mode).map_err(|code| ModelError {
+                line: line_no,
+                code,
+                text: raw.trim().to_string(),
+            })?;
         for step in &block.steps {
             match step {
                 Step::Sync => {
-                    if pending_blocks > 0 {
+                    if self.pending_blocks > 0 {
                         // `protocol_buffer_synchronize` starts what is queued, then waits.
-                        gate.start(&mut items, limits.byte_s);
+                        self.gate.start(items, limits.byte_s);
                         items.push(Item::Sync);
-                        gate = Gate::at_rest();
+                        self.gate = Gate::at_rest();
                     }
-                    pending_blocks = 0;
+                    self.pending_blocks = 0;
                 }
                 Step::LaserAtRest(s) => items.push(Item::Rest(*s)),
                 Step::Dwell(t) => {
                     // `mc_dwell` (after its sync): the dwell begins once the loop has read
                     // the bytes before it; the loop reads on from its end.
-                    if gate.open && gate.bytes > 0 {
-                        items.push(Item::Wait(gate.bytes as f64 * limits.byte_s));
+                    if self.gate.open && self.gate.bytes > 0 {
+                        items.push(Item::Wait(self.gate.bytes as f64 * limits.byte_s));
                     }
                     items.push(Item::Dwell(*t));
-                    gate = Gate::at_rest();
+                    self.gate = Gate::at_rest();
                 }
                 Step::Move(mv) => {
-                    for seg in planner.segments(mv) {
-                        if let Some(b) =
-                            planner.block(line_no, &seg, pending_blocks == 0, 100.0, 100.0)
-                        {
+                    for seg in self.planner.segments(mv) {
+                        if let Some(b) = self.planner.block(
+                            line_no,
+                            &seg,
+                            self.pending_blocks == 0,
+                            100.0,
+                            100.0,
+                        ) {
+                            let gate = &mut self.gate;
                             if gate.open {
                                 if gate.queued == limits.planner_blocks {
                                     // `mc_line` finds the planner full: cycle start.
-                                    gate.start(&mut items, limits.byte_s);
+                                    gate.start(items, limits.byte_s);
                                 } else {
                                     if gate.queued == 0 {
-                                        gate.wait_at = Some(items.len());
+                                        gate.wait_at = Some(items.count());
                                         items.push(Item::Wait(0.0));
                                     }
                                     gate.queued += 1;
                                 }
                             }
-                            pending_blocks += 1;
+                            self.pending_blocks += 1;
                             items.push(Item::Block(b));
                         }
                     }
@@ -663,38 +711,71 @@ pub fn run_program(program: &str, limits: &Limits, start: AxisPos) -> Result<Tim
         // The beam at rest after the line: M3 in G1 keeps it lit in laser mode.
         let rest = gcode::rest_power(&block.next.modal, limits.laser_mode);
         items.push(Item::Rest(rest));
-        gc = block.next;
+        self.gc = block.next;
+        Ok(())
     }
-    // The RX buffer runs dry after the last line: what is queued starts.
-    gate.start(&mut items, limits.byte_s);
-    Ok(execute(&items, limits.planner_blocks, start))
+
+    /// After the last line: the RX buffer runs dry, what is queued starts.
+    fn finish(&mut self, items: &mut Items) {
+        self.gate.start(items, self.limits.byte_s);
+    }
+
+    /// Whether item `k` is the wait before queued blocks whose length the gate does not know
+    /// yet (it is read until the cycle starts).
+    fn waits_at(&self, k: usize) -> bool {
+        self.gate.open && self.gate.wait_at == Some(k)
+    }
 }
 
-/// Executes planned items: each block with the exit speed its look-ahead window allows (the
-/// window ends at the buffer size or at the next sync, where the machine stops).
-fn execute(items: &[Item], window: usize, start: AxisPos) -> Timeline {
-    let mut tl = Timeline::default();
-    let mut t = 0.0;
-    let mut v = 0.0;
-    let mut pos = start;
-    let mut rest_s = 0.0;
-    let mut i = 0;
-    while i < items.len() {
-        match &items[i] {
+/// Runs a G-code program (as lase streams it) through the model from `start`: each line
+/// through the simulator's interpreter, as GRBL's protocol loop would hand it over (comments
+/// and spaces dropped, upper-cased), then planned and executed.
+pub fn run_program(program: &str, limits: &Limits, start: AxisPos) -> Result<Timeline, ModelError> {
+    let mut reader = Reader::new(limits, start);
+    let mut items = Items::default();
+    for raw in program.lines() {
+        reader.line(raw, &mut items)?;
+    }
+    reader.finish(&mut items);
+    Ok(execute(
+        items.q.make_contiguous(),
+        limits.planner_blocks,
+        start,
+    ))
+}
+
+/// The machine executing planner items ([`execute`], and [`ModelStream`] as they arrive).
+#[derive(Debug)]
+struct Exec {
+    tl: Timeline,
+    t: f64,
+    v: f64,
+    pos: AxisPos,
+    rest_s: f64,
+}
+
+impl Exec {
+    fn new(start: AxisPos) -> Exec {
+        Exec {
+            tl: Timeline::default(),
+            t: 0.0,
+            v: 0.0,
+            pos: start,
+            rest_s: 0.0,
+        }
+    }
+
+    /// Executes one item; `ahead`: the buffered blocks from it on (it first) that its
+    /// look-ahead sees, up to the buffer's size or the next sync.
+    fn step<'a>(&mut self, item: &Item, mut ahead: impl Iterator<Item = &'a Block>) {
+        match item {
             Item::Block(b) => {
-                let ahead = items[i..]
-                    .iter()
-                    .take_while(|it| !matches!(it, Item::Sync | Item::Dwell(_)))
-                    .filter_map(|it| match it {
-                        Item::Block(b) => Some(b),
-                        _ => None,
-                    })
-                    .take(window);
-                let exit = exit_speed(v, b.len, b.accel, ahead.skip(1));
-                let profile = Trapezoid::new(b.len, v, exit, b.nominal, b.accel);
+                ahead.next();
+                let exit = exit_speed(self.v, b.len, b.accel, ahead);
+                let profile = Trapezoid::new(b.len, self.v, exit, b.nominal, b.accel);
                 let d = profile.duration();
-                tl.push(Span {
-                    t0: t,
+                self.tl.push(Span {
+                    t0: self.t,
                     duration: d,
                     from: b.from,
                     to: b.to,
@@ -705,36 +786,59 @@ fn execute(items: &[Item], window: usize, start: AxisPos) -> Timeline {
                     laser_s: b.laser_s,
                     line: b.line,
                 });
-                t += d;
-                v = profile.exit;
-                pos = b.to;
+                self.t += d;
+                self.v = profile.exit;
+                self.pos = b.to;
             }
             Item::Sync => {
-                tl.syncs += 1;
-                v = 0.0;
+                self.tl.syncs += 1;
+                self.v = 0.0;
             }
             Item::Dwell(d) => {
-                v = 0.0;
-                tl.push(Span::rest(t, *d, pos, rest_s));
-                t += d;
+                self.v = 0.0;
+                self.tl.push(Span::rest(self.t, *d, self.pos, self.rest_s));
+                self.t += d;
             }
             Item::Wait(d) => {
                 if *d > 0.0 {
-                    tl.push(Span::rest(t, *d, pos, rest_s));
-                    t += d;
+                    self.tl.push(Span::rest(self.t, *d, self.pos, self.rest_s));
+                    self.t += d;
                 }
             }
             Item::Rest(s) => {
-                if *s != rest_s && v == 0.0 {
+                if *s != self.rest_s && self.v == 0.0 {
                     // The beam switches at rest: a zero-length stretch marks the edge.
-                    tl.push(Span::rest(t, 0.0, pos, *s));
+                    self.tl.push(Span::rest(self.t, 0.0, self.pos, *s));
                 }
-                rest_s = *s;
+                self.rest_s = *s;
             }
         }
-        i += 1;
     }
-    tl
+}
+
+/// The blocks item `items[i]`'s look-ahead sees: from it, up to `window` of them, stopping at
+/// the next sync or dwell (where the machine stops).
+fn ahead<'a>(
+    items: impl Iterator<Item = &'a Item>,
+    window: usize,
+) -> impl Iterator<Item = &'a Block> {
+    items
+        .take_while(|it| !matches!(it, Item::Sync | Item::Dwell(_)))
+        .filter_map(|it| match it {
+            Item::Block(b) => Some(b),
+            _ => None,
+        })
+        .take(window)
+}
+
+/// Executes planned items: each block with the exit speed its look-ahead window allows (the
+/// window ends at the buffer size or at the next sync, where the machine stops).
+fn execute(items: &[Item], window: usize, start: AxisPos) -> Timeline {
+    let mut exec = Exec::new(start);
+    for i in 0..items.len() {
+        exec.step(&items[i], ahead(items[i..].iter(), window));
+    }
+    exec.tl
 }
 
 /// A line as GRBL's protocol loop hands it to the parser: no comments, no spaces, upper case.
@@ -797,6 +901,16 @@ pub fn controller_time_in(
     job: &crate::motion::Job,
     dialect: crate::emit::Dialect,
 ) -> Option<Result<ControllerTime, String>> {
+    controller_time_from(job, None, dialect)
+}
+
+/// [`controller_time_in`] of a job planned whole (`facts` `None`) or in windows (`facts` from
+/// them), streamed through [`ModelStream`]: the timeline keeps its totals, not its spans.
+pub fn controller_time_from(
+    job: &crate::motion::Job,
+    facts: Option<&crate::emit::PlanFacts>,
+    dialect: crate::emit::Dialect,
+) -> Option<Result<ControllerTime, String>> {
     let machine = &job.program.machine;
     let firmware = match dialect {
         crate::emit::Dialect::Grbl => super::Firmware::Grbl,
@@ -807,15 +921,18 @@ pub fn controller_time_in(
     };
     dialect.lookup(&machine.post)?;
     Some((|| {
-        let nc = crate::emit::emit_to_string(job, dialect).map_err(|e| e.to_string())?;
         let mut cfg = super::ControllerConfig::for_machine(machine);
         cfg.firmware = firmware;
         cfg.planner_blocks = firmware.planner_blocks();
         let limits = cfg.firmware.limits(&cfg.settings, cfg.planner_blocks);
-        let timeline = run_program(&nc, &limits, cfg.home()).map_err(|e| e.to_string())?;
+        // Line by line from the emitter into the model: the program is never held.
+        let mut model = ModelStream::new(&limits, cfg.home(), false);
+        crate::emit::emit_nc_lines(job, facts, dialect, &mut |l| {
+            model.line(l).map_err(|e| e.to_string())
+        })?;
         Ok(ControllerTime {
             model: model_name(cfg.firmware),
-            timeline,
+            timeline: model.finish(),
         })
     })())
 }

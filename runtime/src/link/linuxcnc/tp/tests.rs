@@ -173,8 +173,8 @@ fn the_kink_test_counts_the_next_segments_own_acceleration() {
     let l = table();
     let kind = |dy: f64| {
         let nc = format!("G64 P0.01\nG1 X10 F1500\nX20 Y{dy}\n");
-        let (q, tol) = read(&nc, &l, &[]).unwrap();
-        junction(&q.segs[0], &q.segs[1], tol[1], 0.001)
+        let q = read::read(&nc, &l, &[]).unwrap();
+        junction(&q.segs[0], &q.segs[1], q.tolerances[1], 0.001)
     };
     assert!(matches!(kind(0.070), Kind::Tangent { .. }));
     assert!(
@@ -204,4 +204,29 @@ fn a_short_line_between_two_blend_arcs_is_swallowed_not_crawled() {
     // or more, 5 ms lost each) and the arcs' share of the corners.
     assert!(t.total_s < 1.05 * (first + chords) + 0.02, "{t:?}");
     assert_eq!(t.stops, 0);
+}
+
+#[test]
+fn collinear_feeds_join_into_one_segment_as_canons_naive_cam_detector_does() {
+    // Three 1 mm lines, the middle point 1 µm off the line through the ends: within
+    // G64 P0.01 (Q defaults to P), so LinuxCNC runs them as one 3 mm line at the feed.
+    let joined = "G21 G90 G17 G94\nG64 P0.01\nG1 X1 F600\nX2 Y0.001\nX3 Y0\nM2\n";
+    let t = run_program(joined, &table()).unwrap();
+    let one = run_program("G21 G90 G17 G94\nG64 P0.01\nG1 X3 F600\nM2\n", &table()).unwrap();
+    assert_eq!(t.segments, 1, "{t:?}");
+    assert!(close(t.total_s, one.total_s), "{t:?} vs {one:?}");
+    // The line number is the last one's.
+    assert_eq!(t.starts.last().map(|s| s.0), Some(5), "{t:?}");
+    // Q0 turns the detector off; a point 0.02 off, or a synchronized output between them,
+    // breaks the chain (canon flushes it before queueing the output).
+    for nc in [
+        "G64 P0.01 Q0\nG1 X1 F600\nX2 Y0.001\nX3 Y0\n",
+        "G64 P0.01\nG1 X1 F600\nX2 Y0.02\nX3 Y0\n",
+        "G64 P0.01\nG1 X1 F600\nM62 P0\nX2 Y0.001\nX3 Y0\n",
+    ] {
+        assert!(run_program(nc, &table()).unwrap().segments > 1, "{nc}");
+    }
+    // A new F flushes the chain and starts the next one.
+    let t = run_program("G64 P0.01\nG1 X1 F600\nX2 F1200\nX3\n", &table()).unwrap();
+    assert_eq!(t.segments, 2, "{t:?}");
 }
