@@ -272,7 +272,11 @@ struct Staged {
 
 /// Adds leads, lowers and plans a program.
 pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
-    let st = stage(program)?;
+    plan_whole(stage(program)?)
+}
+
+/// Lowers and plans a staged program whole, and holds its lit speeds (`held::check_held`).
+fn plan_whole(st: Staged) -> Result<Job, MotionError> {
     let expected = st
         .program
         .ops
@@ -311,17 +315,7 @@ pub fn plan_program_windows_sized(
 ) -> Result<(Job, planner::Planned), MotionError> {
     let st = stage(program)?;
     if st.kin.oriented() {
-        let expected = st
-            .program
-            .ops
-            .iter()
-            .filter(|o| o.target().is_some())
-            .count();
-        let (plan, op_axes, initial_dwell_s) = lower_and_plan(&st, |low| {
-            planner::plan_along_iter(st.start, low, expected, &st.limits, &st.cfg)
-        })?;
-        let mut job = st.into_job(op_axes, initial_dwell_s, plan);
-        held::check_held(&job)?;
+        let mut job = plan_whole(st)?;
         let planned = planner::Planned {
             segments: job.plan.segments().len(),
             duration: job.plan.duration(),
