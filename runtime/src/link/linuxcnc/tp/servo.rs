@@ -44,6 +44,29 @@ pub(super) struct ChainSeg {
     pub tolerance: f64,
 }
 
+impl ChainSeg {
+    /// A queue segment as the chain replay reads it, under `G64 P` `tolerance`.
+    pub fn of(s: &super::Seg, tolerance: f64) -> ChainSeg {
+        ChainSeg {
+            len: s.len,
+            v: s.req.min(s.vmax),
+            acc: s.acc,
+            u: if s.u0 == [0.0; 3] {
+                [1.0, 0.0, 0.0]
+            } else {
+                s.u0
+            },
+            tolerance,
+        }
+    }
+
+    /// Whether a chain may hold `s`: a line with somewhere to go at some speed (one that could
+    /// not move would never end).
+    pub fn replayable(s: &super::Seg) -> bool {
+        !s.arc && s.req.min(s.vmax) > 0.0 && s.acc > 0.0
+    }
+}
+
 /// What the chain does: when each segment's synced outputs switch, and when motion ends.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct ChainRun {
@@ -296,29 +319,15 @@ pub(super) fn chain_times(
         while j + 1 < n && parabolic(j) {
             j += 1;
         }
-        // Lines only, each with somewhere to go at some speed (one that could not move would
-        // never end).
         let simulate = starts_at_rest
             && j > i
             && stops_after(j)
-            && segs[i..=j]
-                .iter()
-                .all(|s| !s.arc && s.req.min(s.vmax) > 0.0 && s.acc > 0.0);
+            && segs[i..=j].iter().all(ChainSeg::replayable);
         if simulate {
             let chain: Vec<ChainSeg> = segs[i..=j]
                 .iter()
                 .zip(&tolerances[i..=j])
-                .map(|(s, &tolerance)| ChainSeg {
-                    len: s.len,
-                    v: s.req.min(s.vmax),
-                    acc: s.acc,
-                    u: if s.u0 == [0.0; 3] {
-                        [1.0, 0.0, 0.0]
-                    } else {
-                        s.u0
-                    },
-                    tolerance,
-                })
+                .map(|(s, &tolerance)| ChainSeg::of(s, tolerance))
                 .collect();
             // The queue's last segment keeps its default PARABOLIC term condition; one the
             // planner must stop after (a rapid next, G61) is STOP.

@@ -191,18 +191,8 @@ impl<'a> TpStream<'a> {
         }
         let line = s.line;
         if let Some(c) = &mut self.chain {
-            c.ok &= !s.arc && s.req.min(s.vmax) > 0.0 && s.acc > 0.0;
-            c.segs.push(ChainSeg {
-                len: s.len,
-                v: s.req.min(s.vmax),
-                acc: s.acc,
-                u: if s.u0 == [0.0; 3] {
-                    [1.0, 0.0, 0.0]
-                } else {
-                    s.u0
-                },
-                tolerance,
-            });
+            c.ok &= ChainSeg::replayable(&s);
+            c.segs.push(ChainSeg::of(&s, tolerance));
         }
         let mut made = Vec::with_capacity(2);
         self.trim_start = seg_pieces(i, &s, (kind, joint), a, self.trim_start, cycle, &mut made);
