@@ -141,26 +141,19 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
         .chain(estimate::other_dialects(&program_.machine, first))
         .collect();
     let mut totals = PlanTotals::new(&program_);
-    let mut facts: Vec<PlanFacts> = dialects
-        .iter()
-        .map(|&d| PlanFacts::new(&program_, d))
-        .collect();
+    let mut facts = PlanFacts::for_dialects(&program_, &dialects);
     let (job, planned) = compile::plan_in_windows(program_, |p, w| {
         totals.window(p, &w);
-        for f in &mut facts {
-            f.window(p, &w);
-        }
+        facts.window(p, &w);
     })
     .unwrap_or_else(|f| panic!("the recipe plans: {f}"));
     totals.finish(&job.program, planned.length);
-    for f in &mut facts {
-        f.finish(&job.program);
-    }
+    facts.finish(&job.program);
     let summary = totals.summary(&job);
     assert_eq!(summary.blocks, moves, "the summary counts every move");
     let mut timed = Vec::new();
-    for (d, f) in dialects.iter().zip(&facts) {
-        let c = estimate::controller_cycle_from(&job, Some(f), *d);
+    for d in &dialects {
+        let c = estimate::controller_cycle_from(&job, Some(&facts), *d);
         assert!(c.note.is_none(), "{d}: {:?}", c.note);
         // Every controller ran the whole path, at most at its 20 mm/s feed. (Not a share of
         // lase's own time: lase blends every lit corner of this 0.05 mm zigzag and plans

@@ -237,7 +237,12 @@ fn same_nc(what: &str, program: &ProcessProgram) {
         }
         let want = emit::emit_to_string(&whole, dialect).map_err(|e| format!("{e:?}"));
         for min_window in [1, 3, planner::MIN_WINDOW] {
-            let mut facts = PlanFacts::new(program, dialect);
+            // Also as `lase plan` gathers them, once for every dialect: each reads its own.
+            let mut facts = if min_window == 3 {
+                PlanFacts::for_dialects(program, &Dialect::ALL)
+            } else {
+                PlanFacts::new(program, dialect)
+            };
             let (job, _) =
                 motion::plan_program_windows_sized(program.clone(), min_window, |p, w| {
                     facts.window(p, &w)

@@ -65,10 +65,20 @@ pub struct PlanFacts {
 impl PlanFacts {
     /// Ready to gather what emitting `program` in `dialect` needs.
     pub fn new(program: &ProcessProgram, dialect: Dialect) -> PlanFacts {
-        let post = dialect.lookup(&program.machine.post).map(|(_, p)| p);
-        let speeds =
-            dialect == Dialect::LinuxCnc && post.is_some_and(validate::has_immediate_words);
-        let split = !dialect.is_grbl_family();
+        PlanFacts::for_dialects(program, &[dialect])
+    }
+
+    /// Ready to gather what emitting `program` in any of `dialects` needs, once for them all
+    /// (`lase plan` times several controllers): each fact is the plan's, whichever dialect
+    /// reads it, and a dialect reads only its own (the speeds LinuxCNC's checks, the exits and
+    /// held blocks the dialects that write sub-blocks).
+    pub fn for_dialects(program: &ProcessProgram, dialects: &[Dialect]) -> PlanFacts {
+        let speeds = dialects.iter().any(|&d| {
+            d == Dialect::LinuxCnc
+                && d.lookup(&program.machine.post)
+                    .is_some_and(|(_, p)| validate::has_immediate_words(p))
+        });
+        let split = dialects.iter().any(|d| !d.is_grbl_family());
         let oriented = crate::kinematics::for_machine(&program.machine).oriented();
         PlanFacts {
             speeds: speeds.then(Vec::new),
