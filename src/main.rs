@@ -414,24 +414,18 @@ fn cmd_plan(
             .all(|&d| lase_runtime::emit::plans_in_windows(&program, d));
     let (job, totals, facts) = if windows {
         let mut totals = lase_runtime::report::PlanTotals::new(&program);
-        let mut facts: Vec<_> = dialects
-            .iter()
-            .map(|&d| lase_runtime::emit::PlanFacts::new(&program, d))
-            .collect();
+        // One set of facts for every controller: they are the plan's (`PlanFacts::for_dialects`).
+        let mut facts = lase_runtime::emit::PlanFacts::for_dialects(&program, &dialects);
         let planned = lase_runtime::compile::plan_in_windows(program, |p, w| {
             totals.window(p, &w);
-            for f in &mut facts {
-                f.window(p, &w);
-            }
+            facts.window(p, &w);
         });
         let (job, planned) = match planned {
             Ok(p) => p,
             Err(f) => return Err((recipe.map, f)),
         };
         totals.finish(&job.program, planned.length);
-        for f in &mut facts {
-            f.finish(&job.program);
-        }
+        facts.finish(&job.program);
         (job, totals, Some(facts))
     } else {
         let job = match lase_runtime::compile::plan(program) {
@@ -441,10 +435,7 @@ fn cmd_plan(
         let totals = lase_runtime::report::PlanTotals::of(&job);
         (job, totals, None)
     };
-    let cycle = |k: usize| {
-        let f = facts.as_ref().map(|f| &f[k]);
-        estimate::controller_cycle_from(&job, f, dialects[k])
-    };
+    let cycle = |k: usize| estimate::controller_cycle_from(&job, facts.as_ref(), dialects[k]);
     let mut s = totals.summary(&job);
     // The controller that runs the program, first: lase's own plan is ideal, the machine
     // runs its controller's planner (issue 13).

@@ -152,7 +152,8 @@ fn every_example_streamed_through_the_controller_models_times_as_the_tabled_mode
                 "{what}: streamed from the emitter"
             );
             if emit::plans_in_windows(&program, dialect) {
-                let mut facts = PlanFacts::new(&program, dialect);
+                // `lase plan` gathers one set of facts for every controller it times.
+                let mut facts = PlanFacts::for_dialects(&program, &Dialect::ALL);
                 let (job, _) = planning::plan_program_windows_sized(program.clone(), 3, |p, w| {
                     facts.window(p, &w)
                 })

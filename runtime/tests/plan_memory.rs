@@ -41,13 +41,15 @@ mod short_moves;
 /// what was live before, bytes. Before lit corners were blended and held (issue 13 item 3):
 /// 101.1 B measured at 100 000 moves, the job's ops and op axes (88.1 B) and the planner's
 /// buffers and the window being read (a fixed 1.3 MB whatever the job's length). Now every
-/// corner of this lit zigzag is blended and the plan holds every move below its feed, so on
-/// LinuxCNC and ISO each move is written as held sub-blocks (`power::lit_blocks`), which
-/// `emit::PlanFacts` keeps for the writer from the windows until the NC is written: 518.2 B
-/// measured (check 111.7, emit 314.9, lase plan 518.2 with two dialects' facts). That is over
-/// issue 18's 150 B: keeping the held blocks compactly, or writing them from a second pass of
-/// windows, is what is left; this cap still fails anything more that comes back.
-const CAP_PER_MOVE: f64 = 525.0;
+/// corner of this lit zigzag is blended (2.5 segments a move in the windows: `lase check`
+/// peaks at 111.7 B) and the plan holds every move below its feed, so on LinuxCNC and ISO each
+/// move is written as about five held sub-blocks (`power::lit_blocks`). Kept in
+/// `emit::PlanFacts` from the windows until the NC was written, they took the peak to 518.2 B
+/// (check 111.7, emit 314.9, lase plan 518.2 with two dialects' facts). The writer now reads
+/// them from a second pass of the same plan as it writes (`emit::PlanFacts`' module doc, 256
+/// ops a batch), which keeps no table of the ops' axes: 113.9 B measured (check 111.7, emit
+/// 113.8, lase plan 113.9), the job's 88.1 B and about 2.6 MB fixed.
+const CAP_PER_MOVE: f64 = 120.0;
 
 /// The same for the whole plan (trace, plot, pulses, run, the REPL). With its corners taken at
 /// rest or stepped this recipe peaked at 225.2 B (the job's 224 B: ops, op axes, segments and
@@ -139,26 +141,19 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
         .chain(estimate::other_dialects(&program_.machine, first))
         .collect();
     let mut totals = PlanTotals::new(&program_);
-    let mut facts: Vec<PlanFacts> = dialects
-        .iter()
-        .map(|&d| PlanFacts::new(&program_, d))
-        .collect();
+    let mut facts = PlanFacts::for_dialects(&program_, &dialects);
     let (job, planned) = compile::plan_in_windows(program_, |p, w| {
         totals.window(p, &w);
-        for f in &mut facts {
-            f.window(p, &w);
-        }
+        facts.window(p, &w);
     })
     .unwrap_or_else(|f| panic!("the recipe plans: {f}"));
     totals.finish(&job.program, planned.length);
-    for f in &mut facts {
-        f.finish(&job.program);
-    }
+    facts.finish(&job.program);
     let summary = totals.summary(&job);
     assert_eq!(summary.blocks, moves, "the summary counts every move");
     let mut timed = Vec::new();
-    for (d, f) in dialects.iter().zip(&facts) {
-        let c = estimate::controller_cycle_from(&job, Some(f), *d);
+    for d in &dialects {
+        let c = estimate::controller_cycle_from(&job, Some(&facts), *d);
         assert!(c.note.is_none(), "{d}: {:?}", c.note);
         // Every controller ran the whole path, at most at its 20 mm/s feed. (Not a share of
         // lase's own time: lase blends every lit corner of this 0.05 mm zigzag and plans
@@ -172,7 +167,7 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     }
     assert!(dialects.len() >= 2, "{dialects:?}");
     drop(job);
-    // What `lase plan` gathered for the controllers goes with it (the held blocks: not small).
+    // What `lase plan` gathered for the controllers goes with it.
     drop(facts);
     drop(totals);
     let peak = peak_above(before);
