@@ -383,7 +383,8 @@ impl PulseStream {
                 t_local.clamp(0.0, seg.duration())
             };
             let t = self.initial_dwell_s + (seg.t_start + t_local);
-            while let Some(f) = self.fires.pop_front_if(|f| f.t < t) {
+            while let Some(f) = self.fires.front().copied().filter(|f| f.t < t) {
+                self.fires.pop_front();
                 each(f);
             }
             each(PulseTime { t, op: seg.tag });
