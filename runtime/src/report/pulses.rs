@@ -79,8 +79,7 @@ struct Open {
 }
 
 impl SectionCursor {
-    /// Segment `seg` is read next: lit with `laser`, and the one after
-    /// it with `next`.
+    /// Segment `seg` is read next: lit with `laser`, and the one after it with `next`.
     pub(super) fn enter(&mut self, seg: &Segment, laser: Option<&Laser>, next: Option<&Laser>) {
         if self.open.is_none()
             && let Some(p) = laser.and_then(|l| l.pulse.as_ref())
