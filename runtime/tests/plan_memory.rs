@@ -49,6 +49,13 @@ mod short_moves;
 /// them from a second pass of the same plan as it writes (`emit::PlanFacts`' module doc, 256
 /// ops a batch), which keeps no table of the ops' axes: 113.9 B measured (check 111.7, emit
 /// 113.8, lase plan 113.9), the job's 88.1 B and about 2.6 MB fixed.
+///
+/// That emit went through windows only because this test called `emit_planned` itself: the
+/// binary planned whole wherever a post had a pulse budget (every stock LinuxCNC and GRBL post;
+/// xy_table's 500 Hz and 300 Hz), 793.1 B a move here, as the whole plan below. The budget is
+/// now checked on the windows (`emit::PlanFacts`, `report::PulseStream`), and this test walks
+/// the binary's path with a pulse every 0.5 mm (19 982 pulses through both budgets): 111.7 B
+/// measured (check 111.7, emit 111.7, lase plan 111.7; the job 88.1 B).
 const CAP_PER_MOVE: f64 = 120.0;
 
 /// The same for the whole plan (trace, plot, pulses, run, the REPL). With its corners taken at
@@ -79,7 +86,13 @@ fn program(files: &mut MemFiles) -> ProcessProgram {
 #[test]
 fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() {
     let n = 100_000;
-    let mut files = MemFiles::new([("moves.lase", short_moves::recipe(n))]);
+    // Pulses every 0.5 mm along the lit zigzag (40 Hz at its 20 mm/s): xy_table's posts hold
+    // them to their pulse budgets (LinuxCNC 500 Hz, GRBL 300 Hz), which `lase emit` and `lase
+    // plan` check on the windows as they pass (`emit::PlanFacts`), as the binary does.
+    let recipe =
+        short_moves::recipe(n).replace("laser on\n", "pulse { interval 0.5 mm }\nlaser on\n");
+    assert!(recipe.contains("pulse {"), "{recipe}");
+    let mut files = MemFiles::new([("moves.lase", recipe)]);
     let before = ALLOC.allocated();
     // `lase check`: the plan made in windows and dropped. The counter's peak only grows, so
     // each stage's peak is read before the next starts.
@@ -106,8 +119,18 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
         ("op axes", job.op_axes.len() * n_axes * 8),
     ];
     drop(job);
-    // `lase emit`: planned in windows again, what the writer reads gathered as they pass.
+    // `lase emit --dialect linuxcnc` (`src/main.rs`): planned in windows again, what the writer
+    // reads gathered as they pass, the post's pulse budget checked on them.
     let program_ = program(&mut files);
+    for d in [Dialect::LinuxCnc, Dialect::Grbl] {
+        let (_, post) = d
+            .lookup(&program_.machine.post)
+            .expect("xy_table has the post");
+        assert!(
+            post.budget.max_rate_hz.is_some(),
+            "{d}: xy_table's post has a pulse budget"
+        );
+    }
     let mut facts = PlanFacts::new(&program_, Dialect::LinuxCnc);
     let mut windows = 0usize;
     let mut largest = 0usize;
@@ -151,6 +174,8 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     facts.finish(&job.program);
     let summary = totals.summary(&job);
     assert_eq!(summary.blocks, moves, "the summary counts every move");
+    // A pulse every 0.5 mm of the 10 m zigzag: these went through both budgets.
+    assert!(summary.pulses > 19_000, "{} pulses", summary.pulses);
     let mut timed = Vec::new();
     for d in &dialects {
         let c = estimate::controller_cycle_from(&job, Some(&facts), *d);
@@ -179,7 +204,7 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     eprintln!(
         "{moves} moves in windows: peak {peak} B, {:.1} B per move (evaluate {:.1}, check {:.1}, \
          emit {:.1}, plan {:.1}; the job holds {:.1}); {windows} windows of at most {largest} \
-         segments; B per move: {}; lase plan timed {}",
+         segments; B per move: {}; lase plan timed {}; {} pulses",
         per(peak),
         per(evaluated),
         per(checked),
@@ -187,7 +212,8 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
         per(peak),
         per(held),
         tables.join(", "),
-        timed.join(", ")
+        timed.join(", "),
+        summary.pulses
     );
     let per_move = per(peak);
     assert!(

@@ -232,9 +232,6 @@ fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
 fn same_nc(what: &str, program: &ProcessProgram) {
     let whole = motion::plan_program(program.clone()).unwrap_or_else(|e| panic!("{what}: {e}"));
     for dialect in Dialect::ALL {
-        if !emit::plans_in_windows(program, dialect) {
-            continue;
-        }
         let want = emit::emit_to_string(&whole, dialect).map_err(|e| format!("{e:?}"));
         for min_window in [1, 3, planner::MIN_WINDOW] {
             // Also as `lase plan` gathers them, once for every dialect: each reads its own.

@@ -9,8 +9,13 @@
 //! the dialects that write them), and, on those dialects, the planned speed where each unlit op
 //! ends below its feed (the writer holds a lead-in to it where the beam comes on next:
 //! `writer::lead_cap`). All come from each op's own segments, which arrive in op order, so an
-//! op is complete when a segment of a later op arrives. The pulse budget reads every pulse's time
-//! from the whole plan: a post with one plans whole ([`plans_in_windows`]).
+//! op is complete when a segment of a later op arrives.
+//!
+//! The pulse budget (`max_pulse_rate`, `max_pulses` of a post) is checked here too, on the
+//! pulses as the windows pass (`report::PulseStream`, the generator `report::pulse_events` uses
+//! on a whole plan): the running count and the last pulse's time per post with a budget, and
+//! the first pulse over it (`validate::BudgetCheck`), which `emit` turns into the very
+//! diagnostic of the whole plan before the first NC line.
 //!
 //! The sub-blocks are not kept here: on a lit job of short moves they were about five blocks a
 //! move (518 B a move at `lase plan`'s peak with two dialects' facts, against the job's 88 B).
@@ -22,22 +27,14 @@
 //! whole anyway (`motion::plan_program_windows`), maybe twice, so its sub-blocks are kept here
 //! as before.
 
-use super::{Dialect, EmitError, validate};
+use super::validate::{self, BudgetCheck};
+use super::{Dialect, EmitError};
 use crate::motion::power::{self, PowerBlock};
 use crate::motion::{self, Job};
 use crate::planner::{Plan, Segment};
 use crate::program::ProcessProgram;
+use crate::report::{PulseStream, PulseTime};
 use std::sync::mpsc;
-
-/// Whether `lase emit` may plan `program` in windows for `dialect` ([`PlanFacts`]): not when
-/// the post has a pulse budget, whose check reads the whole plan.
-pub fn plans_in_windows(program: &ProcessProgram, dialect: Dialect) -> bool {
-    dialect
-        .lookup(&program.machine.post)
-        .is_none_or(|(_, post)| {
-            post.budget.max_rate_hz.is_none() && post.budget.max_pulses.is_none()
-        })
-}
 
 /// What `emit` reads of a plan made in windows (module doc).
 #[derive(Debug, Default)]
@@ -60,6 +57,10 @@ pub struct PlanFacts {
     /// The feed of the op's last segment.
     feed: f64,
     segs: Vec<Segment>,
+    /// The pulse budget of each dialect asked for whose post has one, and the pulses that
+    /// feed them (none when no post has a budget).
+    budgets: Vec<(Dialect, BudgetCheck)>,
+    pulses: Option<PulseStream>,
 }
 
 impl PlanFacts {
@@ -80,16 +81,26 @@ impl PlanFacts {
         });
         let split = dialects.iter().any(|d| !d.is_grbl_family());
         let oriented = crate::kinematics::for_machine(&program.machine).oriented();
+        let budgets: Vec<_> = dialects
+            .iter()
+            .filter_map(|&d| {
+                let (_, post) = d.lookup(&program.machine.post)?;
+                Some((d, BudgetCheck::new(post)?))
+            })
+            .collect();
         PlanFacts {
             speeds: speeds.then(Vec::new),
             split,
             lit: (split && oriented).then(Vec::new),
+            pulses: (!budgets.is_empty()).then(PulseStream::new),
+            budgets,
             ..PlanFacts::default()
         }
     }
 
     /// Reads a window of the plan of `program` (its segments in order, after the last window's).
     pub fn window(&mut self, program: &ProcessProgram, plan: &Plan) {
+        self.check_pulses(|pulses, each| pulses.window(program, plan, each));
         for seg in plan.segments() {
             if self.op != Some(seg.tag) {
                 self.close(program);
@@ -107,6 +118,38 @@ impl PlanFacts {
     /// After the last window.
     pub fn finish(&mut self, program: &ProcessProgram) {
         self.close(program);
+        self.check_pulses(|pulses, each| pulses.finish(program, each));
+    }
+
+    /// Hands the pulses `run` takes from the stream to every budget, while one has seen no
+    /// pulse over it (after that, no later pulse changes a diagnostic).
+    fn check_pulses(&mut self, run: impl FnOnce(&mut PulseStream, &mut dyn FnMut(PulseTime))) {
+        let PlanFacts {
+            budgets, pulses, ..
+        } = self;
+        let Some(pulses) = pulses else { return };
+        if budgets.iter().all(|(_, b)| b.over().is_some()) {
+            return;
+        }
+        run(pulses, &mut |p| {
+            for (_, b) in budgets.iter_mut() {
+                b.pulse(p.t, p.op);
+            }
+        });
+    }
+
+    /// The pulse budget of `dialect`'s post, as `validate::check_pulse_budget` finds it on the
+    /// whole plan: the same diagnostic for the same first pulse over it. The facts must have
+    /// been gathered for `dialect` (a post without a budget passes).
+    pub(super) fn pulse_budget(
+        &self,
+        program: &ProcessProgram,
+        dialect: Dialect,
+    ) -> Result<(), EmitError> {
+        match self.budgets.iter().find(|(d, _)| *d == dialect) {
+            Some((_, b)) => b.result(program, dialect),
+            None => Ok(()),
+        }
     }
 
     fn close(&mut self, program: &ProcessProgram) {

@@ -32,7 +32,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-pub use facts::{PlanFacts, plans_in_windows};
+pub use facts::PlanFacts;
 pub use format::{degrees, number};
 
 /// An NC dialect lase can write.
@@ -340,7 +340,7 @@ pub fn emit(
 
 /// [`emit`] of a job planned in windows (`motion::plan_program_windows`, whose plan holds no
 /// segments): what the writer reads of the plan is in `facts`, gathered from the windows
-/// ([`PlanFacts`]). The job must be one [`plans_in_windows`] allows.
+/// ([`PlanFacts`], gathered for `dialect`).
 pub fn emit_planned(
     job: &Job,
     facts: &PlanFacts,
@@ -362,9 +362,10 @@ fn emit_with(
         validate::check_settles(&job.program, dialect)?;
     }
     let checked = validate::validate(job, dialect, facts)?;
-    if facts.is_none() {
-        // A post with a budget plans whole (`plans_in_windows`).
-        validate::check_pulse_budget(job, dialect, checked.post)?;
+    match facts {
+        None => validate::check_pulse_budget(job, dialect, checked.post)?,
+        // Checked on the pulses as the windows passed (`PlanFacts`).
+        Some(facts) => facts.pulse_budget(&job.program, dialect)?,
     }
     // Settled rows go out relative to their settled start (`relative`), whether a live link
     // or the control settles them.
