@@ -73,9 +73,10 @@ use super::lookahead::Kin;
 use super::plan::{NO_BLEND, Segment};
 use super::{Axes, AxisLimits, MAX_AXES, Prepared};
 
+mod expand;
 mod judge;
+use judge::Whole;
 pub(super) use judge::{MoveSource, READS_AHEAD, READS_BEHIND, junction_at};
-use judge::{Whole, shape_at};
 
 /// Share of each axis's acceleration (and jerk) the blend's curvature may use; the rest is for
 /// changing the path speed on it.
@@ -713,26 +714,20 @@ pub(super) fn split(
         let src = Whole { p, info, start, n };
         junction_at(&src, i, delta, limits, n)
     };
-    // How many corners are rounded (a blend's limits leave it a stop only where the axis
-    // limits allow no motion at all: the count only sizes the output and tells whether there is
-    // any, and `junction_at` decides each corner below).
-    let extra = (0..count)
-        .filter(|&i| {
-            shape_at(
-                &Whole {
-                    p: &p,
-                    info,
-                    start,
-                    n,
-                },
-                i,
-                delta,
-                n,
-            )
-            .is_ok()
-        })
-        .count();
-    if extra == 0 {
+    // How many segments and blends the split makes at most (`expand::bound`: a blend's limits
+    // leave a corner a stop only where the axis limits allow no motion at all, and
+    // `junction_at` decides each corner in the split).
+    let bound = expand::bound(
+        &Whole {
+            p: &p,
+            info,
+            start,
+            n,
+        },
+        delta,
+        n,
+    );
+    if bound.1 == 0 {
         // Nothing to round: only the entry caps change, in place (no second copy of the plan).
         // A move's cap is written after the junction before it is judged, and a junction reads
         // no cap. The same caps as `Splitter::split_move` gives a move without blends.
@@ -755,25 +750,8 @@ pub(super) fn split(
         }
         return p;
     }
-    let mut out = Prepared {
-        segments: Vec::with_capacity(count + 2 * extra),
-        points: Vec::with_capacity((count + 2 * extra) * n),
-        end: p.end,
-        blends: Vec::with_capacity(extra),
-    };
-    let mut splitter = Splitter::default();
-    for i in 0..count {
-        let after = junction_after(&p, i);
-        let at = Whole {
-            p: &p,
-            info,
-            start,
-            n,
-        }
-        .point(i);
-        splitter.split_move(p.segments[i], &at, after, &mut out, n);
-    }
-    out
+    // The split segments are written into the prepared moves' own table (`expand`).
+    expand::split_in_place(p, info, start, delta, limits, n, bound)
 }
 
 /// `split`, one move at a time: what it remembers of the moves before.
