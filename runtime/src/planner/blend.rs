@@ -75,8 +75,10 @@ use super::{Axes, AxisLimits, MAX_AXES, Prepared};
 
 mod expand;
 mod judge;
+mod table;
 use judge::Whole;
 pub(super) use judge::{MoveSource, READS_AHEAD, READS_BEHIND, junction_at};
+pub use table::Blends;
 
 /// Share of each axis's acceleration (and jerk) the blend's curvature may use; the rest is for
 /// changing the path speed on it.

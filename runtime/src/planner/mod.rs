@@ -63,7 +63,7 @@ mod plan;
 mod profile;
 mod window;
 
-pub use blend::{Blend, REACH_MAX as BLEND_REACH_MAX};
+pub use blend::{Blend, Blends, REACH_MAX as BLEND_REACH_MAX};
 pub use error::PlanError;
 pub use plan::{Plan, Sample, Segment};
 pub use window::{MIN_WINDOW, Planned, plan_along_windows, plan_along_windows_sized};
@@ -501,7 +501,7 @@ fn prepare(
         segments,
         points,
         end: prep.q,
-        blends: Vec::new(),
+        blends: Blends::new(n_axes, start),
     };
     Ok(if prep.blending {
         blend::split(
@@ -788,7 +788,7 @@ struct Prepared {
     /// The last target.
     end: Axes,
     /// The corner blends the segments refer to (`Corners::Blend`).
-    blends: Vec<Blend>,
+    blends: Blends,
 }
 
 /// Share of the acceleration limit a chord of a curve gives to the centripetal acceleration;

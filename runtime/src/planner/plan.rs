@@ -10,7 +10,7 @@
 //! (the plan's end for the last). [`Plan::sample`] finds the segment by binary search on
 //! `t_start` and evaluates the phase polynomials in closed form.
 
-use super::blend::{Blend, shared_at};
+use super::blend::{Blend, Blends, shared_at};
 use super::lookahead::{Kin, KinTable};
 use super::profile::Shape;
 use super::{Axes, MAX_AXES};
@@ -220,7 +220,7 @@ pub struct Plan {
     pub(crate) duration: f64,
     pub(crate) n_axes: usize,
     /// The corner blends segments refer to (`Segment::blend`).
-    pub(crate) blends: Vec<Blend>,
+    pub(crate) blends: Blends,
     /// The number of the plan's first blend: 0 for a whole plan, that of the first blend a
     /// window's segments refer to for a window (`planner::plan_along_windows`).
     pub(crate) blend_base: u32,
@@ -237,7 +237,7 @@ impl Plan {
             end,
             duration,
             n_axes,
-            blends: Vec::new(),
+            blends: Blends::new(n_axes, start),
             blend_base: 0,
         }
     }
@@ -296,7 +296,7 @@ impl Plan {
     }
 
     /// The corner blend segment `i` follows, and whether it is the half after the corner.
-    pub fn blend_of(&self, i: usize) -> Option<(&Blend, bool)> {
+    pub fn blend_of(&self, i: usize) -> Option<(Blend, bool)> {
         let b = self.segments.get(i)?.blend;
         if b == NO_BLEND {
             return None;
@@ -319,18 +319,18 @@ impl Plan {
         };
         let (l0, l1) = blend.levels();
         let g0 = match b.checked_sub(1).and_then(|p| self.blends.get(p)) {
-            Some(prev) if l0 > 0 => shared_at(prev, blend, l0),
+            Some(prev) if l0 > 0 => shared_at(&prev, &blend, l0),
             _ => Axes::ZERO,
         };
         let g1 = match self.blends.get(b + 1) {
-            Some(next) if l1 > 0 => shared_at(blend, next, l1),
+            Some(next) if l1 > 0 => shared_at(&blend, &next, l1),
             _ => Axes::ZERO,
         };
         (g0, g1)
     }
 
     /// Every corner blend of the plan, in order.
-    pub fn blends(&self) -> &[Blend] {
+    pub fn blends(&self) -> &Blends {
         &self.blends
     }
 

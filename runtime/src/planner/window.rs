@@ -35,7 +35,7 @@ use super::blend::{self, MoveSource, Splitter};
 use super::lookahead::Kin;
 use super::profile::{entry_limit, exit_speed};
 use super::{
-    Along, Axes, AxisLimits, Move, Plan, PlanError, PlannerConfig, Prepared, Preparer, Raw,
+    Along, Axes, AxisLimits, Blends, Move, Plan, PlanError, PlannerConfig, Prepared, Preparer, Raw,
     Segment, Timeline, plan::NO_BLEND,
 };
 
@@ -194,7 +194,7 @@ impl<'a> Stream<'a> {
             segments: Vec::new(),
             points: Vec::new(),
             end: start,
-            blends: Vec::new(),
+            blends: Blends::new(cfg.n_axes, start),
         };
         let ahead = empty();
         Stream {
@@ -366,9 +366,9 @@ impl<'a> Stream<'a> {
                 let lo = lo.saturating_sub(1).max(self.blends_first);
                 let from = (lo - self.blends_first) as usize;
                 let to = (hi - self.blends_first) as usize;
-                (lo, self.ahead.blends[from..=to].to_vec())
+                (lo, self.ahead.blends.slice(from, to))
             }
-            None => (self.blends_first, Vec::new()),
+            None => (self.blends_first, Blends::new(n, self.start)),
         };
         let keep = match (refs(&segments), refs(&self.ahead.segments)) {
             (Some((_, hi)), Some((lo, _))) => Some(hi.min(lo)),
@@ -380,7 +380,7 @@ impl<'a> Stream<'a> {
             // One blend more, for the curvature the next window's first may share with it.
             let keep = keep.saturating_sub(1).max(self.blends_first);
             let drop = (keep - self.blends_first) as usize;
-            self.ahead.blends.drain(..drop);
+            self.ahead.blends.drain_front(drop);
             self.blends_first = keep;
         }
         Plan {

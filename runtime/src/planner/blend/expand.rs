@@ -21,7 +21,7 @@
 use super::super::lookahead::Kin;
 use super::super::{Axes, AxisLimits, Prepared};
 use super::judge::{MoveSource, READS_BEHIND, shape_at};
-use super::{MoveInfo, MoveInfos, Splitter, junction_at};
+use super::{Blends, MoveInfo, MoveInfos, Splitter, junction_at};
 
 /// Room kept between what the split has written and the first move it may still read: the
 /// moves a junction reads before its own (`READS_BEHIND`), and two more for safety.
@@ -114,13 +114,13 @@ pub(super) fn split_in_place(
         p.points.resize(len * n, 0.0);
         p.points.copy_within(0..count * n, shift * n);
     }
-    p.blends = Vec::with_capacity(blends);
+    p.blends = Blends::with_capacity(n, start, blends);
     // What one move splits into, before it is copied to its place.
     let mut piece = Prepared {
         segments: Vec::with_capacity(3),
         points: Vec::with_capacity(3 * n),
         end: p.end,
-        blends: Vec::with_capacity(1),
+        blends: Blends::new(n, start),
     };
     let mut splitter = Splitter::default();
     let mut written = 0usize;
@@ -138,7 +138,6 @@ pub(super) fn split_in_place(
         let seg = p.segments[shift + i];
         piece.segments.clear();
         piece.points.clear();
-        piece.blends.clear();
         splitter.split_move(seg, &at, after, &mut piece, n);
         let k = piece.segments.len();
         // The first move read from here on: what the junction after `i + 1` reads.
@@ -148,7 +147,10 @@ pub(super) fn split_in_place(
         }
         p.segments[written..written + k].copy_from_slice(&piece.segments);
         p.points[written * n..(written + k) * n].copy_from_slice(&piece.points);
-        p.blends.extend_from_slice(&piece.blends);
+        if let Some(b) = piece.blends.get(0) {
+            p.blends.push(b);
+            piece.blends = Blends::new(n, start);
+        }
         written += k;
     }
     p.segments.truncate(written);
@@ -242,7 +244,7 @@ mod tests {
                 segments: raw.segments,
                 points: raw.points,
                 end: prep.q,
-                blends: Vec::new(),
+                blends: Blends::new(2, start),
             };
             (p, raw.info)
         };
