@@ -53,16 +53,17 @@ const CAP_PER_MOVE: f64 = 525.0;
 /// rest or stepped this recipe peaked at 225.2 B (the job's 224 B: ops, op axes, segments and
 /// points, and the blends' flags). Since the lit corners of a flat bed are blended (issue 13
 /// item 3), every corner of this lit zigzag is: each 0.05 mm move becomes the halves of the
-/// blends at its ends (2.5 segments a move, 300 B of segments and 40 B of their points) and
-/// each corner keeps its 160-byte `Blend`. That peaked at 793.2 B (996.4 B read here while the
-/// `lase emit` stage's facts, shadowed by the next stage's, were never dropped: 203 B), of
-/// which `blend::split` building the expanded plan beside the prepared one took 137 B and the
-/// expanded tables' spare capacity 68 B. Split in the prepared table itself, sized by an upper
-/// bound of its segments and shrunk to them (`blend/expand.rs`): 589.2 B. Each blend kept in
-/// 41 bytes, not 160 (`planner::Blends`: the axes in use only, and its `w` once, as the next
-/// blend's `u`): 470.2 B, the job's 469.1 B (ops 72, op axes 16, segments 300.1, points 40.0,
-/// blends 41.0).
-const CAP_PER_MOVE_WHOLE: f64 = 480.0;
+/// blends at its ends (2.5 segments a move, 300 B). That peaked at 793.2 B (996.4 B read here
+/// while the `lase emit` stage's facts, shadowed by the next stage's, were never dropped: 203
+/// B): points 40 B a move, a 160-byte `Blend` a corner, and `blend::split` building the
+/// expanded plan beside the prepared one (137 B) with 20 % spare capacity (68 B). Now the split
+/// writes into the prepared table itself, sized by an upper bound of its segments and shrunk
+/// to them (`blend/expand.rs`: 589.2 B), a blend is kept in 41 bytes (`planner::Blends`: the
+/// axes in use only, its `w` once as the next blend's `u`: 470.2 B), and the halves of blends
+/// keep no point (`Plan::segment_start` computes it from the blend: 446.2 B). The job holds
+/// 437.8 B of it: ops 72, op axes 16, segments 300.1, points 8.6, blends 41.0; the split's
+/// points room adds the rest. What is left is the segments: 120 B each, 2.5 a move.
+const CAP_PER_MOVE_WHOLE: f64 = 450.0;
 
 /// Peak of live heap above `base` so far, bytes.
 fn peak_above(base: usize) -> usize {
@@ -222,7 +223,7 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     let peak = peak_above(before);
     let tables = [
         ("plan segments", size_of_val(job.plan.segments())),
-        ("plan points", job.plan.segments().len() * n_axes * 8),
+        ("plan points", job.plan.point_heap_bytes()),
         ("plan blends", job.plan.blends().heap_bytes()),
     ];
     let tables: Vec<String> = tables

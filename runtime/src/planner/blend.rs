@@ -800,16 +800,24 @@ impl Splitter {
             return;
         }
         let first = out.segments.len();
-        let push =
-            |out: &mut Prepared, len: f64, lim: (f64, f64, f64), cap: f64, blend: u32, at: Axes| {
-                let mut s = seg;
-                let (v, a, j) = lim;
-                s.set_kin(&Kin { len, v, a, j, cap });
-                s.dwell = 0.0;
-                s.blend = blend;
-                out.segments.push(s);
+        // A half of a blend keeps no point (`at: None`): it starts on its blend
+        // (`Plan::segment_start`).
+        let push = |out: &mut Prepared,
+                    len: f64,
+                    lim: (f64, f64, f64),
+                    cap: f64,
+                    blend: u32,
+                    at: Option<Axes>| {
+            let mut s = seg;
+            let (v, a, j) = lim;
+            s.set_kin(&Kin { len, v, a, j, cap });
+            s.dwell = 0.0;
+            s.blend = blend;
+            out.segments.push(s);
+            if let Some(at) = at {
                 out.points.extend_from_slice(&at[..n]);
-            };
+            }
+        };
         let l_in = self.blend_in.map_or(0.0, |(b, ..)| b.reach);
         let (l_out, out_limits) = match after {
             Junction::Blend { blend, v, a, j } => (blend.reach, Some((blend, v, a, j))),
@@ -821,17 +829,10 @@ impl Splitter {
             Junction::Stepped => k.cap.min(self.prev_v),
             _ => 0.0,
         };
-        if let Some((b, index, bv, ba, bj)) = self.blend_in {
+        if let Some((_, index, bv, ba, bj)) = self.blend_in {
             let v = k.v.min(bv);
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(
-                out,
-                l_in,
-                lim,
-                v.min(self.prev_v),
-                2 * index + 1,
-                b.point(0.5),
-            );
+            push(out, l_in, lim, v.min(self.prev_v), 2 * index + 1, None);
             self.prev_v = v;
         }
         let mid = k.len - l_in - l_out;
@@ -840,7 +841,7 @@ impl Splitter {
                 Some((b, ..)) => (k.v.min(self.prev_v), b.point(1.0)),
                 None => (cap_before, *at),
             };
-            push(out, mid, (k.v, k.a, k.j), cap, NO_BLEND, from);
+            push(out, mid, (k.v, k.a, k.j), cap, NO_BLEND, Some(from));
             self.prev_v = k.v;
         }
         self.blend_in = None;
@@ -855,7 +856,7 @@ impl Splitter {
                 v.min(self.prev_v)
             };
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(out, l_out, lim, cap, 2 * index, blend.point(0.0));
+            push(out, l_out, lim, cap, 2 * index, None);
             self.prev_v = v;
             self.blend_in = Some((blend, index, bv, ba, bj));
         }

@@ -15,8 +15,11 @@
 //! `i + 1 − READS_BEHIND`, which lie at `shift + i + 1 − READS_BEHIND` with `shift = bound +
 //! SLACK − count` — past what it wrote when `SLACK ≥ READS_BEHIND`. Should the bound ever fail,
 //! the moves still to read are moved further on first (`make_room`), so the split never reads a
-//! move it overwrote. What is left unused is given back (`shrink_to_fit`: the allocator shrinks
-//! the block in place) and the blends' table is sized to the blends made.
+//! move it overwrote. The points need no such room: a move splits into one straight segment at
+//! most (the halves of blends keep no point, `Plan::segment_start`), so they are written over
+//! the moves' own from the front, [`SLACK`] behind the first one still read. What is left
+//! unused is given back (`shrink_to_fit`: the allocator shrinks the block in place) and the
+//! blends' table is sized to the blends made.
 
 use super::super::lookahead::Kin;
 use super::super::{Axes, AxisLimits, Prepared};
@@ -27,8 +30,8 @@ use super::{Blends, MoveInfo, MoveInfos, Splitter, junction_at};
 /// moves a junction reads before its own (`READS_BEHIND`), and two more for safety.
 const SLACK: usize = READS_BEHIND + 2;
 
-/// The prepared moves, `shift` segments (and `shift · n` point values) into the table the split
-/// writes into.
+/// The prepared moves, `shift` segments into the table the split writes into and [`SLACK`]
+/// points into the points (`n` values each).
 struct Shifted<'a> {
     p: &'a Prepared,
     info: &'a MoveInfos,
@@ -53,7 +56,7 @@ impl MoveSource for Shifted<'_> {
         if i >= self.count {
             return self.p.end;
         }
-        let k = (self.shift + i) * self.n;
+        let k = (SLACK + i) * self.n;
         let mut q = self.start;
         q[..self.n].copy_from_slice(&self.p.points[k..k + self.n]);
         q
@@ -105,14 +108,17 @@ pub(super) fn split_in_place(
     let len = bound.max(count) + SLACK;
     let mut shift = len - count;
     // The moves go to the end of the grown table (the filler is overwritten before it is read).
+    // A move splits into one straight segment at most, the others are the halves of blends,
+    // which keep no point (`Plan::segment_start`): the points need room for what is read
+    // behind only.
     let filler = p.segments.first().copied();
     if let Some(filler) = filler {
         p.segments.reserve_exact(len - count);
         p.segments.resize(len, filler);
         p.segments.copy_within(0..count, shift);
-        p.points.reserve_exact((len - count) * n);
-        p.points.resize(len * n, 0.0);
-        p.points.copy_within(0..count * n, shift * n);
+        p.points.reserve_exact(SLACK * n);
+        p.points.resize((count + SLACK) * n, 0.0);
+        p.points.copy_within(0..count * n, SLACK * n);
     }
     p.blends = Blends::with_capacity(n, start, blends);
     // What one move splits into, before it is copied to its place.
@@ -123,7 +129,7 @@ pub(super) fn split_in_place(
         blends: Blends::new(n, start),
     };
     let mut splitter = Splitter::default();
-    let mut written = 0usize;
+    let (mut written, mut written_points) = (0usize, 0usize);
     for i in 0..count {
         let src = Shifted {
             p: &p,
@@ -143,10 +149,13 @@ pub(super) fn split_in_place(
         // The first move read from here on: what the junction after `i + 1` reads.
         let keep = (i + 1).saturating_sub(READS_BEHIND);
         if written + k > shift + keep {
-            shift = make_room(&mut p, shift, keep, count, written + k, n);
+            shift = make_room(&mut p, shift, keep, count, written + k);
         }
         p.segments[written..written + k].copy_from_slice(&piece.segments);
-        p.points[written * n..(written + k) * n].copy_from_slice(&piece.points);
+        let kp = piece.points.len();
+        debug_assert!(written_points + kp <= (SLACK + keep) * n);
+        p.points[written_points..written_points + kp].copy_from_slice(&piece.points);
+        written_points += kp;
         if let Some(b) = piece.blends.get(0) {
             p.blends.push(b);
             piece.blends = Blends::new(n, start);
@@ -155,30 +164,22 @@ pub(super) fn split_in_place(
     }
     p.segments.truncate(written);
     p.segments.shrink_to_fit();
-    p.points.truncate(written * n);
+    p.points.truncate(written_points);
     p.points.shrink_to_fit();
     p.blends.shrink_to_fit();
     p
 }
 
-/// Moves the prepared moves from `keep` on further into the table, so that `upto` segments can
-/// be written before them; returns the new shift. Only where [`bound`] failed (module doc).
+/// Moves the prepared moves' segments from `keep` on further into the table, so that `upto`
+/// segments can be written before them; returns the new shift. Only where [`bound`] failed
+/// (module doc).
 #[cold]
-fn make_room(
-    p: &mut Prepared,
-    shift: usize,
-    keep: usize,
-    count: usize,
-    upto: usize,
-    n: usize,
-) -> usize {
+fn make_room(p: &mut Prepared, shift: usize, keep: usize, count: usize, upto: usize) -> usize {
     let grow = (upto - (shift + keep)).max(count - keep);
     let (from, to) = (shift + keep, shift + count);
     let filler = p.segments[from];
     p.segments.resize(p.segments.len() + grow, filler);
     p.segments.copy_within(from..to, from + grow);
-    p.points.resize(p.points.len() + grow * n, 0.0);
-    p.points.copy_within(from * n..to * n, (from + grow) * n);
     shift + grow
 }
 
