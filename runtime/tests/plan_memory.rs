@@ -62,13 +62,17 @@ const CAP_PER_MOVE: f64 = 120.0;
 /// rest or stepped this recipe peaked at 225.2 B (the job's 224 B: ops, op axes, segments and
 /// points, and the blends' flags). Since the lit corners of a flat bed are blended (issue 13
 /// item 3), every corner of this lit zigzag is: each 0.05 mm move becomes the halves of the
-/// blends at its ends (2.5 segments a move, 300 B), each corner keeps its 160-byte `Blend`, and
-/// `blend::split` builds the expanded plan beside the one it expands (137 B at the peak):
-/// 793.2 B measured on the branch that blended them, 996.4 B once merged with the planner in
-/// windows (the job then holds 859.3 B: segments 300.1, blends 160.0, ops 72.0 and the rest
-/// in the vectors' spare capacity; not looked into yet). The windows above hold none of that;
-/// this cap still fails a per-move table that comes back.
-const CAP_PER_MOVE_WHOLE: f64 = 1000.0;
+/// blends at its ends (2.5 segments a move, 300 B). That peaked at 793.2 B (996.4 B read here
+/// while the `lase emit` stage's facts, shadowed by the next stage's, were never dropped: 203
+/// B): points 40 B a move, a 160-byte `Blend` a corner, and `blend::split` building the
+/// expanded plan beside the prepared one (137 B) with 20 % spare capacity (68 B). Now the split
+/// writes into the prepared table itself, sized by an upper bound of its segments and shrunk
+/// to them (`blend/expand.rs`: 589.2 B), a blend is kept in 41 bytes (`planner::Blends`: the
+/// axes in use only, its `w` once as the next blend's `u`: 470.2 B), and the halves of blends
+/// keep no point (`Plan::segment_start` computes it from the blend: 446.2 B). The job holds
+/// 437.8 B of it: ops 72, op axes 16, segments 300.1, points 8.6, blends 41.0; the split's
+/// points room adds the rest. What is left is the segments: 120 B each, 2.5 a move.
+const CAP_PER_MOVE_WHOLE: f64 = 450.0;
 
 /// Peak of live heap above `base` so far, bytes.
 fn peak_above(base: usize) -> usize {
@@ -155,6 +159,8 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     .expect("the job emits");
     assert!(lines >= n, "{lines} lines");
     drop(job);
+    // (The next stage's facts shadow these: dropped here, or they would live to the end.)
+    drop(facts);
     let emitted = peak_above(before);
     // `lase plan`: planned in windows again, the summary counted and each controller's facts
     // gathered as they pass, then every controller it reports timed by its streamed model.
@@ -227,6 +233,7 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     let program_ = program(&mut files);
     let job = compile::plan(program_).unwrap_or_else(|f| panic!("the recipe plans: {f}"));
     let held = ALLOC.allocated().saturating_sub(before);
+    let planned = peak_above(before);
     emit::emit(
         &job,
         Dialect::LinuxCnc,
@@ -237,16 +244,18 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     let peak = peak_above(before);
     let tables = [
         ("plan segments", size_of_val(job.plan.segments())),
-        ("plan points", moves * n_axes * 8),
-        ("plan blends", size_of_val(job.plan.blends())),
+        ("plan points", job.plan.point_heap_bytes()),
+        ("plan blends", job.plan.blends().heap_bytes()),
     ];
     let tables: Vec<String> = tables
         .iter()
         .map(|(what, b)| format!("{what} {:.1}", per(*b)))
         .collect();
     eprintln!(
-        "{moves} moves planned whole: peak {:.1} B per move (the job holds {:.1}); B per move: {}",
+        "{moves} moves planned whole: peak {:.1} B per move (planning {:.1}, the job holds {:.1}); \
+         B per move: {}",
         per(peak),
+        per(planned),
         per(held),
         tables.join(", ")
     );

@@ -193,7 +193,7 @@ fn the_checker_finds_no_violation_where_there_is_none_and_the_corner_step_where_
          move to (20 mm, 0) at 20 mm/s\nmove to (20 mm, 20 mm) at 20 mm/s\n",
     );
     assert!(violations("corner", &job).is_empty());
-    let blend = job.plan.blends().first().expect("the corner is blended");
+    let blend = job.plan.blends().get(0).expect("the corner is blended");
     assert!((blend.corner[0] - 20.0).abs() < 1e-9 && blend.corner[1].abs() < 1e-9);
     let corner_v = (0..job.plan.segments().len())
         .filter(|&i| job.plan.blend_of(i).is_some())

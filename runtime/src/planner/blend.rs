@@ -73,9 +73,12 @@ use super::lookahead::Kin;
 use super::plan::{NO_BLEND, Segment};
 use super::{Axes, AxisLimits, MAX_AXES, Prepared};
 
+mod expand;
 mod judge;
+mod table;
+use judge::Whole;
 pub(super) use judge::{MoveSource, READS_AHEAD, READS_BEHIND, junction_at};
-use judge::{Whole, shape_at};
+pub use table::Blends;
 
 /// Share of each axis's acceleration (and jerk) the blend's curvature may use; the rest is for
 /// changing the path speed on it.
@@ -713,26 +716,20 @@ pub(super) fn split(
         let src = Whole { p, info, start, n };
         junction_at(&src, i, delta, limits, n)
     };
-    // How many corners are rounded (a blend's limits leave it a stop only where the axis
-    // limits allow no motion at all: the count only sizes the output and tells whether there is
-    // any, and `junction_at` decides each corner below).
-    let extra = (0..count)
-        .filter(|&i| {
-            shape_at(
-                &Whole {
-                    p: &p,
-                    info,
-                    start,
-                    n,
-                },
-                i,
-                delta,
-                n,
-            )
-            .is_ok()
-        })
-        .count();
-    if extra == 0 {
+    // How many segments and blends the split makes at most (`expand::bound`: a blend's limits
+    // leave a corner a stop only where the axis limits allow no motion at all, and
+    // `junction_at` decides each corner in the split).
+    let bound = expand::bound(
+        &Whole {
+            p: &p,
+            info,
+            start,
+            n,
+        },
+        delta,
+        n,
+    );
+    if bound.1 == 0 {
         // Nothing to round: only the entry caps change, in place (no second copy of the plan).
         // A move's cap is written after the junction before it is judged, and a junction reads
         // no cap. The same caps as `Splitter::split_move` gives a move without blends.
@@ -755,25 +752,8 @@ pub(super) fn split(
         }
         return p;
     }
-    let mut out = Prepared {
-        segments: Vec::with_capacity(count + 2 * extra),
-        points: Vec::with_capacity((count + 2 * extra) * n),
-        end: p.end,
-        blends: Vec::with_capacity(extra),
-    };
-    let mut splitter = Splitter::default();
-    for i in 0..count {
-        let after = junction_after(&p, i);
-        let at = Whole {
-            p: &p,
-            info,
-            start,
-            n,
-        }
-        .point(i);
-        splitter.split_move(p.segments[i], &at, after, &mut out, n);
-    }
-    out
+    // The split segments are written into the prepared moves' own table (`expand`).
+    expand::split_in_place(p, info, start, delta, limits, n, bound)
 }
 
 /// `split`, one move at a time: what it remembers of the moves before.
@@ -820,16 +800,24 @@ impl Splitter {
             return;
         }
         let first = out.segments.len();
-        let push =
-            |out: &mut Prepared, len: f64, lim: (f64, f64, f64), cap: f64, blend: u32, at: Axes| {
-                let mut s = seg;
-                let (v, a, j) = lim;
-                s.set_kin(&Kin { len, v, a, j, cap });
-                s.dwell = 0.0;
-                s.blend = blend;
-                out.segments.push(s);
+        // A half of a blend keeps no point (`at: None`): it starts on its blend
+        // (`Plan::segment_start`).
+        let push = |out: &mut Prepared,
+                    len: f64,
+                    lim: (f64, f64, f64),
+                    cap: f64,
+                    blend: u32,
+                    at: Option<Axes>| {
+            let mut s = seg;
+            let (v, a, j) = lim;
+            s.set_kin(&Kin { len, v, a, j, cap });
+            s.dwell = 0.0;
+            s.blend = blend;
+            out.segments.push(s);
+            if let Some(at) = at {
                 out.points.extend_from_slice(&at[..n]);
-            };
+            }
+        };
         let l_in = self.blend_in.map_or(0.0, |(b, ..)| b.reach);
         let (l_out, out_limits) = match after {
             Junction::Blend { blend, v, a, j } => (blend.reach, Some((blend, v, a, j))),
@@ -841,17 +829,10 @@ impl Splitter {
             Junction::Stepped => k.cap.min(self.prev_v),
             _ => 0.0,
         };
-        if let Some((b, index, bv, ba, bj)) = self.blend_in {
+        if let Some((_, index, bv, ba, bj)) = self.blend_in {
             let v = k.v.min(bv);
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(
-                out,
-                l_in,
-                lim,
-                v.min(self.prev_v),
-                2 * index + 1,
-                b.point(0.5),
-            );
+            push(out, l_in, lim, v.min(self.prev_v), 2 * index + 1, None);
             self.prev_v = v;
         }
         let mid = k.len - l_in - l_out;
@@ -860,7 +841,7 @@ impl Splitter {
                 Some((b, ..)) => (k.v.min(self.prev_v), b.point(1.0)),
                 None => (cap_before, *at),
             };
-            push(out, mid, (k.v, k.a, k.j), cap, NO_BLEND, from);
+            push(out, mid, (k.v, k.a, k.j), cap, NO_BLEND, Some(from));
             self.prev_v = k.v;
         }
         self.blend_in = None;
@@ -875,7 +856,7 @@ impl Splitter {
                 v.min(self.prev_v)
             };
             let lim = (v, k.a.min(ba), k.j.min(bj));
-            push(out, l_out, lim, cap, 2 * index, blend.point(0.0));
+            push(out, l_out, lim, cap, 2 * index, None);
             self.prev_v = v;
             self.blend_in = Some((blend, index, bv, ba, bj));
         }

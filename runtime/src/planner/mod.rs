@@ -44,7 +44,8 @@
 //! for two axes, 168 for six), and nothing else per move: the look-ahead reads each move's limits from its
 //! segment before timing it (`lookahead::KinTable`), and the corner blends' per-move input is
 //! a byte of flags (`blend::MoveInfos`) while the corners are judged. A blended corner adds two
-//! segments and a 160-byte [`Blend`].
+//! segments, which keep no point, and its blend, `(2·n_axes + 1)·8 + 1` bytes ([`Blends`]: 41
+//! for two axes); the split makes them in the prepared moves' own table (`blend/expand.rs`).
 //!
 //! Known limit: every S-curve move starts and ends at zero path acceleration, so acceleration
 //! is continuous everywhere, but a run of very short moves gains speed in small jerk-limited
@@ -63,7 +64,7 @@ mod plan;
 mod profile;
 mod window;
 
-pub use blend::{Blend, REACH_MAX as BLEND_REACH_MAX};
+pub use blend::{Blend, Blends, REACH_MAX as BLEND_REACH_MAX};
 pub use error::PlanError;
 pub use plan::{Plan, Sample, Segment};
 pub use window::{MIN_WINDOW, Planned, plan_along_windows, plan_along_windows_sized};
@@ -387,6 +388,7 @@ pub fn plan_along_iter(
         }),
     }
     let duration = timeline.t;
+    let halves = plan::half_ranks(&segments);
     Ok(Plan {
         segments,
         points,
@@ -396,6 +398,7 @@ pub fn plan_along_iter(
         n_axes: cfg.n_axes,
         blends,
         blend_base: 0,
+        halves,
     })
 }
 
@@ -501,7 +504,7 @@ fn prepare(
         segments,
         points,
         end: prep.q,
-        blends: Vec::new(),
+        blends: Blends::new(n_axes, start),
     };
     Ok(if prep.blending {
         blend::split(
@@ -788,7 +791,7 @@ struct Prepared {
     /// The last target.
     end: Axes,
     /// The corner blends the segments refer to (`Corners::Blend`).
-    blends: Vec<Blend>,
+    blends: Blends,
 }
 
 /// Share of the acceleration limit a chord of a curve gives to the centripetal acceleration;

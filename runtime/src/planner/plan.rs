@@ -6,11 +6,16 @@
 //! acceleration and jerk follow from those (`a_p = Δv / (t_j + t_a)`, `J = a_p / t_j`), and so
 //! do axis quantities through the move's direction `u = Δq / length` (q(s) = q0 + u·s). The
 //! axis positions live beside the segments in one flat table of the axes in use (a 2-axis plan
-//! stores 16 bytes per segment, not 48): segment i starts at point i and ends at point i + 1
-//! (the plan's end for the last). [`Plan::sample`] finds the segment by binary search on
-//! `t_start` and evaluates the phase polynomials in closed form.
+//! stores 16 bytes per segment, not 48): a segment starts at its point and ends where the next
+//! one starts (the plan's end for the last). The halves of corner blends keep no point: they
+//! start on their blend ([`Plan::segment_start`] computes the point the split started them at),
+//! and `Plan::halves` counts them every 32 segments so that the others' points are found in
+//! constant time (a lit zigzag blends every corner: two of its 2.5 segments a move are halves,
+//! 32 bytes a move less). The blends themselves are kept compactly ([`Blends`]).
+//! [`Plan::sample`] finds the segment by binary search on `t_start` and evaluates the phase
+//! polynomials in closed form.
 
-use super::blend::{Blend, shared_at};
+use super::blend::{Blend, Blends, shared_at};
 use super::lookahead::{Kin, KinTable};
 use super::profile::Shape;
 use super::{Axes, MAX_AXES};
@@ -220,10 +225,45 @@ pub struct Plan {
     pub(crate) duration: f64,
     pub(crate) n_axes: usize,
     /// The corner blends segments refer to (`Segment::blend`).
-    pub(crate) blends: Vec<Blend>,
+    pub(crate) blends: Blends,
     /// The number of the plan's first blend: 0 for a whole plan, that of the first blend a
     /// window's segments refer to for a window (`planner::plan_along_windows`).
     pub(crate) blend_base: u32,
+    /// Where a segment's point is in `points` ([`half_ranks`]): empty where every segment has
+    /// one (no blends), else the number of halves of blends (which keep none) before every
+    /// [`RANK_BLOCK`]-th segment.
+    pub(crate) halves: Vec<u64>,
+}
+
+/// Segments per entry of `Plan::halves`: finding a point reads the `blend` of at most
+/// `RANK_BLOCK − 1` segments beside it.
+const RANK_BLOCK: usize = 32;
+
+/// Where a half of blend `b` starts (`after`: the half after the corner): the point
+/// `blend::Splitter` started it at, on the `n` axes in use; `rest` on the others.
+pub(crate) fn half_start(b: &Blend, after: bool, rest: &Axes, n: usize) -> Axes {
+    let p = b.point(if after { 0.5 } else { 0.0 });
+    let mut q = *rest;
+    q[..n].copy_from_slice(&p[..n]);
+    q
+}
+
+/// `Plan::halves` of `segments`: a half of a blend starts on its blend
+/// (`Plan::segment_start`), so the points are kept for the other segments only (a lit zigzag
+/// blends every corner: 2 of its 2.5 segments a move are halves).
+pub(crate) fn half_ranks(segments: &[Segment]) -> Vec<u64> {
+    if segments.iter().all(|s| s.blend == NO_BLEND) {
+        return Vec::new();
+    }
+    let mut out = Vec::with_capacity(segments.len().div_ceil(RANK_BLOCK));
+    let mut halves = 0u64;
+    for (i, s) in segments.iter().enumerate() {
+        if i % RANK_BLOCK == 0 {
+            out.push(halves);
+        }
+        halves += u64::from(s.blend != NO_BLEND);
+    }
+    out
 }
 
 impl Plan {
@@ -237,8 +277,9 @@ impl Plan {
             end,
             duration,
             n_axes,
-            blends: Vec::new(),
+            blends: Blends::new(n_axes, start),
             blend_base: 0,
+            halves: Vec::new(),
         }
     }
 
@@ -277,12 +318,34 @@ impl Plan {
         self.segments.last().map_or(0.0, |s| s.s_start + s.length)
     }
 
-    /// Axis positions at the start of segment `i` (the plan's end past the last segment).
+    /// Axis positions at the start of segment `i` (the plan's end past the last segment). A
+    /// half of a blend starts on its blend (the point `blend::Splitter` started it at, computed
+    /// again); the others' points are kept.
     pub fn segment_start(&self, i: usize) -> Axes {
         let n = self.n_axes;
-        match self.points.get(i * n..(i + 1) * n) {
+        let Some(seg) = self.segments.get(i) else {
+            return self.end;
+        };
+        if seg.blend != NO_BLEND {
+            return match self.blend_of(i) {
+                Some((b, after)) => half_start(&b, after, &self.start, n),
+                None => self.start,
+            };
+        }
+        let mut q = self.start;
+        let k = match self.halves.get(i / RANK_BLOCK) {
+            Some(&h) => {
+                let from = i - i % RANK_BLOCK;
+                let more = self.segments[from..i]
+                    .iter()
+                    .filter(|s| s.blend != NO_BLEND)
+                    .count();
+                i - (h as usize + more)
+            }
+            None => i,
+        };
+        match self.points.get(k * n..(k + 1) * n) {
             Some(p) => {
-                let mut q = self.start;
                 q[..n].copy_from_slice(p);
                 q
             }
@@ -296,7 +359,7 @@ impl Plan {
     }
 
     /// The corner blend segment `i` follows, and whether it is the half after the corner.
-    pub fn blend_of(&self, i: usize) -> Option<(&Blend, bool)> {
+    pub fn blend_of(&self, i: usize) -> Option<(Blend, bool)> {
         let b = self.segments.get(i)?.blend;
         if b == NO_BLEND {
             return None;
@@ -319,18 +382,23 @@ impl Plan {
         };
         let (l0, l1) = blend.levels();
         let g0 = match b.checked_sub(1).and_then(|p| self.blends.get(p)) {
-            Some(prev) if l0 > 0 => shared_at(prev, blend, l0),
+            Some(prev) if l0 > 0 => shared_at(&prev, &blend, l0),
             _ => Axes::ZERO,
         };
         let g1 = match self.blends.get(b + 1) {
-            Some(next) if l1 > 0 => shared_at(blend, next, l1),
+            Some(next) if l1 > 0 => shared_at(&blend, &next, l1),
             _ => Axes::ZERO,
         };
         (g0, g1)
     }
 
+    /// Bytes the segments' points hold on the heap (with `Plan::halves`, which finds them).
+    pub fn point_heap_bytes(&self) -> usize {
+        8 * (self.points.capacity() + self.halves.capacity())
+    }
+
     /// Every corner blend of the plan, in order.
-    pub fn blends(&self) -> &[Blend] {
+    pub fn blends(&self) -> &Blends {
         &self.blends
     }
 
@@ -388,7 +456,12 @@ impl Plan {
         let motion = seg.motion_duration();
         let dwelling = seg.dwell > 0.0 && t_local >= motion;
         let (s, v, a, j) = seg.path_state(t_local);
-        let (q0, q1) = (self.segment_start(i), self.segment_target(i));
+        let blend = self.blend_of(i);
+        // A blend's axes come from the blend (on the axes not in use, the plan's start).
+        let (q0, q1) = match blend {
+            Some(_) => (self.start, self.start),
+            None => (self.segment_start(i), self.segment_target(i)),
+        };
         let mut out = Sample {
             t: seg.t_start + t_local,
             segment: i,
@@ -403,7 +476,7 @@ impl Plan {
             jerk: Axes::ZERO,
             dwelling,
         };
-        if let Some((b, after)) = self.blend_of(i) {
+        if let Some((b, after)) = blend {
             // x = (σ + ℓ)/(2ℓ): the half before the corner runs σ from −ℓ to 0, the one after
             // from 0 to ℓ (`blend`).
             let x = 0.5 * (s / b.reach) + if after { 0.5 } else { 0.0 };

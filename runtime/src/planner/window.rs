@@ -35,8 +35,9 @@ use super::blend::{self, MoveSource, Splitter};
 use super::lookahead::Kin;
 use super::profile::{entry_limit, exit_speed};
 use super::{
-    Along, Axes, AxisLimits, Move, Plan, PlanError, PlannerConfig, Prepared, Preparer, Raw,
-    Segment, Timeline, plan::NO_BLEND,
+    Along, Axes, AxisLimits, Blends, Move, Plan, PlanError, PlannerConfig, Prepared, Preparer, Raw,
+    Segment, Timeline,
+    plan::{NO_BLEND, half_ranks, half_start},
 };
 
 /// Fewest segments a look-ahead pass runs over (about 600 kB with their points): fewer passes,
@@ -194,7 +195,7 @@ impl<'a> Stream<'a> {
             segments: Vec::new(),
             points: Vec::new(),
             end: start,
-            blends: Vec::new(),
+            blends: Blends::new(cfg.n_axes, start),
         };
         let ahead = empty();
         Stream {
@@ -338,17 +339,9 @@ impl<'a> Stream<'a> {
     fn take(&mut self, cut: usize) -> Plan {
         let n = self.cfg.n_axes;
         let segments: Vec<Segment> = self.ahead.segments.drain(..cut).collect();
-        let points: Vec<f64> = self.ahead.points.drain(..cut * n).collect();
-        let end = match self.ahead.points.get(..n) {
-            Some(p) => {
-                let mut q = self.start;
-                q[..n].copy_from_slice(p);
-                q
-            }
-            None => self.prep.q,
-        };
-        let mut start = self.start;
-        start[..n].copy_from_slice(&points[..n]);
+        // The halves of blends keep no point (`Plan::segment_start`).
+        let with_points = segments.iter().filter(|s| s.blend == NO_BLEND).count();
+        let points: Vec<f64> = self.ahead.points.drain(..with_points * n).collect();
         // The blends this window's segments follow; the last of them stays for the next
         // window too, whose first segment may be its half after the corner.
         let refs = |s: &[Segment]| {
@@ -366,9 +359,9 @@ impl<'a> Stream<'a> {
                 let lo = lo.saturating_sub(1).max(self.blends_first);
                 let from = (lo - self.blends_first) as usize;
                 let to = (hi - self.blends_first) as usize;
-                (lo, self.ahead.blends[from..=to].to_vec())
+                (lo, self.ahead.blends.slice(from, to))
             }
-            None => (self.blends_first, Vec::new()),
+            None => (self.blends_first, Blends::new(n, self.start)),
         };
         let keep = match (refs(&segments), refs(&self.ahead.segments)) {
             (Some((_, hi)), Some((lo, _))) => Some(hi.min(lo)),
@@ -380,18 +373,36 @@ impl<'a> Stream<'a> {
             // One blend more, for the curvature the next window's first may share with it.
             let keep = keep.saturating_sub(1).max(self.blends_first);
             let drop = (keep - self.blends_first) as usize;
-            self.ahead.blends.drain(..drop);
+            self.ahead.blends.drain_front(drop);
             self.blends_first = keep;
         }
-        Plan {
+        // Where the window starts and ends: where its first segment and the next one start
+        // (`Plan::segment_start`).
+        let halves = half_ranks(&segments);
+        let mut window = Plan {
             segments,
             points,
-            start,
-            end,
+            start: self.start,
+            end: self.prep.q,
             duration: self.timeline.t,
             n_axes: n,
             blends,
             blend_base: base,
+            halves,
+        };
+        window.start = window.segment_start(0);
+        if let Some(next) = self.ahead.segments.first() {
+            window.end = if next.blend == NO_BLEND {
+                let mut q = self.start;
+                q[..n].copy_from_slice(&self.ahead.points[..n]);
+                q
+            } else {
+                // Held: the window's blends were kept from the first `ahead` refers to on.
+                let k = (next.blend / 2 - self.blends_first) as usize;
+                let b = self.ahead.blends.get(k).expect("the blend ahead is held");
+                half_start(&b, next.blend % 2 == 1, &self.start, n)
+            };
         }
+        window
     }
 }
