@@ -44,8 +44,9 @@ mod short_moves;
 /// corner of this lit zigzag is blended (2.5 segments a move in the windows: `lase check`
 /// peaks at 111.7 B) and the plan holds every move below its feed, so on LinuxCNC and ISO each
 /// move is written as about five held sub-blocks (`power::lit_blocks`). Kept in
-/// `emit::PlanFacts` from the windows until the NC was written, they took the peak to 518.2 B
-/// (check 111.7, emit 314.9, lase plan 518.2 with two dialects' facts). The writer now reads
+/// `emit::PlanFacts` from the windows until the NC was written, they took the peak to 309.3 B
+/// (518.2 B as first reported, when this test never dropped the emit stage's facts and counted
+/// them into the next stage's peak). The writer now reads
 /// them from a second pass of the same plan as it writes (`emit::PlanFacts`' module doc, 256
 /// ops a batch), which keeps no table of the ops' axes: 113.9 B measured (check 111.7, emit
 /// 113.8, lase plan 113.9), the job's 88.1 B and about 2.6 MB fixed.
@@ -55,7 +56,8 @@ mod short_moves;
 /// xy_table's 500 Hz and 300 Hz), 793.1 B a move here, as the whole plan below. The budget is
 /// now checked on the windows (`emit::PlanFacts`, `report::PulseStream`), and this test walks
 /// the binary's path with a pulse every 0.5 mm (19 982 pulses through both budgets): 111.7 B
-/// measured (check 111.7, emit 111.7, lase plan 111.7; the job 88.1 B).
+/// measured (check 111.7, emit 111.7, lase plan 111.7; the job 88.1 B), and 106.2 B in each
+/// stage since the halves of blends keep no start point in the windows either.
 const CAP_PER_MOVE: f64 = 120.0;
 
 /// The same for the whole plan (trace, plot, pulses, run, the REPL). With its corners taken at
