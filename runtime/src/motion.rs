@@ -19,6 +19,7 @@
 pub mod beam;
 pub mod held;
 pub mod leadin;
+pub mod parabolic;
 pub mod power;
 
 pub use leadin::{Lead, LeadKind, LitSection};
@@ -317,7 +318,10 @@ fn plan_whole(st: Staged) -> Result<Job, MotionError> {
         leads,
     };
     match held::check_held(&job) {
-        Ok(()) => Ok(job),
+        Ok(()) => {
+            parabolic::check_linuxcnc_held(&job)?;
+            Ok(job)
+        }
         Err(_) if job.kin.oriented() => {
             let Job {
                 program,
@@ -341,6 +345,7 @@ fn plan_whole(st: Staged) -> Result<Job, MotionError> {
             let (plan, op_axes, initial_dwell_s) = plan_with(&st, true)?;
             let job = st.into_job(op_axes, initial_dwell_s, plan);
             held::check_held(&job)?;
+            parabolic::check_linuxcnc_held(&job)?;
             Ok(job)
         }
         Err(e) => Err(e),
@@ -467,6 +472,7 @@ fn stage(mut program: ProcessProgram) -> Result<Staged, MotionError> {
             switch_stops: laser_switch_stops,
             arc_tolerance_mm: program.planner.arc_tolerance_mm,
             enabled: program.planner.leadin == LeadIn::Auto,
+            parabolic: kin.inverse_time() && parabolic::runs_on_linuxcnc(&program.machine),
         },
     )?;
     let leadin::Leads {

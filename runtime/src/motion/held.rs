@@ -81,7 +81,7 @@ pub fn check_held(job: &Job) -> Result<(), MotionError> {
 }
 
 /// `v` rounded down to three significant digits: a speed the message can promise.
-fn floor3(v: f64) -> f64 {
+pub(super) fn floor3(v: f64) -> f64 {
     if !(v > 0.0 && v.is_finite()) {
         return 0.0;
     }
