@@ -472,7 +472,6 @@ fn stage(mut program: ProcessProgram) -> Result<Staged, MotionError> {
             switch_stops: laser_switch_stops,
             arc_tolerance_mm: program.planner.arc_tolerance_mm,
             enabled: program.planner.leadin == LeadIn::Auto,
-            parabolic: kin.inverse_time() && parabolic::runs_on_linuxcnc(&program.machine),
         },
     )?;
     let leadin::Leads {

@@ -61,12 +61,6 @@ pub struct LeadContext<'a> {
     pub arc_tolerance_mm: f64,
     /// Add leads at all (`planner { leadin auto }`).
     pub enabled: bool,
-    /// The controller joins a lead and its section by a parabolic blend (LinuxCNC, feed moves
-    /// in inverse time that turn rotary axes: `motion::parabolic`). Each side of such a blend
-    /// ramps at half the acceleration and reaches at most its triangle speed `sqrt(a/2·L)`,
-    /// so a lead shorter than `2·v²/a` reaches the beam's edge below the feed (rotary_engrave's
-    /// 5.13° lead-ins: 96 of 114.6 °/s on the real LinuxCNC, its 18 °/s edge error).
-    pub parabolic: bool,
 }
 
 /// Whether an added move leads into or out of a section.
@@ -186,9 +180,7 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
         } else {
             0.0
         };
-        let d_in = planner::lead_distance(v, w_max, a, j).max(parabolic_lead(cx, v, a))
-            + margin
-            + blend_room(cx);
+        let d_in = planner::lead_distance(v, w_max, a, j) + margin + blend_room(cx);
         let (p_lead, o_lead, room) =
             match oriented_lead(cx, (p0, o_in), (chord_end, op.orient()), d_in) {
                 Some((p, o)) => (p, Some(o), d_in),
@@ -271,8 +263,7 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
             Some(nm) if stop_between(last + 1, nm) => 0.0,
             Some(_) => v,
         };
-        let d_out =
-            planner::lead_distance(v, w_max, a, j).max(parabolic_lead(cx, v, a)) + blend_room(cx);
+        let d_out = planner::lead_distance(v, w_max, a, j) + blend_room(cx);
         let o_start = orient_before(ops, last).or(op.orient());
         let (p_out, o_out, room) =
             match oriented_lead(cx, (p1, op.orient()), (chord_start, o_start), d_out) {
@@ -459,17 +450,6 @@ fn lit_runs(ops: &[Op], moving: &[bool]) -> Vec<(usize, usize)> {
 /// cannot count toward its straight ramp. Scan rows run up by the same rule (`eval::scan`). A
 /// machine that switches its beam at rest has lit leads: their corner to the lit move keeps
 /// the velocity-step model and their far end is a stop, so they need no room.
-/// The shortest lead a parabolic blend carries at `v` with path acceleration `a`
-/// ([`LeadContext::parabolic`]): its triangle length `2·v²/a`, and one servo period more,
-/// since tp.c ends a block on the servo clock.
-fn parabolic_lead(cx: &LeadContext<'_>, v: f64, a: f64) -> f64 {
-    if cx.parabolic && a.is_finite() && a > 0.0 {
-        2.0 * v * v / a + v * super::parabolic::SERVO_PERIOD_S
-    } else {
-        0.0
-    }
-}
-
 fn blend_room(cx: &LeadContext<'_>) -> f64 {
     if !cx.switch_stops && cx.cfg.corners == planner::Corners::Blend {
         planner::lead_blend_room(cx.cfg.junction_deviation)
