@@ -890,3 +890,70 @@ fn a_surface_speed_the_plan_cannot_hold_is_refused_with_the_speed_it_can() {
 #[path = "../runtime/tests/support/harmonic_cam.rs"]
 mod harmonic_cam;
 use harmonic_cam::radius as harmonic_cam_radius;
+
+/// The shortest lit G93 block of `ngc` against its triangle time on LinuxCNC: each block's
+/// time (60 / F) over `sqrt(2·max_i |Δq_i| / a_i)` rounded up to the 1 ms servo period, the
+/// shortest a parabolic blend carries at speed (tp.c `tpComputeBlendVelocity`; the real
+/// LinuxCNC ran the arm's 5.4 ms blocks in 15 ms). Read from the NC alone.
+fn shortest_lit_block_share(ngc: &str, m: &Machine) -> f64 {
+    blocks(ngc, m)
+        .iter()
+        .filter(|b| b.lit)
+        .filter_map(|b| {
+            let t = 60.0 / b.inverse_time?;
+            let t_a = m
+                .axes
+                .iter()
+                .enumerate()
+                .map(|(k, a)| (b.q[k] - b.prev[k]).abs() / a.a_max)
+                .fold(0.0, f64::max);
+            let triangle = (2.0 * t_a).sqrt();
+            (t_a > 0.0).then(|| t / ((triangle * 1e3 * (1.0 - 1e-9)).ceil() * 1e-3))
+        })
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The arm at its first recipe's 10 mm/s: its bends need blocks shorter than LinuxCNC's
+/// parabolic blends carry (36 % of the speed there), so `lase check` refuses it at the
+/// `follow` with the speed LinuxCNC holds, and at that speed every lit block of the NC
+/// program is at least its triangle time; the example's 3.5 mm/s too.
+#[test]
+fn the_arm_at_a_speed_linuxcnc_cannot_hold_is_refused_with_the_speed_it_can() {
+    let dir = tempfile::tempdir().unwrap();
+    let example = std::fs::read_to_string("examples/surface_hardening_arm.lase").unwrap();
+    let at = |feed: &str| {
+        let path = dir
+            .path()
+            .join(format!("arm_{}.lase", feed.replace(['/', ' '], "_")));
+        std::fs::write(&path, example.replace("at 3.5 mm/s", &format!("at {feed}"))).unwrap();
+        path
+    };
+    let fast = at("10 mm/s");
+    let (code, _, err) = lase(&["check", fast.to_str().unwrap()]);
+    assert_ne!(code, 0, "{err}");
+    assert!(err.contains("lase::plan::speed_not_held"), "{err}");
+    assert!(err.contains("LinuxCNC runs its blocks at"), "{err}");
+    let held: f64 = err
+        .split("follow at")
+        .nth(1)
+        .and_then(|t| {
+            t.trim_start()
+                .chars()
+                .take_while(|c| c.is_ascii_digit() || *c == '.')
+                .collect::<String>()
+                .parse()
+                .ok()
+        })
+        .unwrap_or_else(|| panic!("{err}"));
+    eprintln!("arm: 10 mm/s refused, {held} mm/s offered");
+    assert!((3.0..4.0).contains(&held), "{held}");
+    let m = machine("arm_3r");
+    for (feed, path) in [
+        (held, at(&format!("{held} mm/s"))),
+        (3.5, "examples/surface_hardening_arm.lase".into()),
+    ] {
+        let share = shortest_lit_block_share(&emit(path.to_str().unwrap(), "linuxcnc"), &m);
+        eprintln!("arm at {feed} mm/s: shortest lit block {share:.4} of its triangle time");
+        assert!(share >= 1.0 - 1e-3, "{feed} mm/s: {share}");
+    }
+}

@@ -28,7 +28,7 @@
 //! a long one caps the long one's blend too).
 //!
 //! What LinuxCNC would then do cannot be planned honestly by lase: the power coupled to lase's
-//! speed would over-expose those stretches (38 % of the recipe's speed on the arm's bends). So
+//! speed would over-expose those stretches (36 % of the recipe's speed on the arm's bends). So
 //! a lit section some block of which LinuxCNC cannot run at its planned speed (within
 //! `held::HELD_REL`) is refused after planning, at the `follow`, with the stretch's arc
 //! lengths and the highest speed LinuxCNC holds through it with the same blocks (a slower
