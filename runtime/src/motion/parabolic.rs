@@ -200,6 +200,17 @@ pub fn check_linuxcnc_held(job: &Job) -> Result<(), MotionError> {
     Ok(())
 }
 
+/// The highest speed LinuxCNC holds over all of `section`, mm/s, where it holds less than
+/// the section's feed; `None` elsewhere, and where the machine does not run on LinuxCNC.
+/// `held::check_held` offers the lower of the plan's and this, so that the speed a refusal
+/// offers is one both hold.
+pub fn linuxcnc_section_limit(job: &Job, section: &LitSection) -> Option<f64> {
+    if !job.kin.oriented() || !runs_on_linuxcnc(&job.program.machine) {
+        return None;
+    }
+    slow_stretch(job, section, &op_times(job)).map(|s| s.section_held_mm_s)
+}
+
 /// Each op's planned motion time, s (0 for ops that do not move).
 fn op_times(job: &Job) -> Vec<f64> {
     let mut t = vec![0.0; job.program.ops.len()];
