@@ -498,8 +498,8 @@ fn arm_example_on_linuxcnc() {
     // at 3.5 mm/s at 525 W, the same 150 J/mm. The model (which replays those chains servo
     // period by servo period) puts LinuxCNC at 218.08 s against lase's plan's 220.68 s: 0.988,
     // so the pin is issue 13's 1.01. Not yet seen on the real LinuxCNC: on 2026-12-02
-    // (07:33-08:18 UTC, four builders on two cores, load 2-6) its milltask vanished three
-    // times in each of six runs of this 220 s program, at varying NC lines (256, 380, ...).
+    // (07:33-08:30 UTC, four builders on two cores, load 2-6) its milltask vanished three
+    // times in each of seven runs of this 220 s program, at varying NC lines (256, 380, ...).
     for m in &run_all("arm_3r", &["surface_hardening_arm"]) {
         assert_close(m, Bounds::new(0.05, 1.0));
     }
