@@ -465,7 +465,13 @@ fn rotary_example_on_linuxcnc() {
     // and beam-on 0.9970 of the model. Pinned (issue 13): the edges land 0.620 (mm, deg) from
     // the planned ones and 18.09 mm/s (deg/s) off the planned speed (19.1 before its lit
     // glyph corners were blended and held), on blocks of X and A at 30-107 units/s; the lit
-    // path stays within 0.253.
+    // path stays within 0.253. A likely part of it (branch armspeed, from tp.c): the rings'
+    // lead-ins (5.13° in G93 from rest) are shorter than the 2·v²/a a parabolic blend needs to
+    // reach 114.6 °/s at half of A's 3600 °/s², so LinuxCNC reaches the edge at its triangle
+    // speed sqrt(a/2·L) = 96 °/s, 18.6 °/s short. But leads of 2·v²/a plus a servo period
+    // (7.56°) made it worse on the real LinuxCNC (edges 1.0705 off, 37.07 off the speed;
+    // cycle 0.9929, beam 0.9957): where tp.c switches a synchronized output inside a
+    // parabolic blend (`tpDoParabolicBlending`) must be modelled before the leads are changed.
     for m in &run_all("xy_rotary", &["rotary_engrave"]) {
         assert_close(m, Bounds::new(0.65, 18.5));
     }
@@ -480,23 +486,22 @@ fn arm_example_on_linuxcnc() {
     // its joints runs it as written, and the model times it within 1 % (cycle and beam-on
     // 1.0000).
     //
-    // Pinned, not fitted (issue 13): LinuxCNC runs each lit section 14.27 s where lase's plan
-    // (and the power coupled to it) says 12.64 s: moving 1.1045 of the plan, beam on 1.129.
+    // Before (10 mm/s at 1.5 kW): LinuxCNC ran each lit section 14.27 s where lase's plan
+    // (and the power coupled to it) said 12.64 s: moving 1.1045 of the plan, beam on 1.129.
     // Where the arm's path bends, lase writes G93 blocks as short as 5.4 ms (0.19° of joint
-    // motion at 35 °/s, F11204) to keep the spot within the 1 µm tolerance. LinuxCNC 2.9
-    // joins moves with rotary axes only by parabolic blends (tpSetupTangent gives up on ABC
-    // motion), ramps both ends at half the acceleration, and caps the blend's speed at the
-    // segment's triangle speed sqrt(a/2 · L) (tpComputeBlendVelocity): about 13 °/s there,
-    // which the samples show (15 ms a block). The spot then moves at ~38 % of the recipe's
-    // speed on those stretches: the NC's power would have to follow LinuxCNC's speed there.
+    // motion) to keep the spot within the 1 µm tolerance and its speed within 0.1 %. LinuxCNC
+    // 2.9 joins moves with rotary axes only by parabolic blends (tpSetupTangent gives up on
+    // ABC motion), ramps both ends at half the acceleration and caps the blend's speed at the
+    // segment's triangle speed sqrt(a/2 · L) (tpComputeBlendVelocity): the samples showed
+    // 15 ms a block, 36 % of the recipe's speed. `lase check` now refuses that
+    // (`motion::parabolic`: 10 mm/s, LinuxCNC holds 3.57 mm/s there) and the example follows
+    // at 3.5 mm/s at 525 W, the same 150 J/mm. The model (which replays those chains servo
+    // period by servo period) puts LinuxCNC at 218.08 s against lase's plan's 220.68 s: 0.988,
+    // so the pin is issue 13's 1.01. Not yet seen on the real LinuxCNC: on 2026-12-02
+    // (07:33-08:30 UTC, four builders on two cores, load 2-6) its milltask vanished three
+    // times in each of seven runs of this 220 s program, at varying NC lines (256, 380, ...).
     for m in &run_all("arm_3r", &["surface_hardening_arm"]) {
-        assert_close(
-            m,
-            Bounds {
-                moving_max: 1.11,
-                ..Bounds::new(0.05, 1.0)
-            },
-        );
+        assert_close(m, Bounds::new(0.05, 1.0));
     }
 }
 

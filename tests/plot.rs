@@ -227,9 +227,12 @@ fn the_view_fits_the_lit_work_and_full_shows_all() {
             t += 1e-3;
         }
         for k in 0..2 {
+            // 10 nm: the plot's samples and the trace's 1 ms ones are different points of the
+            // same path, and neither need sit on a curve's crest (the arm at 3.5 mm/s: a 1 ms
+            // sample at the section's crest, y 14.421094, 3.4 nm above the plot's highest).
             assert!(
-                lit[k] <= lo[k] + 1e-6 && lit[k + 2] >= hi[k] - 1e-6,
-                "{name}: {lit:?}"
+                lit[k] <= lo[k] + 1e-5 && lit[k + 2] >= hi[k] - 1e-5,
+                "{name}: {lit:?} vs the trace's {lo:?} {hi:?}"
             );
             // Sampled at 1 ms, the trace misses at most a millisecond of travel at each end.
             assert!(

@@ -19,6 +19,7 @@
 pub mod beam;
 pub mod held;
 pub mod leadin;
+pub mod parabolic;
 pub mod power;
 mod replan;
 
@@ -319,7 +320,10 @@ fn plan_whole(st: Staged) -> Result<Job, MotionError> {
         leads,
     };
     match held::check_held(&job) {
-        Ok(()) => Ok(job),
+        Ok(()) => {
+            parabolic::check_linuxcnc_held(&job)?;
+            Ok(job)
+        }
         Err(_) if job.kin.oriented() => {
             let Job {
                 program,
@@ -343,6 +347,7 @@ fn plan_whole(st: Staged) -> Result<Job, MotionError> {
             let (plan, op_axes, initial_dwell_s) = plan_with(&st, true)?;
             let job = st.into_job(op_axes, initial_dwell_s, plan);
             held::check_held(&job)?;
+            parabolic::check_linuxcnc_held(&job)?;
             Ok(job)
         }
         Err(e) => Err(e),

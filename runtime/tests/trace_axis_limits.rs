@@ -9,11 +9,12 @@
 //! machine the plan must hold the lit speed) — and must stay within every limit at every
 //! sample (1e-6 relative), on every example and on random paths on every stock machine. What
 //! is left: where blending an oriented machine's lit chords one by one would lower the lit
-//! speed below the programmed one (`lase::plan::speed_not_held`: the arm's sections, whose
-//! chords' blends return their curvature to zero at every chord midpoint), the plan is made
-//! again with the junction-deviation velocity step at those corners. [`WORST`] pins the
-//! examples that have such corners, each at its measured worst, so they can only get better;
-//! the random paths are checked everywhere but within 4 ms of such a corner.
+//! speed below the programmed one (`lase::plan::speed_not_held`: the arm's sections at
+//! 10 mm/s, whose chords' blends return their curvature to zero at every chord midpoint), the
+//! plan is made again with the junction-deviation velocity step at those corners. [`WORST`]
+//! pins the examples that have such corners (none since the arm follows at 3.5 mm/s), each at
+//! its measured worst, so they can only get better; the random paths are checked everywhere
+//! but within 4 ms of such a corner.
 
 mod common;
 
@@ -65,7 +66,8 @@ fn report(name: &str, w: &AxisWorst) -> String {
 
 /// Measured worst |v|/v_max, |a|/a_max, |j|/j_max at 1 kHz of the examples whose lit paths
 /// have corners between two lit moves taken at speed with the velocity step (module doc: the
-/// lit chords of the arm), rounded up in the fourth digit; every other example
+/// lit chords of the arm, until it followed at 3.5 mm/s), rounded up in the fourth digit;
+/// every other example
 /// and axis, and every sample away from those corners, is held to 1. Measured with `cargo
 /// test -p lase-runtime --test trace_axis_limits -- --nocapture`, which prints each example's
 /// row. Each peak lies at a lit chord corner, an acceleration step only: a is within its
@@ -74,12 +76,12 @@ fn report(name: &str, w: &AxisWorst) -> String {
 /// texture_array); before the flat beds' lit corners were blended, their velocity steps: a/a_max
 /// 2.14 (air_assist), 4.90 (material_test), 2.50 (nested_parts), 6.03 (serial_number), 6.16
 /// (rotary_engrave), and j/j_max 18.3 (dial_marks), 38.2 (frame_marking); before the cams'
-/// lit chords were blended, j/j_max 4.54 (cam_hardening B), 7.64 (rhai_cam B).
-const WORST: &[(&str, &str, f64, f64, f64)] = &[
-    ("surface_hardening_arm", "A", 1.0, 1.0, 23.6669),
-    ("surface_hardening_arm", "B", 1.0, 1.0, 22.476),
-    ("surface_hardening_arm", "C", 1.0, 1.0, 46.0094),
-];
+/// lit chords were blended, j/j_max 4.54 (cam_hardening B), 7.64 (rhai_cam B); before the arm
+/// example followed at 3.5 mm/s, the speed LinuxCNC's parabolic blends hold on its blocks
+/// (`motion::parabolic`), j/j_max 23.67 (A), 22.48 (B), 46.01 (C) at its stepped lit corners:
+/// at 3.5 mm/s the blends hold its lit speed and every axis is within every limit, so no
+/// example is pinned any more.
+const WORST: &[(&str, &str, f64, f64, f64)] = &[];
 
 /// Job times of the corners between two lit moves taken at speed, which keep the
 /// junction-deviation velocity step (module doc), sorted.

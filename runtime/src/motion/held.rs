@@ -55,6 +55,15 @@ pub fn check_held(job: &Job) -> Result<(), MotionError> {
             // recipe that follows at it is held.
             let len = |x: f64| format_quantity((x * 100.0).round() / 100.0, Dim::LENGTH);
             let speed = |x: f64| format_quantity(x, Dim::SPEED);
+            // On LinuxCNC the blocks of the whole section must also be long enough for its
+            // parabolic blends (`parabolic`): offer the lower of the two speeds, so that the
+            // recipe is not refused again at the one offered.
+            let plan_offer = floor3(short.held_mm_s);
+            let offer = match super::parabolic::linuxcnc_section_limit(job, section) {
+                Some(l) if floor3(l) < plan_offer => floor3(l),
+                _ => plan_offer,
+            };
+            let linuxcnc_binds = offer < plan_offer;
             return Err(MotionError::SpeedNotHeld {
                 feed: speed(short.feed_mm_s),
                 stretch: format!(
@@ -70,9 +79,15 @@ pub fn check_held(job: &Job) -> Result<(), MotionError> {
                 ),
                 span,
                 help: format!(
-                    "follow at {} or slower, or make the path smoother there (a cam law whose \
+                    "follow at {} or slower{}, or make the path smoother there (a cam law whose \
                      acceleration does not jump, such as \"cycloidal\" or \"345\")",
-                    speed(floor3(short.held_mm_s))
+                    speed(offer),
+                    if linuxcnc_binds {
+                        " (LinuxCNC's parabolic blends hold no more on this path's shortest \
+                         blocks)"
+                    } else {
+                        ""
+                    }
                 ),
             });
         }
@@ -81,7 +96,7 @@ pub fn check_held(job: &Job) -> Result<(), MotionError> {
 }
 
 /// `v` rounded down to three significant digits: a speed the message can promise.
-fn floor3(v: f64) -> f64 {
+pub(super) fn floor3(v: f64) -> f64 {
     if !(v > 0.0 && v.is_finite()) {
         return 0.0;
     }

@@ -230,3 +230,44 @@ fn collinear_feeds_join_into_one_segment_as_canons_naive_cam_detector_does() {
     let t = run_program("G64 P0.01\nG1 X1 F600\nX2 F1200\nX3\n", &table()).unwrap();
     assert_eq!(t.segments, 2, "{t:?}");
 }
+
+/// `motion::parabolic`'s rule against this model's servo-period replay of tp.c: a chain of
+/// equal G93 blocks on the arm's C (1800 °/s²) runs each block in its triangle time
+/// `sqrt(2·Δ/a)` rounded up to the servo period when its inverse time asks for less (the
+/// arm's bends: 0.19° in 5.4 ms run in 15 ms, as the real LinuxCNC's samples showed), and in
+/// its inverse time or a little less from that period on: the share `held_shares` gives is
+/// the speed the chain runs at.
+#[test]
+fn a_chain_of_short_rotary_blocks_runs_at_the_share_of_speed_the_motion_rule_predicts() {
+    use crate::motion::parabolic::{self, Block, SERVO_PERIOD_S};
+    let m = crate::machine::parse_machine(lase_stdlib::machine("arm_3r").unwrap(), 0).unwrap();
+    let period =
+        f64::from(crate::link::linuxcnc::config::ConfigOptions::default().servo_period_ns) * 1e-9;
+    assert_eq!(period, SERVO_PERIOD_S);
+    let l = TpLimits::for_machine(&m, period);
+    let delta = 0.19f64;
+    let per_block = |t: f64| {
+        let mut nc = String::from("G64 P0.01\nG93\n");
+        for k in 1..=120 {
+            nc += &format!("G1 C{:.6} F{:.6}\n", delta * k as f64, 60.0 / t);
+        }
+        let run = run_program_from(&nc, &l, &[0.0; 4]).unwrap();
+        // Away from the chain's ends: blocks 40 to 80 (NC lines 43 to 83).
+        let at = |line: usize| run.starts.iter().find(|(n, _)| *n == line).unwrap().1;
+        (at(83) - at(43)) / 40.0
+    };
+    let mut to = crate::axes::Axes::ZERO;
+    to[3] = delta.to_radians();
+    let share = |t: f64| {
+        let b = Block::of(&m, &crate::axes::Axes::ZERO, &to, t);
+        parabolic::held_shares(&[b; 3])[1]
+    };
+    for t in [0.0054, 0.010, 0.0146, 0.015, 0.0162, 0.020, 0.040] {
+        let (ran, s) = (per_block(t), share(t));
+        assert!(
+            (ran - t / s).abs() < 1e-6 || (s == 1.0 && ran <= t),
+            "a block of {t} s ran in {ran} s; the rule holds {s} of its speed"
+        );
+    }
+    assert!((share(0.0054) - 0.36).abs() < 1e-9);
+}
