@@ -251,9 +251,10 @@ fn cmd_emit(
             (job, s)
         }),
         (origin::JobOrigin::Current, _) => origin::work_frame(program, dialect),
-        _ if lase_runtime::emit::plans_in_windows(&program, dialect) => {
+        _ => {
             // Planned in windows that are read and dropped (issue 18): the job never holds
-            // its plan, only what the writer reads of it (`emit::PlanFacts`).
+            // its plan, only what the writer reads of it (`emit::PlanFacts`, which checks the
+            // post's pulse budget too).
             let mut facts = lase_runtime::emit::PlanFacts::new(&program, dialect);
             lase_runtime::compile::plan_in_windows(program, |p, w| facts.window(p, &w)).map(
                 |(job, _)| {
@@ -263,7 +264,6 @@ fn cmd_emit(
                 },
             )
         }
-        _ => lase_runtime::compile::plan(program).map(|job| (job, Vec::new())),
     };
     let (job, setup) = match planned {
         Ok(p) => p,
@@ -403,35 +403,25 @@ fn cmd_plan(
         .chain(estimate::other_dialects(&program.machine, dialect))
         .collect();
     // Planned in windows that are counted and dropped (issue 18), unless a trace or the pulses
-    // are asked for (they sample the whole plan) or a post's pulse budget needs it whole: the
-    // summary and the time split are running totals (`report::PlanTotals`), and each
-    // controller's model reads its program from the emitter line by line, from what the
-    // windows left for it (`emit::PlanFacts`).
-    let windows = trace.is_none()
-        && pulses.is_none()
-        && dialects
-            .iter()
-            .all(|&d| lase_runtime::emit::plans_in_windows(&program, d));
+    // are asked for (they sample the whole plan): the summary and the time split are running
+    // totals (`report::PlanTotals`), and each controller's model reads its program from the
+    // emitter line by line, from what the windows left for it (`emit::PlanFacts`, with each
+    // post's pulse budget checked on the pulses as they pass).
+    let windows = trace.is_none() && pulses.is_none();
     let (job, totals, facts) = if windows {
         let mut totals = lase_runtime::report::PlanTotals::new(&program);
-        let mut facts: Vec<_> = dialects
-            .iter()
-            .map(|&d| lase_runtime::emit::PlanFacts::new(&program, d))
-            .collect();
+        // One set of facts for every controller: they are the plan's (`PlanFacts::for_dialects`).
+        let mut facts = lase_runtime::emit::PlanFacts::for_dialects(&program, &dialects);
         let planned = lase_runtime::compile::plan_in_windows(program, |p, w| {
             totals.window(p, &w);
-            for f in &mut facts {
-                f.window(p, &w);
-            }
+            facts.window(p, &w);
         });
         let (job, planned) = match planned {
             Ok(p) => p,
             Err(f) => return Err((recipe.map, f)),
         };
         totals.finish(&job.program, planned.length);
-        for f in &mut facts {
-            f.finish(&job.program);
-        }
+        facts.finish(&job.program);
         (job, totals, Some(facts))
     } else {
         let job = match lase_runtime::compile::plan(program) {
@@ -441,10 +431,7 @@ fn cmd_plan(
         let totals = lase_runtime::report::PlanTotals::of(&job);
         (job, totals, None)
     };
-    let cycle = |k: usize| {
-        let f = facts.as_ref().map(|f| &f[k]);
-        estimate::controller_cycle_from(&job, f, dialects[k])
-    };
+    let cycle = |k: usize| estimate::controller_cycle_from(&job, facts.as_ref(), dialects[k]);
     let mut s = totals.summary(&job);
     // The controller that runs the program, first: lase's own plan is ideal, the machine
     // runs its controller's planner (issue 13).

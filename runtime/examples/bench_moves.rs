@@ -26,13 +26,21 @@ mod short_moves;
 #[global_allocator]
 static ALLOC: cap::Cap<System> = cap::Cap::new(System, usize::MAX);
 
-/// CPU time this thread has run, in s (`/proc/thread-self/schedstat`): on a shared machine
-/// the wall clock also counts the time other processes hold the core.
+/// CPU time this process has run, every thread's, in s (`/proc/self/stat`'s utime and stime,
+/// in ticks of 1/100 s): `lase emit` plans the lit sub-blocks again on a thread of its own
+/// (`emit::PlanFacts`), and on a shared machine the wall clock also counts the time other
+/// processes hold the core.
 fn cpu_time() -> f64 {
-    std::fs::read_to_string("/proc/thread-self/schedstat")
-        .ok()
-        .and_then(|s| s.split_whitespace().next()?.parse::<u64>().ok())
-        .map_or(f64::NAN, |ns| ns as f64 * 1e-9)
+    let ticks = || {
+        let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+        // After the command's closing parenthesis come fields 3 (state) on: utime is 14,
+        // stime 15.
+        let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+        let user: u64 = fields.get(11)?.parse().ok()?;
+        let system: u64 = fields.get(12)?.parse().ok()?;
+        Some(user + system)
+    };
+    ticks().map_or(f64::NAN, |t| t as f64 / 100.0)
 }
 
 /// The recipe loaded, checked and evaluated.
@@ -112,21 +120,20 @@ fn main() {
         ))
         .collect();
     let mut totals = lase_runtime::report::PlanTotals::new(&p);
-    let mut facts: Vec<PlanFacts> = dialects.iter().map(|&d| PlanFacts::new(&p, d)).collect();
+    let mut facts = PlanFacts::for_dialects(&p, &dialects);
     let (job, planned) = compile::plan_in_windows(p, |p, w| {
         totals.window(p, &w);
-        facts.iter_mut().for_each(|f| f.window(p, &w));
+        facts.window(p, &w);
     })
     .unwrap_or_else(|f| fail(f));
     totals.finish(&job.program, planned.length);
-    facts.iter_mut().for_each(|f| f.finish(&job.program));
+    facts.finish(&job.program);
     let summary = totals.summary(&job);
     let c1 = cpu_time();
     let times: Vec<String> = dialects
         .iter()
-        .zip(&facts)
-        .map(|(&d, f)| {
-            let c = lase_runtime::link::estimate::controller_cycle_from(&job, Some(f), d);
+        .map(|&d| {
+            let c = lase_runtime::link::estimate::controller_cycle_from(&job, Some(&facts), d);
             format!("{d} {:.3} s", c.cycle_time_s)
         })
         .collect();

@@ -20,8 +20,10 @@ pub mod beam;
 pub mod held;
 pub mod leadin;
 pub mod power;
+mod replan;
 
 pub use leadin::{Lead, LeadKind, LitSection};
+pub use replan::replan_windows;
 
 use crate::axes::{Axes, MAX_AXES};
 use crate::kinematics::{self, KinError, Kinematics, ToolPose};
@@ -289,7 +291,7 @@ fn plan_whole(st: Staged) -> Result<Job, MotionError> {
             .iter()
             .filter(|o| o.target().is_some())
             .count();
-        lower_and_plan(st, step_lit, |low| {
+        lower_and_plan(&st.inputs(), step_lit, |low| {
             planner::plan_along_iter(st.start, low, expected, &st.limits, &st.cfg)
         })
     };
@@ -385,7 +387,7 @@ pub fn plan_program_windows_sized(
         }
         return Ok((job, planned));
     }
-    let (planned, op_axes, initial_dwell_s) = lower_and_plan(&st, false, |low| {
+    let (planned, op_axes, initial_dwell_s) = lower_and_plan(&st.inputs(), false, |low| {
         planner::plan_along_windows_sized(st.start, low, &st.limits, &st.cfg, min_window, |w| {
             each(&st.program, w)
         })
@@ -396,6 +398,18 @@ pub fn plan_program_windows_sized(
 }
 
 impl Staged {
+    fn inputs(&self) -> Inputs<'_> {
+        Inputs {
+            program: &self.program,
+            kin: &*self.kin,
+            start: self.start,
+            start_span: self.start_span,
+            laser_switch_stops: self.laser_switch_stops,
+            arm_stops: &self.arm_stops,
+            record_axes: true,
+        }
+    }
+
     fn into_job(self, op_axes: OpAxes, initial_dwell_s: f64, plan: Plan) -> Job {
         Job {
             program: self.program,
@@ -428,31 +442,7 @@ fn stage(mut program: ProcessProgram) -> Result<Staged, MotionError> {
     } else {
         inverse(&*kin, program.start, None, None, start_span, &program)?
     };
-    let mut limits = AxisLimits {
-        v: [f64::INFINITY; MAX_AXES],
-        a: [f64::INFINITY; MAX_AXES],
-        j: [f64::INFINITY; MAX_AXES],
-    };
-    for (i, l) in program.limits.iter().enumerate().take(MAX_AXES) {
-        limits.v[i] = l.v;
-        limits.a[i] = l.a;
-        limits.j[i] = l.j;
-    }
-    let cfg = PlannerConfig {
-        profile: match program.planner.ramp {
-            Ramp::Trapezoid => ProfileKind::Trapezoid,
-            Ramp::Scurve => ProfileKind::SCurve,
-        },
-        junction_deviation: program.planner.junction_deviation_mm,
-        path_v: program.path_limits.v,
-        path_a: program.path_limits.a,
-        path_j: program.path_limits.j,
-        lookahead: program.planner.lookahead,
-        n_axes,
-        // The plan is what the machine does: corners at speed follow a blend every axis can
-        // follow (issue 13), never a velocity step.
-        corners: planner::Corners::Blend,
-    };
+    let (limits, cfg) = planner_inputs(&program, n_axes);
     // A machine whose beam switch needs rest on any of its posts (seed 4's M27, a GRBL post
     // that switches with M3/M5): plan for the strictest, so one plan serves every dialect.
     let switch_stops = beam::switch_stops(&program.ops, &program.machine.post);
@@ -500,30 +490,73 @@ fn stage(mut program: ProcessProgram) -> Result<Staged, MotionError> {
     })
 }
 
+/// The planner's limits and configuration for `program` on a machine of `n_axes` axes.
+fn planner_inputs(program: &ProcessProgram, n_axes: usize) -> (AxisLimits, PlannerConfig) {
+    let mut limits = AxisLimits {
+        v: [f64::INFINITY; MAX_AXES],
+        a: [f64::INFINITY; MAX_AXES],
+        j: [f64::INFINITY; MAX_AXES],
+    };
+    for (i, l) in program.limits.iter().enumerate().take(MAX_AXES) {
+        limits.v[i] = l.v;
+        limits.a[i] = l.a;
+        limits.j[i] = l.j;
+    }
+    let cfg = PlannerConfig {
+        profile: match program.planner.ramp {
+            Ramp::Trapezoid => ProfileKind::Trapezoid,
+            Ramp::Scurve => ProfileKind::SCurve,
+        },
+        junction_deviation: program.planner.junction_deviation_mm,
+        path_v: program.path_limits.v,
+        path_a: program.path_limits.a,
+        path_j: program.path_limits.j,
+        lookahead: program.planner.lookahead,
+        n_axes,
+        // The plan is what the machine does: corners at speed follow a blend every axis can
+        // follow (issue 13), never a velocity step.
+        corners: planner::Corners::Blend,
+    };
+    (limits, cfg)
+}
+
+/// What lowering reads of a program with its leads added: a staged one ([`Staged::inputs`]),
+/// or a job's, planned again (`replan`).
+struct Inputs<'a> {
+    program: &'a ProcessProgram,
+    kin: &'a dyn Kinematics,
+    start: Axes,
+    start_span: Span,
+    laser_switch_stops: bool,
+    arm_stops: &'a [usize],
+    /// Record the axes each op ends at (a job planned again has them already).
+    record_axes: bool,
+}
+
 /// Lowers the staged program as `plan` reads its moves (`step_lit`: corners between lit moves
 /// keep the velocity step, `Along::step_corners`); returns what `plan` made, the axes each
 /// op ends at and the standstill before the first move. A motion error anywhere in the program
 /// comes before the planner's.
 fn lower_and_plan<R>(
-    st: &Staged,
+    st: &Inputs<'_>,
     step_lit: bool,
     plan: impl FnOnce(&mut Lowering<'_>) -> Result<R, planner::PlanError>,
 ) -> Result<(R, OpAxes, f64), MotionError> {
-    let Staged {
+    let &Inputs {
         program,
         kin,
         start,
         start_span,
         laser_switch_stops,
         arm_stops,
-        ..
+        record_axes,
     } = st;
-    let (start, start_span) = (*start, *start_span);
-    let n_axes = kin.axis_count();
+    // A table of no axes records nothing (`OpAxes::push` copies the axes in use).
+    let n_axes = if record_axes { kin.axis_count() } else { 0 };
     let mut low = Lowering {
-        kin: &**kin,
+        kin,
         program,
-        laser_switch_stops: *laser_switch_stops,
+        laser_switch_stops,
         arm_stops,
         step_lit,
         next_op: 0,

@@ -41,13 +41,22 @@ mod short_moves;
 /// what was live before, bytes. Before lit corners were blended and held (issue 13 item 3):
 /// 101.1 B measured at 100 000 moves, the job's ops and op axes (88.1 B) and the planner's
 /// buffers and the window being read (a fixed 1.3 MB whatever the job's length). Now every
-/// corner of this lit zigzag is blended and the plan holds every move below its feed, so on
-/// LinuxCNC and ISO each move is written as held sub-blocks (`power::lit_blocks`), which
-/// `emit::PlanFacts` keeps for the writer from the windows until the NC is written: 518.2 B
-/// measured (check 111.7, emit 314.9, lase plan 518.2 with two dialects' facts). That is over
-/// issue 18's 150 B: keeping the held blocks compactly, or writing them from a second pass of
-/// windows, is what is left; this cap still fails anything more that comes back.
-const CAP_PER_MOVE: f64 = 525.0;
+/// corner of this lit zigzag is blended (2.5 segments a move in the windows: `lase check`
+/// peaks at 111.7 B) and the plan holds every move below its feed, so on LinuxCNC and ISO each
+/// move is written as about five held sub-blocks (`power::lit_blocks`). Kept in
+/// `emit::PlanFacts` from the windows until the NC was written, they took the peak to 518.2 B
+/// (check 111.7, emit 314.9, lase plan 518.2 with two dialects' facts). The writer now reads
+/// them from a second pass of the same plan as it writes (`emit::PlanFacts`' module doc, 256
+/// ops a batch), which keeps no table of the ops' axes: 113.9 B measured (check 111.7, emit
+/// 113.8, lase plan 113.9), the job's 88.1 B and about 2.6 MB fixed.
+///
+/// That emit went through windows only because this test called `emit_planned` itself: the
+/// binary planned whole wherever a post had a pulse budget (every stock LinuxCNC and GRBL post;
+/// xy_table's 500 Hz and 300 Hz), 793.1 B a move here, as the whole plan below. The budget is
+/// now checked on the windows (`emit::PlanFacts`, `report::PulseStream`), and this test walks
+/// the binary's path with a pulse every 0.5 mm (19 982 pulses through both budgets): 111.7 B
+/// measured (check 111.7, emit 111.7, lase plan 111.7; the job 88.1 B).
+const CAP_PER_MOVE: f64 = 120.0;
 
 /// The same for the whole plan (trace, plot, pulses, run, the REPL). With its corners taken at
 /// rest or stepped this recipe peaked at 225.2 B (the job's 224 B: ops, op axes, segments and
@@ -81,7 +90,13 @@ fn program(files: &mut MemFiles) -> ProcessProgram {
 #[test]
 fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() {
     let n = 100_000;
-    let mut files = MemFiles::new([("moves.lase", short_moves::recipe(n))]);
+    // Pulses every 0.5 mm along the lit zigzag (40 Hz at its 20 mm/s): xy_table's posts hold
+    // them to their pulse budgets (LinuxCNC 500 Hz, GRBL 300 Hz), which `lase emit` and `lase
+    // plan` check on the windows as they pass (`emit::PlanFacts`), as the binary does.
+    let recipe =
+        short_moves::recipe(n).replace("laser on\n", "pulse { interval 0.5 mm }\nlaser on\n");
+    assert!(recipe.contains("pulse {"), "{recipe}");
+    let mut files = MemFiles::new([("moves.lase", recipe)]);
     let before = ALLOC.allocated();
     // `lase check`: the plan made in windows and dropped. The counter's peak only grows, so
     // each stage's peak is read before the next starts.
@@ -108,8 +123,18 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
         ("op axes", job.op_axes.len() * n_axes * 8),
     ];
     drop(job);
-    // `lase emit`: planned in windows again, what the writer reads gathered as they pass.
+    // `lase emit --dialect linuxcnc` (`src/main.rs`): planned in windows again, what the writer
+    // reads gathered as they pass, the post's pulse budget checked on them.
     let program_ = program(&mut files);
+    for d in [Dialect::LinuxCnc, Dialect::Grbl] {
+        let (_, post) = d
+            .lookup(&program_.machine.post)
+            .expect("xy_table has the post");
+        assert!(
+            post.budget.max_rate_hz.is_some(),
+            "{d}: xy_table's post has a pulse budget"
+        );
+    }
     let mut facts = PlanFacts::new(&program_, Dialect::LinuxCnc);
     let mut windows = 0usize;
     let mut largest = 0usize;
@@ -145,26 +170,21 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
         .chain(estimate::other_dialects(&program_.machine, first))
         .collect();
     let mut totals = PlanTotals::new(&program_);
-    let mut facts: Vec<PlanFacts> = dialects
-        .iter()
-        .map(|&d| PlanFacts::new(&program_, d))
-        .collect();
+    let mut facts = PlanFacts::for_dialects(&program_, &dialects);
     let (job, planned) = compile::plan_in_windows(program_, |p, w| {
         totals.window(p, &w);
-        for f in &mut facts {
-            f.window(p, &w);
-        }
+        facts.window(p, &w);
     })
     .unwrap_or_else(|f| panic!("the recipe plans: {f}"));
     totals.finish(&job.program, planned.length);
-    for f in &mut facts {
-        f.finish(&job.program);
-    }
+    facts.finish(&job.program);
     let summary = totals.summary(&job);
     assert_eq!(summary.blocks, moves, "the summary counts every move");
+    // A pulse every 0.5 mm of the 10 m zigzag: these went through both budgets.
+    assert!(summary.pulses > 19_000, "{} pulses", summary.pulses);
     let mut timed = Vec::new();
-    for (d, f) in dialects.iter().zip(&facts) {
-        let c = estimate::controller_cycle_from(&job, Some(f), *d);
+    for d in &dialects {
+        let c = estimate::controller_cycle_from(&job, Some(&facts), *d);
         assert!(c.note.is_none(), "{d}: {:?}", c.note);
         // Every controller ran the whole path, at most at its 20 mm/s feed. (Not a share of
         // lase's own time: lase blends every lit corner of this 0.05 mm zigzag and plans
@@ -178,7 +198,7 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     }
     assert!(dialects.len() >= 2, "{dialects:?}");
     drop(job);
-    // What `lase plan` gathered for the controllers goes with it (the held blocks: not small).
+    // What `lase plan` gathered for the controllers goes with it.
     drop(facts);
     drop(totals);
     let peak = peak_above(before);
@@ -190,7 +210,7 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
     eprintln!(
         "{moves} moves in windows: peak {peak} B, {:.1} B per move (evaluate {:.1}, check {:.1}, \
          emit {:.1}, plan {:.1}; the job holds {:.1}); {windows} windows of at most {largest} \
-         segments; B per move: {}; lase plan timed {}",
+         segments; B per move: {}; lase plan timed {}; {} pulses",
         per(peak),
         per(evaluated),
         per(checked),
@@ -198,7 +218,8 @@ fn short_moves_from_a_loop_check_plan_and_emit_within_a_fixed_budget_per_move() 
         per(peak),
         per(held),
         tables.join(", "),
-        timed.join(", ")
+        timed.join(", "),
+        summary.pulses
     );
     let per_move = per(peak);
     assert!(

@@ -14,6 +14,9 @@ use lase_runtime::planner::{
 use lase_runtime::program::ProcessProgram;
 use std::path::Path;
 
+#[path = "support/short_moves.rs"]
+mod short_moves;
+
 /// Every field of a segment as bits: `==` on floats would let −0 pass for 0.
 fn bits(s: &Segment) -> [u64; 16] {
     [
@@ -157,6 +160,22 @@ fn every_example_planned_in_windows_is_its_whole_plan_bit_for_bit() {
             if min_window == 1 && !job.kin.oriented() && whole.plan.segments().len() > 20 {
                 assert!(count > 2, "{what}: {count} windows");
             }
+            // Planned again from the job, as emit's writer reads the lit sub-blocks
+            // (`motion::replan_windows`, `emit::PlanFacts`): the same plan again.
+            if min_window == 1 && !job.kin.oriented() {
+                let mut again = Vec::new();
+                motion::replan_windows(&job, |_, w| {
+                    again.push(w);
+                    true
+                })
+                .unwrap_or_else(|e| panic!("{what}, planned again: {e}"));
+                same_plan(
+                    &format!("{what}, planned again"),
+                    &whole.plan,
+                    &again,
+                    &planned,
+                );
+            }
         }
     }
 }
@@ -213,12 +232,14 @@ fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
 fn same_nc(what: &str, program: &ProcessProgram) {
     let whole = motion::plan_program(program.clone()).unwrap_or_else(|e| panic!("{what}: {e}"));
     for dialect in Dialect::ALL {
-        if !emit::plans_in_windows(program, dialect) {
-            continue;
-        }
         let want = emit::emit_to_string(&whole, dialect).map_err(|e| format!("{e:?}"));
         for min_window in [1, 3, planner::MIN_WINDOW] {
-            let mut facts = PlanFacts::new(program, dialect);
+            // Also as `lase plan` gathers them, once for every dialect: each reads its own.
+            let mut facts = if min_window == 3 {
+                PlanFacts::for_dialects(program, &Dialect::ALL)
+            } else {
+                PlanFacts::new(program, dialect)
+            };
             let (job, _) =
                 motion::plan_program_windows_sized(program.clone(), min_window, |p, w| {
                     facts.window(p, &w)
@@ -461,4 +482,57 @@ fn a_refused_move_ends_the_windows_with_the_planners_error() {
     let windowed =
         planner::plan_along_windows_sized([0.0; MAX_AXES], moves, &limits, &cfg, 1, |_| {});
     assert_eq!(windowed.err(), whole.err());
+}
+
+/// A writer that stops early (its sink fails, a controller model refuses a line) ends the
+/// second pass that plans its lit sub-blocks (`emit::PlanFacts`): the pass stops planning at
+/// the next window its reader refuses, and the writer returns its own error, not a hang.
+#[test]
+fn a_second_pass_ends_where_its_reader_stops() {
+    let mut files = MemFiles::new([("moves.lase", short_moves::recipe(20_000))]);
+    let program = program_of(&mut files, "moves.lase");
+    let dialect = Dialect::LinuxCnc;
+    let mut facts = PlanFacts::new(&program, dialect);
+    let (job, _) = motion::plan_program_windows(program, |p, w| facts.window(p, &w))
+        .unwrap_or_else(|e| panic!("{e}"));
+    facts.finish(&job.program);
+    let mut all = 0;
+    motion::replan_windows(&job, |_, _| {
+        all += 1;
+        true
+    })
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert!(all > 3, "{all} windows");
+    let mut read = 0;
+    motion::replan_windows(&job, |_, _| {
+        read += 1;
+        read < 2
+    })
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(read, 2, "windows read of {all}");
+    // The sink fails at line 100 (of some 100 000: five held sub-blocks a move).
+    let mut lines = 0;
+    let r = emit::emit_planned(&job, &facts, dialect, &Default::default(), &mut |_| {
+        lines += 1;
+        if lines == 100 {
+            return Err(std::io::Error::other("disk full"));
+        }
+        Ok(())
+    });
+    assert!(
+        matches!(&r, Err(emit::EmitError::Io(e)) if e.to_string() == "disk full"),
+        "{r:?}"
+    );
+    assert_eq!(lines, 100);
+    // A controller model that refuses line 50.
+    let mut lines = 0;
+    let r = emit::emit_nc_lines(&job, Some(&facts), dialect, &mut |_| {
+        lines += 1;
+        if lines == 50 {
+            return Err("refused".into());
+        }
+        Ok(())
+    });
+    assert_eq!(r, Err("refused".to_string()));
+    assert_eq!(lines, 50);
 }

@@ -4,7 +4,7 @@
 //! row: the recipe's scan settings, the dialect, and what must come of it.
 
 use lase_runtime::compile::{self, MemFiles};
-use lase_runtime::emit::{Dialect, EmitError, EmitOptions, emit_lines};
+use lase_runtime::emit::{Dialect, EmitError, EmitOptions, PlanFacts, emit_lines, emit_planned};
 use lase_runtime::motion::Job;
 use miette::Diagnostic;
 
@@ -26,6 +26,30 @@ fn job(pulse: &str, settings: &str, extra: &str) -> (String, Job) {
         Ok((_, job)) => (src, job),
         Err((_, f)) => panic!("the recipe compiles: {f:?}"),
     }
+}
+
+/// [`job`]'s lines in `dialect`, planned in windows as `lase emit` plans it.
+fn in_windows(
+    pulse: &str,
+    settings: &str,
+    extra: &str,
+    dialect: Dialect,
+) -> Result<Vec<String>, EmitError> {
+    let src = RECIPE.replace("PULSE", pulse).replace("SETTINGS", settings);
+    let mut files = MemFiles::new([("m.toml", machine(extra)), ("r.lase", src)]);
+    let mut recipe = compile::load(&mut files, "r.lase").unwrap_or_else(|(_, f)| panic!("{f:?}"));
+    compile::check(&recipe).unwrap_or_else(|f| panic!("{f:?}"));
+    let program = compile::evaluate(&mut recipe, &mut files).unwrap_or_else(|f| panic!("{f:?}"));
+    let mut facts = PlanFacts::new(&program, dialect);
+    let (job, _) = compile::plan_in_windows(program, |p, w| facts.window(p, &w))
+        .unwrap_or_else(|f| panic!("{f:?}"));
+    facts.finish(&job.program);
+    let mut lines = Vec::new();
+    emit_planned(&job, &facts, dialect, &EmitOptions::default(), &mut |l| {
+        lines.push(l.text.clone());
+        Ok(())
+    })?;
+    Ok(lines)
 }
 
 struct Case {
@@ -164,6 +188,19 @@ fn run(name: &str) {
     let (_, case) = CASES.iter().find(|(n, _)| *n == name).unwrap();
     let (src, job) = job(case.pulse, case.settings, case.extra);
     let result = emit_lines(&job, case.dialect, &EmitOptions::default());
+    // `lase emit` plans in windows and checks the budget on the pulses as they pass
+    // (`emit::PlanFacts`): the same lines, or the very same diagnostic.
+    let windowed = in_windows(case.pulse, case.settings, case.extra, case.dialect);
+    assert_eq!(
+        format!("{windowed:?}"),
+        format!(
+            "{:?}",
+            result
+                .as_ref()
+                .map(|(lines, _)| lines.iter().map(|l| l.text.clone()).collect::<Vec<_>>())
+        ),
+        "{name}: planned in windows"
+    );
     match (case.refused, result) {
         (None, Ok(_)) => {}
         (None, Err(e)) => panic!("{name}: refused: {e:?}"),

@@ -32,7 +32,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::str::FromStr;
 
-pub use facts::{PlanFacts, plans_in_windows};
+pub use facts::PlanFacts;
 pub use format::{degrees, number};
 
 /// An NC dialect lase can write.
@@ -213,7 +213,7 @@ pub enum EmitWarning {
 }
 
 /// Why a program cannot be written in a dialect. Nothing is written when one of these is
-/// returned, except for [`EmitError::Io`].
+/// returned, except for [`EmitError::Io`] and [`EmitError::Replan`].
 #[derive(Debug, thiserror::Error, miette::Diagnostic)]
 pub enum EmitError {
     #[error("M{code} is not an M-code {dialect} accepts")]
@@ -316,6 +316,13 @@ pub enum EmitError {
     #[error("writing the NC program failed: {0}")]
     #[diagnostic(code(lase::emit::io))]
     Io(#[from] std::io::Error),
+
+    /// Planning a job made in windows again, for the lit sub-blocks the writer reads
+    /// (`motion::replan_windows`, [`PlanFacts`]), failed where the first pass had not: the plan
+    /// is deterministic, so this is a bug, reported as the planner's own diagnostic.
+    #[error(transparent)]
+    #[diagnostic(transparent)]
+    Replan(Box<crate::motion::MotionError>),
 }
 
 /// Writes `job` as an NC program in `dialect`, one line at a time to `sink`.
@@ -333,7 +340,7 @@ pub fn emit(
 
 /// [`emit`] of a job planned in windows (`motion::plan_program_windows`, whose plan holds no
 /// segments): what the writer reads of the plan is in `facts`, gathered from the windows
-/// ([`PlanFacts`]). The job must be one [`plans_in_windows`] allows.
+/// ([`PlanFacts`], gathered for `dialect`).
 pub fn emit_planned(
     job: &Job,
     facts: &PlanFacts,
@@ -355,24 +362,29 @@ fn emit_with(
         validate::check_settles(&job.program, dialect)?;
     }
     let checked = validate::validate(job, dialect, facts)?;
-    if facts.is_none() {
-        // A post with a budget plans whole (`plans_in_windows`).
-        validate::check_pulse_budget(job, dialect, checked.post)?;
+    match facts {
+        None => validate::check_pulse_budget(job, dialect, checked.post)?,
+        // Checked on the pulses as the windows passed (`PlanFacts`).
+        Some(facts) => facts.pulse_budget(&job.program, dialect)?,
     }
     // Settled rows go out relative to their settled start (`relative`), whether a live link
     // or the control settles them.
     let rows = relative::row_ranges(&job.program);
-    let mut stats = if rows.is_empty() {
-        writer::write(job, facts, dialect, options, &checked, sink)?
-    } else {
-        let mut r = relative::Rows::new(&job.program, rows, sink);
-        let mut stats =
-            writer::write(job, facts, dialect, options, &checked, &mut |l: &NcLine| {
-                r.put(l)
-            })?;
-        r.finish(&mut stats);
-        stats
-    };
+    // A job planned in windows has its lit sub-blocks planned again as they are written
+    // (`facts::LitBlocks`), on a thread of this scope.
+    let mut stats = std::thread::scope(|scope| {
+        let mut lit = facts::LitBlocks::new(job, facts, dialect, scope);
+        let lit = &mut lit;
+        if rows.is_empty() {
+            writer::write(job, facts, lit, dialect, options, &checked, sink)
+        } else {
+            let mut r = relative::Rows::new(&job.program, rows, sink);
+            let mut put = |l: &NcLine| r.put(l);
+            let mut stats = writer::write(job, facts, lit, dialect, options, &checked, &mut put)?;
+            r.finish(&mut stats);
+            Ok(stats)
+        }
+    })?;
     stats.warnings = checked.warnings;
     Ok(stats)
 }

@@ -8,7 +8,7 @@ use crate::machine::{AxisKind, DialectPost, Machine};
 use crate::motion::Job;
 use crate::planner::Segment;
 use crate::program::PulseMode;
-use crate::program::{Coupling, Op, OpKind};
+use crate::program::{Coupling, Op, OpKind, ProcessProgram};
 use lase_lang::Span;
 
 /// GRBL's serial line buffer (`LINE_BUFFER_SIZE`): longer lines overflow it.
@@ -727,23 +727,110 @@ pub(super) fn check_pulse_budget(
     dialect: Dialect,
     post: &DialectPost,
 ) -> Result<(), EmitError> {
-    use lase_lang::units::{Dim, format_quantity};
-    let budget = &post.budget;
-    if budget.max_rate_hz.is_none() && budget.max_pulses.is_none() {
+    let Some(mut check) = BudgetCheck::new(post) else {
         return Ok(());
-    }
-    let ops = &job.program.ops;
-    let name = &job.program.machine.name;
-    let key = dialect
-        .lookup(&job.program.machine.post)
-        .map_or("…", |(k, _)| k);
-    let min_interval = budget.max_rate_hz.map(|r| 1.0 / r);
-    let mut last_t: Option<f64> = None;
-    let mut count: u64 = 0;
+    };
     for p in crate::report::pulse_events(job) {
-        count += 1;
-        let op = &ops[p.op as usize];
-        if let Some(max) = budget.max_pulses.filter(|&m| count > m) {
+        if !check.pulse(p.t, p.op) {
+            break;
+        }
+    }
+    check.result(&job.program, dialect)
+}
+
+/// The pulse budget of one post, checked pulse by pulse in time order as they come, whole
+/// ([`check_pulse_budget`]) or from a plan made in windows (`PlanFacts`, with
+/// `report::PulseStream`): the running count and the last pulse's time, and the first pulse
+/// over the budget, which [`result`](Self::result) turns into the diagnostic.
+#[derive(Debug, Clone)]
+pub(super) struct BudgetCheck {
+    max_pulses: Option<u64>,
+    max_rate_hz: Option<f64>,
+    count: u64,
+    last_t: Option<f64>,
+    over: Option<Over>,
+}
+
+/// The first pulse over a budget: its op and number, and, when it came too soon, the time
+/// since the one before.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Over {
+    pub op: u32,
+    pub count: u64,
+    pub dt: Option<f64>,
+}
+
+impl BudgetCheck {
+    /// The check of `post`'s budget; `None` when it has none.
+    pub(super) fn new(post: &DialectPost) -> Option<BudgetCheck> {
+        let budget = &post.budget;
+        if budget.max_rate_hz.is_none() && budget.max_pulses.is_none() {
+            return None;
+        }
+        Some(BudgetCheck {
+            max_pulses: budget.max_pulses,
+            max_rate_hz: budget.max_rate_hz,
+            count: 0,
+            last_t: None,
+            over: None,
+        })
+    }
+
+    /// The next pulse, at job time `t`, fired by op `op`. False once a pulse went over the
+    /// budget: the later ones change nothing.
+    pub(super) fn pulse(&mut self, t: f64, op: u32) -> bool {
+        if self.over.is_some() {
+            return false;
+        }
+        self.count += 1;
+        let count = self.count;
+        if self.max_pulses.is_some_and(|m| count > m) {
+            self.over = Some(Over {
+                op,
+                count,
+                dt: None,
+            });
+            return false;
+        }
+        if let (Some(max), Some(t0)) = (self.max_rate_hz, self.last_t) {
+            let dt = t - t0;
+            // A relative margin: a rate computed to equal the limit passes.
+            if dt < (1.0 / max) * (1.0 - 1e-9) {
+                self.over = Some(Over {
+                    op,
+                    count,
+                    dt: Some(dt),
+                });
+                return false;
+            }
+        }
+        self.last_t = Some(t);
+        true
+    }
+
+    /// The first pulse over the budget so far.
+    pub(super) fn over(&self) -> Option<Over> {
+        self.over
+    }
+
+    /// The diagnostic of the first pulse over the budget of `program`'s post for `dialect`.
+    pub(super) fn result(
+        &self,
+        program: &ProcessProgram,
+        dialect: Dialect,
+    ) -> Result<(), EmitError> {
+        use lase_lang::units::{Dim, format_quantity};
+        let Some(over) = self.over else {
+            return Ok(());
+        };
+        let op = &program.ops[over.op as usize];
+        let count = over.count;
+        let name = &program.machine.name;
+        let key = dialect
+            .lookup(&program.machine.post)
+            .map_or("…", |(k, _)| k);
+        let Some(dt) = over.dt else {
+            let max = self.max_pulses.unwrap_or_default();
             return Err(EmitError::PulseBudget {
                 message: format!(
                     "the job fires more than {max} pulses, the most {} takes in one job",
@@ -756,40 +843,32 @@ pub(super) fn check_pulse_budget(
                      [post.{key}] in machine `{name}` sets the limit"
                 ),
             });
-        }
-        if let (Some(min), Some(t0)) = (min_interval, last_t) {
-            let dt = p.t - t0;
-            // A relative margin: a rate computed to equal the limit passes.
-            if dt < min * (1.0 - 1e-9) {
-                let max = budget.max_rate_hz.unwrap_or_default();
-                let slower = match op.laser().and_then(|l| l.pulse.as_ref()).map(|p| p.mode) {
-                    Some(PulseMode::Distance { pitch_mm }) => format!(
-                        "with pulses every {} the fastest speed {} triggers is {}",
-                        format_quantity(pitch_mm, Dim::LENGTH),
-                        controller(dialect),
-                        format_quantity(max * pitch_mm, Dim::SPEED)
-                    ),
-                    _ => format!(
-                        "space the pulses at least {} apart (a lower pulse `rate`)",
-                        format_quantity(1.0 / max, Dim::TIME)
-                    ),
-                };
-                return Err(EmitError::PulseBudget {
-                    message: format!(
-                        "pulses at {} are faster than {} triggers them ({} at most)",
-                        format_quantity(1.0 / dt.max(1e-12), Dim::FREQUENCY),
-                        controller(dialect),
-                        format_quantity(max, Dim::FREQUENCY)
-                    ),
-                    span: op.span,
-                    label: format!("pulse {count} follows the one before it too soon"),
-                    help: format!(
-                        "{slower}; `max_pulse_rate` of [post.{key}] in machine `{name}` sets the limit"
-                    ),
-                });
-            }
-        }
-        last_t = Some(p.t);
+        };
+        let max = self.max_rate_hz.unwrap_or_default();
+        let slower = match op.laser().and_then(|l| l.pulse.as_ref()).map(|p| p.mode) {
+            Some(PulseMode::Distance { pitch_mm }) => format!(
+                "with pulses every {} the fastest speed {} triggers is {}",
+                format_quantity(pitch_mm, Dim::LENGTH),
+                controller(dialect),
+                format_quantity(max * pitch_mm, Dim::SPEED)
+            ),
+            _ => format!(
+                "space the pulses at least {} apart (a lower pulse `rate`)",
+                format_quantity(1.0 / max, Dim::TIME)
+            ),
+        };
+        Err(EmitError::PulseBudget {
+            message: format!(
+                "pulses at {} are faster than {} triggers them ({} at most)",
+                format_quantity(1.0 / dt.max(1e-12), Dim::FREQUENCY),
+                controller(dialect),
+                format_quantity(max, Dim::FREQUENCY)
+            ),
+            span: op.span,
+            label: format!("pulse {count} follows the one before it too soon"),
+            help: format!(
+                "{slower}; `max_pulse_rate` of [post.{key}] in machine `{name}` sets the limit"
+            ),
+        })
     }
-    Ok(())
 }

@@ -179,6 +179,7 @@ struct Modal {
 pub(super) fn write(
     job: &Job,
     facts: Option<&super::PlanFacts>,
+    lit: &mut super::facts::LitBlocks<'_>,
     dialect: Dialect,
     options: &EmitOptions<'_>,
     checked: &Checked<'_>,
@@ -371,7 +372,12 @@ pub(super) fn write(
                     continue;
                 }
                 // An image row is written one block per pixel run (`row`); any other op as is.
-                let pieces = row::pieces(job, facts, i, m.pos, m.q, !dialect.is_grbl_family());
+                let blocks = if dialect.is_grbl_family() {
+                    Vec::new()
+                } else {
+                    lit.of(i)?
+                };
+                let pieces = row::pieces(job, blocks, i, m.pos, m.q);
                 let n_pieces = pieces.len();
                 for (k, piece) in pieces.into_iter().enumerate() {
                     let (op, q_end, blocks) = (&*piece.op, piece.q, piece.blocks);

@@ -18,15 +18,15 @@ mod summary;
 mod trace;
 
 pub use plot::{DOT_LIMIT, PNG_SCALE, PlotOptions, SpeedUnit, plot_png, plot_svg, svg_to_png};
-pub use pulses::{PulseEvent, PulseEvents, pulse_events, write_pulses};
+pub use pulses::{PulseEvent, PulseEvents, PulseStream, PulseTime, pulse_events, write_pulses};
 pub use summary::{
     AxisPeaks, ControllerCycle, PlanTotals, Summary, TimeSplit, summarize, time_split,
 };
 pub use trace::write_trace;
 
 use crate::motion::Job;
-use crate::planner::Sample;
-use crate::program::{Laser, OpKind};
+use crate::planner::{Sample, Segment};
+use crate::program::{Laser, OpKind, ProcessProgram};
 
 /// The laser setting of segment `i`'s move (None when unlit or out of range).
 fn segment_laser(job: &Job, i: usize) -> Option<&Laser> {
@@ -92,18 +92,21 @@ pub(super) struct Standstill {
 }
 
 /// How long the machine stands still for op `i` (0 for motion ops).
-fn stand_s(job: &Job, i: usize) -> f64 {
-    match &job.program.ops[i].kind {
+fn stand_s(program: &ProcessProgram, i: usize) -> f64 {
+    match &program.ops[i].kind {
         OpKind::Dwell { seconds } => *seconds,
         OpKind::Fire { window_s, .. } => *window_s,
-        OpKind::Event { name } => job
-            .program
-            .machine
-            .events
-            .get(name)
-            .map_or(0.0, |e| e.dwell_s),
+        OpKind::Event { name } => program.machine.events.get(name).map_or(0.0, |e| e.dwell_s),
         _ => 0.0,
     }
+}
+
+/// Whether op `op` is a standstill op ([`Standstill`]).
+fn is_standstill(op: &crate::program::Op) -> bool {
+    matches!(
+        op.kind,
+        OpKind::Dwell { .. } | OpKind::MCode { .. } | OpKind::Event { .. } | OpKind::Fire { .. }
+    )
 }
 
 /// Every standstill op with its start time, in op order. A standstill begins when the motion
@@ -112,39 +115,67 @@ fn stand_s(job: &Job, i: usize) -> f64 {
 pub(super) fn standstills(job: &Job) -> Vec<Standstill> {
     let ops = &job.program.ops;
     let segs = job.plan.segments();
+    let mut cursor = StandCursor::default();
     let mut out = Vec::new();
-    // (segment before, next op not yet summed, time reached): consecutive standstills after
-    // one segment continue the running sum instead of summing from the segment again.
-    let mut cursor: Option<(Option<usize>, usize, f64)> = None;
     for (i, op) in ops.iter().enumerate() {
-        if !matches!(
-            op.kind,
-            OpKind::Dwell { .. }
-                | OpKind::MCode { .. }
-                | OpKind::Event { .. }
-                | OpKind::Fire { .. }
-        ) {
+        if !is_standstill(op) {
             continue;
         }
         let j = segs
             .partition_point(|s| (s.tag as usize) < i)
             .checked_sub(1);
-        let (from, t) = match cursor {
+        let before = j.map(|j| (j, &segs[j]));
+        out.push(cursor.at(&job.program, i, before, job.initial_dwell_s));
+    }
+    out
+}
+
+/// The running sum behind [`standstills`], shared with the pulses of a plan made in windows
+/// (`pulses::PulseStream`), which meets the standstills as their segments pass: consecutive
+/// standstills after one segment continue the sum instead of summing from the segment again.
+#[derive(Debug, Default, Clone, Copy)]
+pub(super) struct StandCursor {
+    /// The segment before, the next op not yet summed and the time reached.
+    at: Option<(Option<usize>, usize, f64)>,
+}
+
+impl StandCursor {
+    /// Standstill op `i` of `program`, after segment `before` (its index in the plan and the
+    /// segment: the last one with a lower tag; `None` before the first move), on a plan whose
+    /// time 0 is `initial_dwell_s` into the job.
+    pub(super) fn at(
+        &mut self,
+        program: &ProcessProgram,
+        i: usize,
+        before: Option<(usize, &Segment)>,
+        initial_dwell_s: f64,
+    ) -> Standstill {
+        let j = before.map(|(j, _)| j);
+        let (from, t) = match self.at {
             Some((cj, next, t)) if cj == j => (next, t),
-            _ => match j {
-                Some(j) => (
-                    segs[j].tag as usize + 1,
-                    job.initial_dwell_s + segs[j].t_start + segs[j].motion_duration(),
+            _ => match before {
+                Some((_, seg)) => (
+                    seg.tag as usize + 1,
+                    initial_dwell_s + seg.t_start + seg.motion_duration(),
                 ),
                 None => (0, 0.0),
             },
         };
-        let t = t + (from..i).map(|k| stand_s(job, k)).sum::<f64>();
-        let duration = stand_s(job, i);
-        out.push(Standstill { op: i, t, duration });
-        cursor = Some((j, i + 1, t + duration));
+        let t = t + (from..i).map(|k| stand_s(program, k)).sum::<f64>();
+        let duration = stand_s(program, i);
+        self.at = Some((j, i + 1, t + duration));
+        Standstill { op: i, t, duration }
     }
-    out
+
+    /// Where the standstills summed so far end, before the first move: the job's
+    /// `initial_dwell_s` once every op before the first move was summed (`motion`'s lowering
+    /// adds the same durations in the same order).
+    pub(super) fn end_before_motion(&self) -> f64 {
+        match self.at {
+            Some((None, _, t)) => t,
+            _ => 0.0,
+        }
+    }
 }
 
 /// Rounds to 9 significant digits, so goldens do not change with the last bits of a platform's

@@ -2,11 +2,17 @@
 //! pulse at the start of each lit section and every `pitch_mm` of lit path after it; in `Time`
 //! mode the same every `period_s` of lit time. The instant a distance is reached is solved on
 //! the plan's closed-form path law, to 1e-12 s.
+//!
+//! One generator serves a whole plan ([`pulse_events`]) and a plan made in windows
+//! ([`PulseStream`]: `emit`'s pulse budget, issue 18): [`SectionCursor`] walks the lit sections'
+//! pulses segment by segment, each segment read once the one after it is known (whether the
+//! beam stays on into it), and `StandCursor` times the dot-mode windows as their ops pass.
 
-use super::{dwell_lit, segment_laser, standstills};
+use super::{StandCursor, Standstill, is_standstill, segment_laser, standstills};
 use crate::motion::Job;
-use crate::planner::Segment;
-use crate::program::{OpKind, P3, Pulse, PulseMode};
+use crate::planner::{Plan, Segment};
+use crate::program::{Laser, OpKind, P3, ProcessProgram, Pulse, PulseMode};
+use std::collections::VecDeque;
 
 /// One laser pulse.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -21,11 +27,9 @@ pub struct PulseEvent {
     pub op: u32,
 }
 
-/// A lit section on the plan's timeline: segments `first..=last`.
+/// A lit section on the plan's timeline.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Section {
-    pub first: usize,
-    pub last: usize,
     pub mode: PulseMode,
     /// Plan time of the start and of the end of the beam-on interval.
     pub t0: f64,
@@ -51,36 +55,99 @@ impl Section {
     }
 }
 
-/// Lit sections with pulses, in time order.
-pub(super) fn sections(job: &Job) -> Vec<Section> {
-    let segs = job.plan.segments();
-    let mut out = Vec::new();
-    let mut i = 0;
-    while i < segs.len() {
-        let Some(Pulse { mode, .. }) = segment_laser(job, i).and_then(|l| l.pulse.as_ref()) else {
-            i += 1;
-            continue;
-        };
-        let pulse = segment_laser(job, i).and_then(|l| l.pulse.as_ref());
-        let mut last = i;
-        while dwell_lit(job, last)
-            && segment_laser(job, last + 1).and_then(|l| l.pulse.as_ref()) == pulse
+/// The pulses of each lit section, read segment by segment in plan order (module doc): a
+/// section opens at a lit segment with a pulse setting and goes on while the beam stays on into
+/// a segment with the same one (`report`'s laser model); pulse k of a section lies on the first
+/// of its segments that reaches it (`Distance`: its path distance, `Time`: its time), or on its
+/// last.
+#[derive(Debug, Default)]
+pub(super) struct SectionCursor {
+    open: Option<Open>,
+}
+
+/// The section being read.
+#[derive(Debug)]
+struct Open {
+    pulse: Pulse,
+    /// Plan time and path distance where it starts.
+    t0: f64,
+    s0: f64,
+    /// Index of the next pulse.
+    k: u64,
+    /// Once the segment being read is its last: where it ends (time, distance) and its pulses.
+    end: Option<(f64, f64, u64)>,
+}
+
+impl SectionCursor {
+    /// Segment `seg` is read next: lit with `laser`, and the one after it with `next`.
+    pub(super) fn enter(&mut self, seg: &Segment, laser: Option<&Laser>, next: Option<&Laser>) {
+        if self.open.is_none()
+            && let Some(p) = laser.and_then(|l| l.pulse.as_ref())
         {
-            last += 1;
+            self.open = Some(Open {
+                pulse: p.clone(),
+                t0: seg.t_start,
+                s0: seg.s_start,
+                k: 0,
+                end: None,
+            });
         }
-        let end: &Segment = &segs[last];
-        out.push(Section {
-            first: i,
-            last,
-            mode: *mode,
-            t0: segs[i].t_start,
-            t1: end.t_start + end.motion_duration(),
-            s0: segs[i].s_start,
-            s1: end.s_start + end.length,
-        });
-        i = last + 1;
+        if let Some(o) = &mut self.open {
+            let goes_on = laser.is_some() && next.and_then(|l| l.pulse.as_ref()) == Some(&o.pulse);
+            if !goes_on {
+                let (t1, s1) = (
+                    seg.t_start + seg.motion_duration(),
+                    seg.s_start + seg.length,
+                );
+                let count = Section {
+                    mode: o.pulse.mode,
+                    t0: o.t0,
+                    t1,
+                    s0: o.s0,
+                    s1,
+                }
+                .count();
+                o.end = Some((t1, s1, count));
+            }
+        }
     }
-    out
+
+    /// The next pulse on `seg`, the segment last entered: its time after the segment's start
+    /// (what `Plan::sample_segment` takes). `None` once the segment has no more.
+    pub(super) fn next(&mut self, seg: &Segment) -> Option<f64> {
+        let o = self.open.as_mut()?;
+        let k = o.k as f64;
+        let t_local = match (o.pulse.mode, o.end) {
+            (mode, Some((t1, s1, count))) => {
+                if o.k >= count {
+                    self.open = None;
+                    return None;
+                }
+                match mode {
+                    PulseMode::Distance { pitch_mm } => {
+                        solve_s(seg, (o.s0 + k * pitch_mm).min(s1) - seg.s_start)
+                    }
+                    PulseMode::Time { period_s } => (o.t0 + k * period_s).min(t1) - seg.t_start,
+                }
+            }
+            (PulseMode::Distance { pitch_mm }, None) => {
+                let target = o.s0 + k * pitch_mm;
+                if seg.s_start + seg.length < target {
+                    return None;
+                }
+                solve_s(seg, target - seg.s_start)
+            }
+            (PulseMode::Time { period_s }, None) => {
+                let t = o.t0 + k * period_s;
+                if seg.t_end() <= t {
+                    return None;
+                }
+                t - seg.t_start
+            }
+        };
+        o.k += 1;
+        Some(t_local)
+    }
 }
 
 /// The pulses of a job, in time order. Lazy: a texturing job's millions of pulses are never
@@ -91,10 +158,8 @@ pub fn pulse_events(job: &Job) -> PulseEvents<'_> {
         fires: fire_events(job),
         fire: 0,
         pending: None,
-        sections: sections(job),
-        section: 0,
-        k: 0,
-        seg: 0,
+        cursor: SectionCursor::default(),
+        seg: None,
     }
 }
 
@@ -145,9 +210,9 @@ pub(super) fn fire_events(job: &Job) -> Vec<PulseEvent> {
             None => (0.0, job.start, 0),
         };
         let pos = job.spot(&q, tag);
-        for k in 0..*count {
+        for t in fire_times(&st, *count, *period_s) {
             out.push(PulseEvent {
-                t: st.t + f64::from(k) * period_s,
+                t,
                 s,
                 pos,
                 op: st.op as u32,
@@ -155,6 +220,13 @@ pub(super) fn fire_events(job: &Job) -> Vec<PulseEvent> {
         }
     }
     out
+}
+
+/// The job times of the pulses of a dot-mode window that begins at `st`: pulse k fires
+/// `k · period_s` after it opens.
+fn fire_times(st: &Standstill, count: u32, period_s: f64) -> impl Iterator<Item = f64> {
+    let t = st.t;
+    (0..count).map(move |k| t + f64::from(k) * period_s)
 }
 
 /// Iterator of [`pulse_events`].
@@ -166,12 +238,9 @@ pub struct PulseEvents<'j> {
     fire: usize,
     /// The next pulse of the lit sections, taken but not yet returned.
     pending: Option<PulseEvent>,
-    sections: Vec<Section>,
-    section: usize,
-    /// Index of the next pulse in the current section.
-    k: u64,
-    /// Segment cursor (targets grow monotonically within a section).
-    seg: usize,
+    cursor: SectionCursor,
+    /// The segment the cursor reads.
+    seg: Option<usize>,
 }
 
 impl Iterator for PulseEvents<'_> {
@@ -201,47 +270,150 @@ impl Iterator for PulseEvents<'_> {
 
 impl PulseEvents<'_> {
     fn next_in_section(&mut self) -> Option<PulseEvent> {
+        let segs = self.job.plan.segments();
         loop {
-            let sec = *self.sections.get(self.section)?;
-            if self.k == 0 {
-                self.seg = sec.first;
+            if let Some(i) = self.seg
+                && let Some(t_local) = self.cursor.next(&segs[i])
+            {
+                let sample = self.job.plan.sample_segment(i, t_local);
+                let spot = self.job.spot(&sample.pos, sample.tag);
+                return Some(PulseEvent {
+                    t: self.job.initial_dwell_s + sample.t,
+                    s: sample.s,
+                    pos: [spot[0], spot[1], spot[2]],
+                    op: segs[i].tag,
+                });
             }
-            if self.k >= sec.count() {
-                self.section += 1;
-                self.k = 0;
+            let i = self.seg.map_or(0, |i| i + 1);
+            let seg = segs.get(i)?;
+            let (laser, next) = (segment_laser(self.job, i), segment_laser(self.job, i + 1));
+            self.cursor.enter(seg, laser, next);
+            self.seg = Some(i);
+        }
+    }
+}
+
+/// A pulse's job time and the op that fires it: what `emit`'s pulse budget reads of a pulse.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PulseTime {
+    pub t: f64,
+    pub op: u32,
+}
+
+/// The pulses of a plan made in windows (`motion::plan_program_windows`), handed on in the
+/// order and with the times of [`pulse_events`] as the windows pass, none kept but the dot-mode
+/// pulses that wait for a later lit pulse to be merged by time. Feed it every window with
+/// [`window`](Self::window), then [`finish`](Self::finish).
+#[derive(Debug, Default)]
+pub struct PulseStream {
+    cursor: SectionCursor,
+    stand: StandCursor,
+    /// The segment waiting for the next one (whether the beam stays on into it), its number.
+    waiting: Option<(Segment, usize)>,
+    seen: usize,
+    /// Ops below this one have had their standstills timed.
+    next_op: usize,
+    /// The job's standstill before its first move, once the first segment was read.
+    initial_dwell_s: f64,
+    /// Dot-mode pulses not yet handed on: each waits for the first lit pulse later than it
+    /// (`PulseEvents`' merge gives a lit pulse at the same time first).
+    fires: VecDeque<PulseTime>,
+}
+
+impl PulseStream {
+    pub fn new() -> PulseStream {
+        PulseStream::default()
+    }
+
+    /// Reads a window of `program`'s plan (its segments in order, after the last window's),
+    /// handing each pulse that is due to `each`.
+    pub fn window(
+        &mut self,
+        program: &ProcessProgram,
+        plan: &Plan,
+        each: &mut dyn FnMut(PulseTime),
+    ) {
+        for seg in plan.segments() {
+            if let Some((prev, at)) = self.waiting.take() {
+                self.read(program, &prev, at, Some(seg), each);
+            }
+            self.waiting = Some((*seg, self.seen));
+            self.seen += 1;
+        }
+    }
+
+    /// After the last window: the last segment's pulses and every dot-mode pulse left.
+    pub fn finish(&mut self, program: &ProcessProgram, each: &mut dyn FnMut(PulseTime)) {
+        match self.waiting.take() {
+            Some((prev, at)) => self.read(program, &prev, at, None, each),
+            // No motion at all: every standstill comes before the first move.
+            None => self.stand_until(program, None, program.ops.len()),
+        }
+        for f in self.fires.drain(..) {
+            each(f);
+        }
+    }
+
+    /// Reads segment `seg` (number `at`), `next` the one after it: first the standstills
+    /// before it (before the first move only) and after it, whose dot-mode pulses may come
+    /// before its own, then its lit pulses, each after the dot-mode pulses earlier than it.
+    fn read(
+        &mut self,
+        program: &ProcessProgram,
+        seg: &Segment,
+        at: usize,
+        next: Option<&Segment>,
+        each: &mut dyn FnMut(PulseTime),
+    ) {
+        if at == 0 {
+            self.stand_until(program, None, seg.tag as usize);
+            self.initial_dwell_s = self.stand.end_before_motion();
+        }
+        self.next_op = self.next_op.max(seg.tag as usize + 1);
+        let end = next.map_or(program.ops.len(), |n| n.tag as usize);
+        self.stand_until(program, Some((at, seg)), end);
+        let laser = |s: &Segment| program.ops.get(s.tag as usize).and_then(|o| o.laser());
+        self.cursor.enter(seg, laser(seg), next.and_then(laser));
+        while let Some(t_local) = self.cursor.next(seg) {
+            // `Plan::sample_segment`'s time.
+            let t_local = if t_local.is_nan() {
+                0.0
+            } else {
+                t_local.clamp(0.0, seg.duration())
+            };
+            let t = self.initial_dwell_s + (seg.t_start + t_local);
+            while let Some(f) = self.fires.front().copied().filter(|f| f.t < t) {
+                self.fires.pop_front();
+                each(f);
+            }
+            each(PulseTime { t, op: seg.tag });
+        }
+    }
+
+    /// Times the standstills of the ops from `next_op` up to `end` (after segment `before`),
+    /// keeping the pulses of their dot-mode windows.
+    fn stand_until(
+        &mut self,
+        program: &ProcessProgram,
+        before: Option<(usize, &Segment)>,
+        end: usize,
+    ) {
+        for i in self.next_op..end {
+            let op = &program.ops[i];
+            if !is_standstill(op) {
                 continue;
             }
-            let k = self.k as f64;
-            self.k += 1;
-            let segs = self.job.plan.segments();
-            let (i, t_local) = match sec.mode {
-                PulseMode::Distance { pitch_mm } => {
-                    let target = (sec.s0 + k * pitch_mm).min(sec.s1);
-                    while self.seg < sec.last
-                        && segs[self.seg].s_start + segs[self.seg].length < target
-                    {
-                        self.seg += 1;
-                    }
-                    let seg = &segs[self.seg];
-                    (self.seg, solve_s(seg, target - seg.s_start))
-                }
-                PulseMode::Time { period_s } => {
-                    let t = (sec.t0 + k * period_s).min(sec.t1);
-                    while self.seg < sec.last && segs[self.seg].t_end() <= t {
-                        self.seg += 1;
-                    }
-                    (self.seg, t - segs[self.seg].t_start)
-                }
-            };
-            let sample = self.job.plan.sample_segment(i, t_local);
-            let spot = self.job.spot(&sample.pos, sample.tag);
-            return Some(PulseEvent {
-                t: self.job.initial_dwell_s + sample.t,
-                s: sample.s,
-                pos: [spot[0], spot[1], spot[2]],
-                op: segs[i].tag,
-            });
+            let st = self.stand.at(program, i, before, self.initial_dwell_s);
+            if let OpKind::Fire {
+                count, period_s, ..
+            } = op.kind
+            {
+                let op = i as u32;
+                self.fires
+                    .extend(fire_times(&st, count, period_s).map(|t| PulseTime { t, op }));
+            }
         }
+        self.next_op = self.next_op.max(end);
     }
 }
 

@@ -118,12 +118,11 @@ pub struct PlanTotals {
     split: [f64; 3],
     blocks: usize,
     last_move: Option<u32>,
-    /// The segment waiting for the next one, and its index in the whole plan.
-    waiting: Option<(Segment, usize)>,
-    seen: usize,
+    /// The segment waiting for the next one.
+    waiting: Option<Segment>,
     /// The lit section with pulses that is open: its first segment's pulse, start time and
-    /// path distance, and its first segment.
-    section: Option<(Pulse, f64, f64, usize)>,
+    /// path distance.
+    section: Option<(Pulse, f64, f64)>,
     pulses_moving: u64,
     /// Path length, once known.
     length: f64,
@@ -142,7 +141,6 @@ impl PlanTotals {
             blocks: 0,
             last_move: None,
             waiting: None,
-            seen: 0,
             section: None,
             pulses_moving: 0,
             length: 0.0,
@@ -187,24 +185,23 @@ impl PlanTotals {
                 p[1] = p[1].max(uk * acc);
                 p[2] = p[2].max(uk * jerk);
             }
-            if let Some((prev, at)) = self.waiting.take() {
-                self.count(program, &prev, at, laser_of(program, seg));
+            if let Some(prev) = self.waiting.take() {
+                self.count(program, &prev, laser_of(program, seg));
             }
-            self.waiting = Some((*seg, self.seen));
-            self.seen += 1;
+            self.waiting = Some(*seg);
         }
     }
 
     /// After the last window: `length` is the plan's path length.
     pub fn finish(&mut self, program: &ProcessProgram, length: f64) {
-        if let Some((prev, at)) = self.waiting.take() {
-            self.count(program, &prev, at, None);
+        if let Some(prev) = self.waiting.take() {
+            self.count(program, &prev, None);
         }
         self.length = length;
     }
 
-    /// Counts segment `seg` (number `at` of the plan), `next` the laser of the one after it.
-    fn count(&mut self, program: &ProcessProgram, seg: &Segment, at: usize, next: Option<&Laser>) {
+    /// Counts segment `seg`, `next` the laser of the one after it.
+    fn count(&mut self, program: &ProcessProgram, seg: &Segment, next: Option<&Laser>) {
         let laser = laser_of(program, seg);
         let rapid = program
             .ops
@@ -237,14 +234,12 @@ impl PlanTotals {
         if self.section.is_none()
             && let Some(p) = pulse
         {
-            self.section = Some((p.clone(), seg.t_start, seg.s_start, at));
+            self.section = Some((p.clone(), seg.t_start, seg.s_start));
         }
-        if let Some((p, t0, s0, first)) = &self.section {
+        if let Some((p, t0, s0)) = &self.section {
             let goes_on = dwell_lit && next.and_then(|l| l.pulse.as_ref()) == Some(p);
             if !goes_on {
                 self.pulses_moving += Section {
-                    first: *first,
-                    last: at,
                     mode: p.mode,
                     t0: *t0,
                     t1: seg.t_start + seg.motion_duration(),

@@ -9,7 +9,7 @@
 //! from the row's power to the run's: the plan's speed is the row's, the power the run's.
 
 use crate::axes::Axes;
-use crate::motion::power::{self, PowerBlock};
+use crate::motion::power::PowerBlock;
 use crate::motion::{Job, tool_pose};
 use crate::program::{Laser, Op, OpKind, P3, dist};
 use std::borrow::Cow;
@@ -23,26 +23,17 @@ pub(super) struct Piece<'a> {
     pub blocks: Vec<PowerBlock>,
 }
 
-/// The pieces of motion op `i` starting at `from` (axes `from_q`); `split` asks for the lit
-/// sub-blocks (`power::lit_blocks`: the coupled power's, and the planned speed's).
+/// The pieces of motion op `i` starting at `from` (axes `from_q`); `blocks`: its lit
+/// sub-blocks where the dialect writes them (`power::lit_blocks`: the coupled power's, and the
+/// planned speed's; `emit::facts::LitBlocks`), else none.
 pub(super) fn pieces<'j>(
     job: &'j Job,
-    facts: Option<&crate::emit::PlanFacts>,
+    blocks: Vec<PowerBlock>,
     i: usize,
     from: P3,
     from_q: Axes,
-    split: bool,
 ) -> Vec<Piece<'j>> {
     let op = &job.program.ops[i];
-    let blocks = if split {
-        // A plan made in windows left them in `facts` (`emit::PlanFacts`).
-        match facts {
-            Some(f) => f.lit_blocks(i),
-            None => power::lit_blocks(job, i),
-        }
-    } else {
-        Vec::new()
-    };
     let OpKind::Line {
         to,
         feed_mm_s,
