@@ -279,9 +279,10 @@ pub fn plan_program(program: ProcessProgram) -> Result<Job, MotionError> {
 }
 
 /// Plans the staged program whole and judges it (`held::check_held`). Every corner between lit
-/// chords is blended first. On a machine that orients the beam, blending a lit curve's chords
-/// one by one can lower the lit speed below the programmed one (their curvature returns to
-/// zero at every chord midpoint: the arm's sections); the plan is then made again with the
+/// chords is blended first. On a machine that orients the beam, the blends can lower the lit
+/// speed below the programmed one where a run of chords cannot share its curvature (the arm's
+/// sections at 10 mm/s: the chord refinement halves the chords in places, and a short chord's
+/// blend that bends from zero curvature needs more jerk); the plan is then made again with the
 /// velocity step at those corners (`Along::step_corners`, issue 13 item 3: what is left), and
 /// judged again.
 fn plan_whole(st: Staged) -> Result<Job, MotionError> {

@@ -8,13 +8,14 @@
 //! limits slow the path there as much as every axis needs, on a flat bed; on an oriented
 //! machine the plan must hold the lit speed) — and must stay within every limit at every
 //! sample (1e-6 relative), on every example and on random paths on every stock machine. What
-//! is left: where blending an oriented machine's lit chords one by one would lower the lit
-//! speed below the programmed one (`lase::plan::speed_not_held`: the arm's sections at
-//! 10 mm/s, whose chords' blends return their curvature to zero at every chord midpoint), the
-//! plan is made again with the junction-deviation velocity step at those corners. [`WORST`]
-//! pins the examples that have such corners (none since the arm follows at 3.5 mm/s), each at
-//! its measured worst, so they can only get better; the random paths are checked everywhere
-//! but within 4 ms of such a corner.
+//! is left: where blending an oriented machine's lit chords would lower the lit speed below
+//! the programmed one (`lase::plan::speed_not_held`: the arm's sections at 10 mm/s, whose runs
+//! of chords share their curvature but break where the chord refinement halves the chords),
+//! the plan is made again with the junction-deviation velocity step at those corners (at
+//! 6 mm/s the arm's section needs none: `the_arm_section_at_6_mm_s_…`). [`WORST`] pins the
+//! examples that have such corners (none since the arm example follows at 3.5 mm/s, what
+//! LinuxCNC's parabolic blends hold), each at its measured worst, so they can only get better;
+//! the random paths are checked everywhere but within 4 ms of such a corner.
 
 mod common;
 
@@ -404,4 +405,79 @@ proptest! {
         let bad = violations_of(&machine, &worst, |_| (1.0, 1.0, 1.0));
         prop_assert!(bad.is_empty(), "{src}\nover the limits:\n{}", bad.join("\n"));
     }
+}
+
+/// The arm example's section at `feed` mm/s (its own tolerance, one pass and back).
+fn arm_section(feed: f64) -> String {
+    let src = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/surface_hardening_arm.lase"),
+    )
+    .unwrap();
+    src.replace("let sections = 6", "let sections = 2")
+        .replace("at 10 mm/s", &format!("at {feed} mm/s"))
+}
+
+/// Every blended corner whose blend shares its curvature (a lit chord run of an oriented
+/// machine) passes its corner within the corner tolerance δ in part space, measured through
+/// the forward kinematics (`blend.rs` bounds it to first order from the spot's part-space
+/// directions); returns how many such corners and the worst distance over δ.
+fn shared_corners_within_tolerance(job: &Job, standoff: f64) -> (usize, f64) {
+    let p = &job.plan;
+    let delta = job.program.planner.junction_deviation_mm;
+    let (mut count, mut worst) = (0, 0.0f64);
+    for (i, s) in p.segments().iter().enumerate() {
+        // The half after its corner starts at the corner's σ = 0.
+        let Some((b, true)) = p.blend_of(i) else {
+            continue;
+        };
+        if b.shared == 0 {
+            continue;
+        }
+        let at = p.sample(s.t_start).pos;
+        let spot = job.kin.forward_at(&at, standoff).spot;
+        let corner = job.kin.forward_at(&b.corner, standoff).spot;
+        worst = worst.max((spot - corner).norm() / delta);
+        count += 1;
+    }
+    (count, worst)
+}
+
+/// The arm's section at 6 mm/s: its lit chord runs share their curvature (part-space bound,
+/// `blend.rs` "Runs of chords"), so the plan holds the programmed speed with every lit corner
+/// blended — no velocity step — and every axis stays within its velocity, acceleration and
+/// jerk; each shared blend passes within δ of its corner, through the forward kinematics.
+/// (At the example's 10 mm/s the runs break where the chord refinement halves the chords:
+/// there the blend of a 0.05 mm chord cannot bend from zero within the jerk limits, and the
+/// plan keeps the velocity step — `WORST`.)
+#[test]
+fn the_arm_section_at_6_mm_s_holds_its_speed_with_blended_lit_chords() {
+    let src = arm_section(6.0);
+    let mut files = MemFiles::new([("arm.lase", src.as_str())]);
+    let (_, job) = compile::compile(&mut files, "arm.lase").unwrap_or_else(|(_, f)| panic!("{f}"));
+    assert!(
+        stepped_lit_corners(&job).is_empty(),
+        "no stepped lit corner"
+    );
+    let bad = violations("arm at 6 mm/s", &job);
+    assert!(bad.is_empty(), "over the limits:\n{}", bad.join("\n"));
+    let (count, worst) = shared_corners_within_tolerance(&job, 15.0);
+    eprintln!("arm at 6 mm/s: {count} shared blends, worst spot deviation {worst:.4} δ");
+    assert!(count > 100, "{count} blends share their curvature");
+    assert!(
+        worst <= 1.0,
+        "a shared blend passes {worst} δ from its corner"
+    );
+}
+
+/// rotary_engrave's lit glyph curves are chord runs on an oriented machine (mm and rad): their
+/// blends share the curvature and pass within δ of their corners on the surface.
+#[test]
+fn rotary_engrave_shares_curvature_within_the_corner_tolerance() {
+    let ex = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rotary_engrave.lase");
+    let (_, job) =
+        compile::compile(&mut FsFiles, ex.to_str().unwrap()).unwrap_or_else(|(_, f)| panic!("{f}"));
+    let (count, worst) = shared_corners_within_tolerance(&job, 0.0);
+    eprintln!("rotary_engrave: {count} shared blends, worst spot deviation {worst:.4} δ");
+    assert!(count > 0);
+    assert!(worst <= 1.0 + 1e-9, "{worst} δ");
 }

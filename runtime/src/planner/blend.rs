@@ -60,9 +60,17 @@
 //! (`Blend::shared` keeps the level at each end), runs shorter than `MIN_RUN` midpoints keep
 //! the smoothstep (their ramps would cost more than they gain), and a shared curvature is used
 //! only where both blends stay within δ of their corners with it (`|3/16·ℓ·Δu + ℓ²/16·(g0 +
-//! g1)|`, whatever the other ends share) — on Cartesian paths only, where that is the spot's
-//! distance. Each blend's limits come from its own largest `|q'|`, `|q''|`, `|q'''|`
-//! (`Blend::bounds`).
+//! g1)|`, whatever the other ends share). On a Cartesian path that is the spot's distance; where
+//! a length is a part-space chord of mm and rad axes (oriented machines) the same bound is
+//! taken in part space, to first order, from the spot's part-space directions of the three
+//! moves (`judge::part_blend`: `J·Δq/length` is the spot's unit direction, so the Jacobian maps
+//! the axis-space offset and shared curvature to those of the part-space rates; exact on the
+//! rotary attachment's linear map, 0.06 δ at most through the arm's forward kinematics on its
+//! section at 6 mm/s, `trace_axis_limits`). Two blends abut where their reaches cover the chord between them to
+//! within [`ABUT`]: a spline's chords are equal in its parameter, not in length, and leave a
+//! straight piece of a few 1e-9 of the chord between half-chord reaches (the acceleration dip
+//! across it lasts under 1e-6·L/v and moves no axis measurably). Each blend's limits come from
+//! its own largest `|q'|`, `|q''|`, `|q'''|` (`Blend::bounds`).
 //!
 //! **In the plan.** `prepare` splits each move into the second half of the blend at its start,
 //! its straight middle, and the first half of the blend at its end; all three keep the move's
@@ -95,8 +103,10 @@ pub const DEVIATION: f64 = 3.0 / 16.0;
 const STRAIGHT: f64 = 1e-12;
 
 /// Relative slack on "two blends abut": their reaches add up to the length of the chord
-/// between them (each is at most half of it).
-const ABUT: f64 = 1e-9;
+/// between them (each is at most half of it). A spline's chords, equal in its parameter, differ
+/// in length by up to 2e-7 of a chord from one to the next on the arm's sections (1e-9 left
+/// almost every run unshared there).
+const ABUT: f64 = 1e-6;
 
 /// Cosine of a reversal on a Cartesian path (stop there).
 const REVERSAL_COS: f64 = -1.0 + 1e-9;

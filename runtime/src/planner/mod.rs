@@ -317,8 +317,8 @@ pub struct Along {
     /// A corner between two such moves keeps the junction-deviation model (an axis velocity
     /// step) under `Corners::Blend`. lase sets it on the lit moves of an oriented machine only
     /// when the plan with every lit corner blended could not hold the lit speed (the arm's
-    /// sections: their chords' blends do not share their curvature off Cartesian paths yet;
-    /// issue 13, item 3: what is left).
+    /// sections at 10 mm/s, whose runs of chords break where the chords are halved; issue 13,
+    /// item 3: what is left).
     pub step_corners: bool,
 }
 

@@ -118,16 +118,58 @@ pub(super) fn shape_at(
     )
 }
 
+/// Where the deviation of the blends around move `m` is measured (`raw_g`, `shared_g`).
+#[derive(Clone, Copy, PartialEq)]
+enum Space {
+    /// Every length is the axis-space length: the axis-space deviation is the spot's.
+    Axes,
+    /// Some length is a part-space chord of mm and rad axes (an oriented machine): the spot's,
+    /// to first order, from the moves' part-space directions (`part_blend`).
+    Part,
+}
+
+/// How the deviation of the blends around move `m` is measured, if it can be: every length is
+/// the axis-space length, or the spot's part-space direction is known on all three moves.
+fn space_of(src: &impl MoveSource, m: usize) -> Option<Space> {
+    let infos = [src.info(m - 1), src.info(m), src.info(m + 1)];
+    if infos.iter().all(|i| i.euclidean) {
+        return Some(Space::Axes);
+    }
+    let known = |d: &[f64; 3]| d.iter().any(|&x| x != 0.0);
+    infos
+        .iter()
+        .all(|i| known(&i.part_dir))
+        .then_some(Space::Part)
+}
+
+/// The blend `b` at the junction after move `i` as the spot sees it, to first order: the same
+/// corner and reach, with the spot's part-space unit directions of moves `i` and `i + 1` for
+/// its rates. Where a length is the spot's part-space chord, `J·Δq/length` is the spot's unit
+/// direction (J the kinematics' Jacobian), so `J` maps the blend's axis-space offset from its
+/// corner (`3/16·ℓ·Δu + ℓ²/16·(g0 + g1)`, `Blend::deviation`) to this blend's in part space,
+/// and the curvature the axes share (`shared_curvature`, a difference of rates) to the one the
+/// part-space rates share: the part-space turn `plan_along` bounds the smoothstep's reach by
+/// (`shape`), extended to the shared curvature's term.
+fn part_blend(src: &impl MoveSource, b: &Blend, i: usize) -> Blend {
+    let dir = |k: usize| {
+        let d = src.info(k).part_dir;
+        Axes::from_fn(|k| if k < 3 { d[k] } else { 0.0 })
+    };
+    Blend {
+        u: dir(i),
+        w: dir(i + 1),
+        ..*b
+    }
+}
+
 /// The curvature the blends at both ends of move `m` would share at its midpoint: where they
-/// abut (the move is a chord wholly inside them) on a Cartesian path (the deviation below is
-/// the spot's there).
+/// abut (the move is a chord wholly inside them) and their deviation can be measured as the
+/// spot's (`space_of`).
 fn raw_g(src: &impl MoveSource, m: usize, delta: f64, n: usize) -> Option<Axes> {
     if m == 0 || m.saturating_add(1) >= src.count() {
         return None;
     }
-    if !(src.info(m - 1).euclidean && src.info(m).euclidean && src.info(m + 1).euclidean) {
-        return None;
-    }
+    space_of(src, m)?;
     let (a, b) = (
         shape_at(src, m - 1, delta, n).ok()?,
         shape_at(src, m, delta, n).ok()?,
@@ -165,7 +207,9 @@ fn level_at(src: &impl MoveSource, m: usize, delta: f64, n: usize) -> Option<(u8
 
 /// The curvature the blends at both ends of move `m` share at its midpoint: where they sample
 /// one curve (`raw_g`) and stay within the corner tolerance with it, whatever their other ends
-/// share (so each end is decided on its own).
+/// share (so each end is decided on its own). The deviation is the spot's: in axis space on a
+/// Cartesian path, else in part space to first order (`part_blend`), with the part-space rates'
+/// shared curvature at the same levels.
 fn shared_g(src: &impl MoveSource, m: usize, delta: f64, n: usize) -> Option<(u8, Axes)> {
     let (level, g) = level_at(src, m, delta, n)?;
     let (a, b) = (
@@ -173,16 +217,36 @@ fn shared_g(src: &impl MoveSource, m: usize, delta: f64, n: usize) -> Option<(u8
         shape_at(src, m, delta, n).ok()?,
     );
     let z = Axes::ZERO;
-    let scaled_g = |k: usize| level_at(src, k, delta, n).map(|(_, g)| g);
-    let before = [z, scaled_g(m - 1).unwrap_or(z)];
-    let after = [z, scaled_g(m + 1).unwrap_or(z)];
-    let within = |b: &Blend, g0: &[Axes], g1: &[Axes]| {
+    let within = |b: &Blend, g0: &[Axes], g1: &[Axes], n: usize| {
         g0.iter().all(|g0| {
             g1.iter()
                 .all(|g1| b.deviation(g0, g1, n) <= delta * (1.0 + 1e-9))
         })
     };
-    (within(&a, &before, &[g]) && within(&b, &[g], &after)).then_some((level, g))
+    if space_of(src, m)? == Space::Axes {
+        let scaled_g = |k: usize| level_at(src, k, delta, n).map(|(_, g)| g);
+        let before = [z, scaled_g(m - 1).unwrap_or(z)];
+        let after = [z, scaled_g(m + 1).unwrap_or(z)];
+        return (within(&a, &before, &[g], n) && within(&b, &[g], &after, n)).then_some((level, g));
+    }
+    // The part-space blends around midpoint k (moves k − 1, k, k + 1 have known directions
+    // where it shares a curvature: `space_of`).
+    let part = |k: usize| -> Option<(Blend, Blend)> {
+        Some((
+            part_blend(src, &shape_at(src, k - 1, delta, n).ok()?, k - 1),
+            part_blend(src, &shape_at(src, k, delta, n).ok()?, k),
+        ))
+    };
+    let part_g = |k: usize| -> Option<Axes> {
+        let (level, _) = level_at(src, k, delta, n)?;
+        let (pa, pb) = part(k)?;
+        Some(shared_at(&pa, &pb, level))
+    };
+    let (pa, pb) = part(m)?;
+    let gp = shared_at(&pa, &pb, level);
+    let before = [z, part_g(m - 1).unwrap_or(z)];
+    let after = [z, part_g(m + 1).unwrap_or(z)];
+    (within(&pa, &before, &[gp], 3) && within(&pb, &[gp], &after, 3)).then_some((level, g))
 }
 
 /// The junction after move `i`: its blend with the curvatures it shares with its neighbours on
