@@ -39,6 +39,10 @@ struct Measured {
     edge_place: f64,
     /// Largest difference of the axis-space speed at an edge, mm/s (deg/s).
     edge_speed: f64,
+    /// Where the executed edges fall along the path from the planned ones, in servo periods
+    /// of the edge's speed (negative: early), least, mean and greatest over the edges passed
+    /// moving (above 1 mm/s).
+    edge_periods: [f64; 3],
     pulses_planned: u64,
     pulses_executed: u64,
     /// Largest distance of a lit sample from the planned lit path, axis space (mm, deg).
@@ -48,23 +52,40 @@ struct Measured {
     beam_on_model_s: f64,
 }
 
-/// Axis positions (external units) and beam of the plan every `dt` from the first move.
-fn planned(job: &Job, dt: f64) -> Vec<(Vec<f64>, bool)> {
+/// Axis positions (external units) and beam of the plan `t` s after the first move.
+fn planned_at(job: &Job, t: f64) -> (Vec<f64>, bool) {
     let axes = &job.program.machine.axes;
-    let t0 = job.initial_dwell_s;
+    let t = job.initial_dwell_s + t.clamp(0.0, job.plan.duration());
+    let (s, lit, _) = lase_runtime::report::beam_at(job, t);
+    let q = axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| to_external(a.kind, s.pos[i]))
+        .collect();
+    (q, lit)
+}
+
+/// [`planned_at`] every `dt` from the first move.
+fn planned(job: &Job, dt: f64) -> Vec<(Vec<f64>, bool)> {
     let n = (job.plan.duration() / dt).ceil() as usize;
-    (0..=n)
-        .map(|k| {
-            let t = t0 + (k as f64 * dt).min(job.plan.duration());
-            let (s, lit, _) = lase_runtime::report::beam_at(job, t);
-            let q = axes
-                .iter()
-                .enumerate()
-                .map(|(i, a)| to_external(a.kind, s.pos[i]))
-                .collect();
-            (q, lit)
-        })
-        .collect()
+    (0..=n).map(|k| planned_at(job, k as f64 * dt)).collect()
+}
+
+/// Where the plan's beam edge found between samples `i - 1` and `i` (every `dt`) lies
+/// exactly: the edge's time bisected to 1 ns, so the planned place carries no sampling
+/// error (a 1 ms sample lands up to 0.1 mm past an edge passed at 100 mm/s).
+fn planned_edge(job: &Job, i: usize, dt: f64) -> Vec<f64> {
+    let (mut a, mut b) = ((i.max(1) - 1) as f64 * dt, i as f64 * dt);
+    let lit_b = planned_at(job, b).1;
+    while b - a > 1e-9 {
+        let m = 0.5 * (a + b);
+        if planned_at(job, m).1 == lit_b {
+            b = m;
+        } else {
+            a = m;
+        }
+    }
+    planned_at(job, b).0
 }
 
 fn dist(a: &[f64], b: &[f64]) -> f64 {
@@ -167,7 +188,8 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
         - 1;
     let last = (1..samples.len()).rev().find(|&i| moved(i)).unwrap();
     let run = &samples[first..=last];
-    let dt = 0.001;
+    // The harness samples every servo period, the machine file's (`servo_period`).
+    let dt = job.program.machine.servo_period_s();
     let executed_s = (last - first) as f64 * dt;
     let moving = |q: &[Vec<f64>]| q.windows(2).filter(|w| dist(&w[0], &w[1]) > 1e-9).count();
     let summary = lase_runtime::report::summarize(&job);
@@ -179,12 +201,41 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
     let run_edges = edges(run.iter().map(|s| s.dout[0]));
     let mut edge_place: f64 = 0.0;
     let mut edge_speed: f64 = 0.0;
+    let mut along: Vec<f64> = Vec::new();
     for (&(pi, pon), &(ri, ron)) in plan_edges.iter().zip(&run_edges) {
         assert_eq!(pon, ron, "{example}: the edges alternate alike");
-        edge_place = edge_place.max(dist(&plan_q[pi], &run_q[ri]));
+        let edge = planned_edge(&job, pi, dt);
+        edge_place = edge_place.max(dist(&edge, &run_q[ri]));
         let (vp, vr) = (speed(&plan_q, pi, dt), speed(&run_q, ri, dt));
         edge_speed = edge_speed.max((vr - vp).abs());
+        if vp > 1.0 {
+            // Signed along the planned direction of travel there.
+            let (a, b) = (
+                &plan_q[pi.saturating_sub(1)],
+                &plan_q[(pi + 1).min(plan_q.len() - 1)],
+            );
+            let d: Vec<f64> = a.iter().zip(b.iter()).map(|(x, y)| y - x).collect();
+            let n = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if n > 0.0 {
+                let s: f64 = run_q[ri]
+                    .iter()
+                    .zip(&edge)
+                    .zip(&d)
+                    .map(|((r, e), u)| (r - e) * u / n)
+                    .sum();
+                along.push(s / (vp * dt));
+            }
+        }
     }
+    let edge_periods = if along.is_empty() {
+        [0.0; 3]
+    } else {
+        [
+            along.iter().copied().fold(f64::INFINITY, f64::min),
+            along.iter().sum::<f64>() / along.len() as f64,
+            along.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ]
+    };
     // Each lit run against its planned lit run (the k-th with the k-th: the edges pair up),
     // walking forward along the planned one.
     let runs = |e: &[(usize, bool)], n: usize| -> Vec<(usize, usize)> {
@@ -232,8 +283,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
     // LinuxCNC ran.
     let limits = lase_runtime::link::linuxcnc::tp::TpLimits::for_machine(
         &job.program.machine,
-        lase_runtime::link::linuxcnc::config::ConfigOptions::default().servo_period_ns as f64
-            * 1e-9,
+        job.program.machine.servo_period_s(),
     );
     let model = lase_runtime::link::linuxcnc::tp::run_program_from(&nc, &limits, &run[0].joints)
         .unwrap_or_else(|e| panic!("{example}: {e}"));
@@ -252,6 +302,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
         edges_executed: run_edges.len(),
         edge_place,
         edge_speed,
+        edge_periods,
         pulses_planned: summary.pulses,
         pulses_executed,
         deviation,
@@ -260,7 +311,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
 
 fn report(ms: &[Measured]) {
     eprintln!(
-        "{:<30} {:>9} {:>9} {:>7} {:>8} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8}",
+        "{:<30} {:>9} {:>9} {:>7} {:>8} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8} {}",
         "example",
         "plan s",
         "LinuxCNC",
@@ -274,11 +325,12 @@ fn report(ms: &[Measured]) {
         "edge Δ",
         "edge Δv",
         "pulses",
-        "dev"
+        "dev",
+        "edge periods min/mean/max"
     );
     for m in ms {
         eprintln!(
-            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>8.4} {:>7.4} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
+            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>8.4} {:>7.4} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4} {:>6.2}/{:.2}/{:.2}",
             m.name,
             m.planned_s,
             m.executed_s,
@@ -294,7 +346,10 @@ fn report(ms: &[Measured]) {
             m.edge_speed,
             m.pulses_executed,
             m.pulses_planned,
-            m.deviation
+            m.deviation,
+            m.edge_periods[0],
+            m.edge_periods[1],
+            m.edge_periods[2]
         );
     }
 }

@@ -1,0 +1,106 @@
+//! Beam switches placed ahead of LinuxCNC's joint pipeline (issue 13: every beam edge at the
+//! planned place on the real controller).
+//!
+//! LinuxCNC 2.9 switches a motion-synchronized output (`M62`/`M63`/`M67`) from its trajectory
+//! planner, in the servo period in which tp takes up the block the output is attached to
+//! (tp.c `tpToggleDIOs` → `emcmotDioWrite`, which writes the HAL pin at once). The joints do
+//! not get tp's position at once: control.c `get_pos_cmds` feeds each tp point into a cubic
+//! interpolator per joint (`cubicAddPoint`), and `cubicInterpolate` returns the way point
+//! (x0 + 4·x1 + x2) / 6 of the 4-point queue, centred on the point added two trajectory
+//! periods before (cubic.c; at `TRAJ_PERIOD` = `SERVO_PERIOD`, what lase's INI leaves it,
+//! two servo periods). The output therefore switches while the joints are still two periods
+//! short of the block's start, less the part of a period tp ran past that start before the
+//! period ended (0 to 1 period, ½ on average): on the real machine the beam went on and off
+//! 1–3 periods before its planned place (0.057 mm at 20 mm/s, 0.28 mm at 100 mm/s with the
+//! test's own 1 ms rounding).
+//!
+//! So on LinuxCNC the writer attaches each beam switch [`LEAD_PERIODS`] servo periods of the
+//! planned edge speed further along the path: the block is cut there and the switch lines
+//! written between its two parts. The edge then falls within ±½ servo period of travel of its
+//! planned place, the spread tp's switching once per period leaves. At an edge the plan
+//! passes at rest the lead is 0: a switch is never carried past a stop.
+//!
+//! Only Cartesian (units-per-minute) programs are cut: in inverse time (G93) a block's F is
+//! its time, and a cut block would need its own.
+
+use crate::program::{Op, OpKind, P3};
+
+/// Servo periods a synchronized output leads the joints by (module doc): the cubic
+/// interpolator's two, less tp's mean half period past the block start.
+pub(super) const LEAD_PERIODS: f64 = 1.5;
+
+/// Switch lines waiting to be written `left` mm further along the path.
+#[derive(Debug)]
+pub(super) struct Pending {
+    pub lines: Vec<String>,
+    pub left: f64,
+    /// They are the laser-off lines (the footer need not repeat them).
+    pub off: bool,
+    /// The servo period, s.
+    pub servo_s: f64,
+}
+
+/// Servo periods each part of a cut block must last at its feed: tp.c caps a segment's speed
+/// at its length over `TP_MIN_SEGMENT_CYCLES` (1.02) periods, so a shorter part would slow
+/// the machine at the beam's edge.
+const MIN_PART_PERIODS: f64 = 1.25;
+
+/// Whether block `sub` (`len` mm from where the spot is, F `cap` or its own) may be cut
+/// `left` mm along: a straight block only (a short arc piece runs as its chord, canon's
+/// naive CAM, and kinks against the move before it, which tp passes slowly), and only where
+/// the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (the part before
+/// lasts 1.5 periods of the edge speed, which never exceeds the feed). Elsewhere the switch
+/// goes to the nearer end of the block.
+pub(super) fn cuttable(
+    sub: &Op,
+    len: f64,
+    left: f64,
+    cap: Option<f64>,
+    machine: &crate::machine::Machine,
+    servo_s: f64,
+) -> bool {
+    let feed = match &sub.kind {
+        OpKind::Line { feed_mm_s, .. } => cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s)),
+        OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
+        _ => return false,
+    };
+    left > 0.0 && len - left >= MIN_PART_PERIODS * servo_s * feed
+}
+
+/// How far the beam switch at an edge passed at `v` mm/s is carried on a machine with servo
+/// period `servo_s` (s).
+pub(super) fn distance(v: f64, servo_s: f64) -> f64 {
+    let d = LEAD_PERIODS * servo_s * v;
+    if d >= MIN_LEAD_MM { d } else { 0.0 }
+}
+
+/// The least lead written, mm: below it (an edge passed at under 0.7 mm/s at 1 ms) the cut
+/// would move the switch by less than the program's 0.1 µm words resolve and 1 µm a beam
+/// edge could show.
+const MIN_LEAD_MM: f64 = 1e-3;
+
+/// `op` with its end moved to `to` (a block cut from it ends there; arcs keep their centre).
+pub(super) fn retarget(op: &Op, to: P3) -> Op {
+    let mut sub = op.clone();
+    match &mut sub.kind {
+        OpKind::Rapid { to: t, .. } | OpKind::Line { to: t, .. } | OpKind::Arc { to: t, .. } => {
+            *t = to;
+        }
+        _ => {}
+    }
+    sub
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_lead_is_one_and_a_half_servo_periods_of_the_edge_speed() {
+        // 20 mm/s at 1 ms: 0.03 mm; 100 mm/s: 0.15 mm; at rest nothing is carried.
+        assert!((distance(20.0, 0.001) - 0.03).abs() < 1e-12);
+        assert!((distance(100.0, 0.001) - 0.15).abs() < 1e-12);
+        assert_eq!(distance(0.0, 0.001), 0.0);
+        assert_eq!(distance(0.5, 0.001), 0.0);
+    }
+}
