@@ -311,7 +311,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
 
 fn report(ms: &[Measured]) {
     eprintln!(
-        "{:<30} {:>9} {:>9} {:>7} {:>8} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8} {}",
+        "{:<30} {:>9} {:>9} {:>7} {:>8} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8} edge periods min/mean/max",
         "example",
         "plan s",
         "LinuxCNC",
@@ -325,8 +325,7 @@ fn report(ms: &[Measured]) {
         "edge Δ",
         "edge Δv",
         "pulses",
-        "dev",
-        "edge periods min/mean/max"
+        "dev"
     );
     for m in ms {
         eprintln!(
