@@ -224,6 +224,19 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
                     .map(|((r, e), u)| (r - e) * u / n)
                     .sum();
                 along.push(s / (vp * dt));
+                if std::env::var_os("LASE_LINUXCNC_EDGES").is_some() {
+                    // Every edge passed moving: where, how far along, at what speeds.
+                    eprintln!(
+                        "{example} edge {} {}: planned {edge:.4?} executed {:.4?} along {:+.4} mm \
+                         ({:+.2} periods) v {vp:.2}/{vr:.2} line {}",
+                        along.len(),
+                        if pon { "on" } else { "off" },
+                        run_q[ri],
+                        s,
+                        s / (vp * dt),
+                        run[ri].line
+                    );
+                }
             }
         }
     }

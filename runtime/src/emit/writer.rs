@@ -64,7 +64,7 @@ impl Out<'_> {
     fn put(&mut self, text: &str, op: Option<u32>) -> io::Result<()> {
         // A comment does nothing on the controller: a carried switch may follow it.
         if !text.starts_with('(') {
-            self.flush_pending(op)?;
+            self.flush_pending()?;
         }
         self.line.text.clear();
         if self.dialect == Dialect::Iso {
@@ -82,7 +82,7 @@ impl Out<'_> {
 
     /// Writes one block, numbered in ISO, that `write` builds in place (no copy of its own).
     fn put_with(&mut self, write: impl FnOnce(&mut String), op: Option<u32>) -> io::Result<()> {
-        self.flush_pending(op)?;
+        self.flush_pending()?;
         self.line.text.clear();
         if self.dialect == Dialect::Iso {
             self.block = if self.block >= BLOCK_WRAP {
@@ -100,10 +100,10 @@ impl Out<'_> {
     /// Writes the carried beam switch where the path stands now: another line comes before the
     /// path reaches its place (a stop, a power step, the program's end), and a switch is
     /// never written after a line that came after it.
-    fn flush_pending(&mut self, op: Option<u32>) -> io::Result<()> {
+    fn flush_pending(&mut self) -> io::Result<()> {
         if let Some(p) = self.pending.take() {
             for l in &p.lines {
-                self.put(l, op)?;
+                self.put(l, p.tag)?;
             }
             self.after_off = p.off;
         }
@@ -196,6 +196,10 @@ struct Modal {
     /// rounding becomes a speed error of its size over the block's length, which on the
     /// shortest oriented blocks (a few hundredths of a mm) was 0.02 % of the surface speed.
     fine: bool,
+    /// The direction of travel where the last block written ends (part space, unit; `None`
+    /// before the first): a carried beam switch cuts a block only where it continues that
+    /// one tangentially (`lead::cuttable`).
+    dir: Option<P3>,
 }
 
 pub(super) fn write(
@@ -294,6 +298,7 @@ pub(super) fn write(
         location: String::new(),
         inverse_time: false,
         fine: job.kin.inverse_time(),
+        dir: None,
     };
     let inverse_time = job.kin.inverse_time();
     // LinuxCNC's synchronized outputs lead its joints (`lead`): the beam switches are carried
@@ -428,7 +433,7 @@ pub(super) fn write(
                                 })
                                 .collect();
                             // A switch off still carried is written first, where it stands.
-                            out.flush_pending(tag)?;
+                            out.flush_pending()?;
                             let left = if k == 0 { edge_lead(i, 0) } else { 0.0 };
                             if left > 0.0 {
                                 out.pending = Some(lead::Pending {
@@ -436,6 +441,7 @@ pub(super) fn write(
                                     left,
                                     off: false,
                                     servo_s: servo_s.unwrap_or(0.0),
+                                    tag,
                                 });
                             } else {
                                 for l in &lines {
@@ -565,7 +571,7 @@ pub(super) fn write(
                             .map(|t| format::fill(t, words(0.0)))
                             .collect();
                         // A switch on still carried (a lit move shorter than its lead) first.
-                        out.flush_pending(tag)?;
+                        out.flush_pending()?;
                         let left = edge_lead(i, 1);
                         if left > 0.0 {
                             out.pending = Some(lead::Pending {
@@ -573,6 +579,7 @@ pub(super) fn write(
                                 left,
                                 off: true,
                                 servo_s: servo_s.unwrap_or(0.0),
+                                tag,
                             });
                         } else {
                             for l in &lines {
@@ -588,7 +595,7 @@ pub(super) fn write(
     }
 
     settle_upto(ops.len(), &mut out, &mut m)?;
-    out.flush_pending(None)?;
+    out.flush_pending()?;
     if m.inverse_time {
         // Back to units-per-minute feeds, the mode any program after this one expects.
         out.put("G94", None)?;
@@ -797,7 +804,7 @@ fn write_block(
             // Its place lies past this block: it waits for the next.
             p.left = (p.left - len).max(0.0);
             carried = Some(p);
-        } else if lead::cuttable(&sub, len, p.left, cap, machine, p.servo_s) {
+        } else if lead::cuttable(&sub, m, len, (p.left, cap), machine, p.servo_s) {
             let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, p.left / len, arc_axes);
             out.put_with(
                 |line| motion_line(line, op, cut, cut_q, cap, m, machine, arc_axes),
@@ -805,11 +812,11 @@ fn write_block(
             )?;
             out.stats.motion_blocks += 1;
             out.pending = Some(p);
-            out.flush_pending(tag)?;
+            out.flush_pending()?;
         } else if p.left <= len - p.left {
             // Not cut (`lead::cuttable`): at the nearer end of the block.
             out.pending = Some(p);
-            out.flush_pending(tag)?;
+            out.flush_pending()?;
         } else {
             p.left = 0.0;
             carried = Some(p);
@@ -822,7 +829,7 @@ fn write_block(
     out.stats.motion_blocks += 1;
     out.pending = carried;
     if out.pending.as_ref().is_some_and(|p| p.left <= 0.0) {
-        out.flush_pending(tag)?;
+        out.flush_pending()?;
     }
     Ok(())
 }
@@ -947,6 +954,7 @@ fn motion_line(
         None => m.feed.unset(),
     }
     m.scratch = v;
+    m.dir = lead::direction(op, m.pos, to, true);
     m.pos = to;
     m.q = q;
 }

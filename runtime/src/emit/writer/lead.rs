@@ -38,6 +38,9 @@ pub(super) struct Pending {
     pub off: bool,
     /// The servo period, s.
     pub servo_s: f64,
+    /// The op whose switch it is: the lines keep its tag wherever they land, as a journal of
+    /// a live run reads them.
+    pub tag: Option<u32>,
 }
 
 /// Servo periods each part of a cut block must last at its feed: tp.c caps a segment's speed
@@ -47,15 +50,18 @@ const MIN_PART_PERIODS: f64 = 1.25;
 
 /// Whether block `sub` (`len` mm from where the spot is, F `cap` or its own) may be cut
 /// `left` mm along: a straight block only (a short arc piece runs as its chord, canon's
-/// naive CAM, and kinks against the move before it, which tp passes slowly), and only where
+/// naive CAM, and kinks against the move before it, which tp passes slowly), one that LinuxCNC
+/// joins tangentially to the block before it (else tp lays a blend arc over the junction,
+/// limited by the short first part, whose rest then runs at most its length per servo
+/// period: on the real machine dial_marks' circle went dark at 31 of 40 mm/s), and only where
 /// the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (the part before
 /// lasts 1.5 periods of the edge speed, which never exceeds the feed). Elsewhere the switch
 /// goes to the nearer end of the block.
 pub(super) fn cuttable(
     sub: &Op,
+    m: &super::Modal,
     len: f64,
-    left: f64,
-    cap: Option<f64>,
+    (left, cap): (f64, Option<f64>),
     machine: &crate::machine::Machine,
     servo_s: f64,
 ) -> bool {
@@ -64,7 +70,51 @@ pub(super) fn cuttable(
         OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
         _ => return false,
     };
-    left > 0.0 && len - left >= MIN_PART_PERIODS * servo_s * feed
+    let (Some(before), Some(start)) = (m.dir, direction(sub, m.pos, sub_end(sub), false)) else {
+        return false;
+    };
+    left > 0.0
+        && len - left >= MIN_PART_PERIODS * servo_s * feed
+        && tangent(before, start, feed, servo_s, machine)
+}
+
+/// The end a motion op's block runs to.
+fn sub_end(op: &Op) -> P3 {
+    op.target().unwrap_or_default()
+}
+
+/// tp.c `tpSetupTangent`'s rule, on the safe side: LinuxCNC passes a junction without a blend
+/// arc where turning at speed `v` within one servo period, plus the next segment's own
+/// acceleration, needs under 10 % (`ARC_BLEND_KINK_RATIO`) of the axes' acceleration
+/// (`link::linuxcnc::tp` models it in full; here the least linear axis acceleration bounds
+/// every component).
+fn tangent(a: P3, b: P3, v: f64, servo_s: f64, machine: &crate::machine::Machine) -> bool {
+    let acc = machine
+        .axes
+        .iter()
+        .filter(|x| x.kind == crate::machine::AxisKind::Linear)
+        .map(|x| x.a_max)
+        .fold(f64::INFINITY, f64::min);
+    if !(acc.is_finite() && acc > 0.0 && servo_s > 0.0) {
+        return false;
+    }
+    let turn = (0..3).map(|k| (b[k] - a[k]).abs()).fold(0.0, f64::max);
+    (v / servo_s + acc) * turn / acc < 0.1
+}
+
+/// The unit direction of travel of block `op` from `from` to `to`, where it starts (`end`
+/// false) or ends; `None` for a block that does not move.
+pub(super) fn direction(op: &Op, from: P3, to: P3, end: bool) -> Option<P3> {
+    let d = match &op.kind {
+        OpKind::Arc { center, ccw, .. } => {
+            let p = if end { to } else { from };
+            let (rx, ry) = (p[0] - center[0], p[1] - center[1]);
+            if *ccw { [-ry, rx, 0.0] } else { [ry, -rx, 0.0] }
+        }
+        _ => [to[0] - from[0], to[1] - from[1], to[2] - from[2]],
+    };
+    let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    (n > 1e-12).then(|| [d[0] / n, d[1] / n, d[2] / n])
 }
 
 /// How far the beam switch at an edge passed at `v` mm/s is carried on a machine with servo
