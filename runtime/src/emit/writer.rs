@@ -198,7 +198,7 @@ struct Modal {
     fine: bool,
     /// The direction of travel where the last block written ends (part space, unit; `None`
     /// before the first): a carried beam switch cuts a block only where it continues that
-    /// one tangentially (`lead::cuttable`).
+    /// one tangentially (`lead::cut_at`).
     dir: Option<P3>,
 }
 
@@ -804,8 +804,8 @@ fn write_block(
             // Its place lies past this block: it waits for the next.
             p.left = (p.left - len).max(0.0);
             carried = Some(p);
-        } else if lead::cuttable(&sub, m, len, (p.left, cap), machine, p.servo_s) {
-            let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, p.left / len, arc_axes);
+        } else if let Some(at) = lead::cut_at(&sub, m, len, (p.left, cap), machine, p.servo_s) {
+            let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, at / len, arc_axes);
             out.put_with(
                 |line| motion_line(line, op, cut, cut_q, cap, m, machine, arc_axes),
                 tag,
@@ -814,7 +814,7 @@ fn write_block(
             out.pending = Some(p);
             out.flush_pending()?;
         } else if p.left <= len - p.left {
-            // Not cut (`lead::cuttable`): at the nearer end of the block.
+            // Not cut (`lead::cut_at`): at the nearer end of the block.
             out.pending = Some(p);
             out.flush_pending()?;
         } else {

@@ -48,34 +48,45 @@ pub(super) struct Pending {
 /// the machine at the beam's edge.
 const MIN_PART_PERIODS: f64 = 1.25;
 
-/// Whether block `sub` (`len` mm from where the spot is, F `cap` or its own) may be cut
-/// `left` mm along: a straight block only (a short arc piece runs as its chord, canon's
-/// naive CAM, and kinks against the move before it, which tp passes slowly), one that LinuxCNC
-/// joins tangentially to the block before it (else tp lays a blend arc over the junction,
-/// limited by the short first part, whose rest then runs at most its length per servo
-/// period: on the real machine dial_marks' circle went dark at 31 of 40 mm/s), and only where
-/// the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (the part before
-/// lasts 1.5 periods of the edge speed, which never exceeds the feed). Elsewhere the switch
-/// goes to the nearer end of the block.
-pub(super) fn cuttable(
+/// Where block `sub` (`len` mm from where the spot is, F `cap` or its own) is cut to carry a
+/// switch `left` mm along it, if at all. Only a straight block (a short arc piece runs as its
+/// chord, canon's naive CAM, and kinks against the move before it, which tp passes slowly),
+/// and only where the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (tp.c
+/// caps a shorter segment's speed). Where LinuxCNC joins the block tangentially to the one
+/// before (tp.c's rule, [`tangent`]) the cut is at `left` (the part before lasts 1.5 periods
+/// of the edge speed, which never exceeds the feed). Elsewhere tp lays a blend arc over the
+/// junction that takes up to half of the first part, and what is left of it runs at most its
+/// length per servo period (on the real machine dial_marks' circle went dark at 31 of
+/// 40 mm/s after a cut 0.06 mm into its lead-out): the first part is then made at least twice
+/// [`MIN_PART_PERIODS`] long, and the switch, which tp makes where that part ends, after the
+/// blend, is late by what that adds (without the cut it came after the whole blend arc: 0.35
+/// mm on dial_marks). `None` (also where a rapid meets a feed, where tp stops): the switch goes
+/// to the nearer end of the block.
+pub(super) fn cut_at(
     sub: &Op,
     m: &super::Modal,
     len: f64,
     (left, cap): (f64, Option<f64>),
     machine: &crate::machine::Machine,
     servo_s: f64,
-) -> bool {
+) -> Option<f64> {
     let feed = match &sub.kind {
         OpKind::Line { feed_mm_s, .. } => cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s)),
         OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
-        _ => return false,
+        _ => return None,
     };
-    let (Some(before), Some(start)) = (m.dir, direction(sub, m.pos, sub_end(sub), false)) else {
-        return false;
+    // A rapid meeting a feed is a stop to tp.c (`tpCheckCanonType`): the edge is at rest there.
+    if (m.motion == Some("G0")) != matches!(sub.kind, OpKind::Rapid { .. }) {
+        return None;
+    }
+    let (before, start) = (m.dir?, direction(sub, m.pos, sub_end(sub), false)?);
+    let part = MIN_PART_PERIODS * servo_s * feed;
+    let at = if tangent(before, start, feed, servo_s, machine) {
+        left
+    } else {
+        left.max(2.0 * part)
     };
-    left > 0.0
-        && len - left >= MIN_PART_PERIODS * servo_s * feed
-        && tangent(before, start, feed, servo_s, machine)
+    (left > 0.0 && len - at >= part).then_some(at)
 }
 
 /// The end a motion op's block runs to.
