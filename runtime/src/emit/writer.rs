@@ -441,6 +441,7 @@ pub(super) fn write(
                                     left,
                                     off: false,
                                     servo_s: servo_s.unwrap_or(0.0),
+                                    v: edge_speeds(job, facts, i)[0],
                                     tag,
                                 });
                             } else {
@@ -579,6 +580,7 @@ pub(super) fn write(
                                 left,
                                 off: true,
                                 servo_s: servo_s.unwrap_or(0.0),
+                                v: edge_speeds(job, facts, i)[1],
                                 tag,
                             });
                         } else {
@@ -804,7 +806,7 @@ fn write_block(
             // Its place lies past this block: it waits for the next.
             p.left = (p.left - len).max(0.0);
             carried = Some(p);
-        } else if let Some(at) = lead::cut_at(&sub, m, len, (p.left, cap), machine, p.servo_s) {
+        } else if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine) {
             let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, at / len, arc_axes);
             out.put_with(
                 |line| motion_line(line, op, cut, cut_q, cap, m, machine, arc_axes),

@@ -38,6 +38,8 @@ pub(super) struct Pending {
     pub off: bool,
     /// The servo period, s.
     pub servo_s: f64,
+    /// The planned speed at the edge, mm/s.
+    pub v: f64,
     /// The op whose switch it is: the lines keep its tag wherever they land, as a journal of
     /// a live run reads them.
     pub tag: Option<u32>,
@@ -57,19 +59,20 @@ const MIN_PART_PERIODS: f64 = 1.25;
 /// of the edge speed, which never exceeds the feed). Elsewhere tp lays a blend arc over the
 /// junction that takes up to half of the first part, and what is left of it runs at most its
 /// length per servo period (on the real machine dial_marks' circle went dark at 31 of
-/// 40 mm/s after a cut 0.06 mm into its lead-out): the first part is then made at least twice
-/// [`MIN_PART_PERIODS`] long, and the switch, which tp makes where that part ends, after the
-/// blend, is late by what that adds (without the cut it came after the whole blend arc: 0.35
-/// mm on dial_marks). `None` (also where a rapid meets a feed, where tp stops): the switch goes
+/// 40 mm/s after a cut 0.06 mm into its lead-out): the first part then lasts at least twice
+/// [`MIN_PART_PERIODS`] at the edge speed, and the switch, which tp makes where that part
+/// ends, after the blend, is late by what that adds (without the cut it came after the whole
+/// blend arc: 0.35 mm on dial_marks). `None` (also where a rapid meets a feed, where tp stops): the switch goes
 /// to the nearer end of the block.
 pub(super) fn cut_at(
     sub: &Op,
     m: &super::Modal,
     len: f64,
-    (left, cap): (f64, Option<f64>),
+    p: &Pending,
+    cap: Option<f64>,
     machine: &crate::machine::Machine,
-    servo_s: f64,
 ) -> Option<f64> {
+    let (left, servo_s) = (p.left, p.servo_s);
     let feed = match &sub.kind {
         OpKind::Line { feed_mm_s, .. } => cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s)),
         OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
@@ -80,13 +83,14 @@ pub(super) fn cut_at(
         return None;
     }
     let (before, start) = (m.dir?, direction(sub, m.pos, sub_end(sub), false)?);
-    let part = MIN_PART_PERIODS * servo_s * feed;
     let at = if tangent(before, start, feed, servo_s, machine) {
         left
     } else {
-        left.max(2.0 * part)
+        // The first part runs at about the edge's speed (air_assist's lit end is passed at
+        // 2.2 mm/s: at its block's 12 mm/s the minimum let tp reach 8.8 there).
+        left.max(2.0 * MIN_PART_PERIODS * servo_s * p.v)
     };
-    (left > 0.0 && len - at >= part).then_some(at)
+    (left > 0.0 && len - at >= MIN_PART_PERIODS * servo_s * feed).then_some(at)
 }
 
 /// The end a motion op's block runs to.
