@@ -261,7 +261,13 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
         .iter()
         .zip(&runs(&run_edges, run_q.len()))
     {
-        let lit_plan = &plan_q[pa..pb.max(pa + 2).min(plan_q.len())];
+        // From the exact planned edges (`planned_edge`): the first lit sample lies up to a
+        // period of travel past the edge, and a lit sample before it counted as off the path.
+        let mut lit_plan = vec![planned_edge(&job, pa, dt)];
+        lit_plan.extend_from_slice(&plan_q[pa..pb.max(pa + 2).min(plan_q.len())]);
+        if pb < plan_q.len() {
+            lit_plan.push(planned_edge(&job, pb, dt));
+        }
         let mut j = 0usize;
         for q in &run_q[ra..rb] {
             let (mut best, mut at) = (f64::INFINITY, j);
@@ -447,17 +453,37 @@ fn long_examples() -> bool {
 
 /// The flat bed's bounds per example. Measured on the real LinuxCNC 2.9 (2026-12-02, executed
 /// / model, cycle and beam-on; edge place mm, edge speed mm/s, lit path mm).
+///
+/// Edge places are measured from the exact planned edge (`planned_edge`) since the beam-switch
+/// lead (`emit::writer::lead`); before, from the first lit 1 ms sample of the plan, up to a
+/// period of travel past it. LinuxCNC's synchronized outputs lead its joints by 1.5 servo
+/// periods (cubic interpolator), so the writer carries each switch passed on the fly that far
+/// along the path. Measured with `cargo test --test linuxcnc flat_bed -- --nocapture` (the
+/// last column: where the edges fall along the path, in servo periods, least/mean/greatest;
+/// `LASE_LINUXCNC_EDGES=1` lists them), before (the lead set to 0, exact edges) → after:
+/// frame_marking 0.0270 → 0.0152 mm (−1.35/0.09/1.53 → −0.35/0.59/1.53: its on-edges lie on
+/// arcs, which are not cut, and come 1.5 periods late, after tp's blend into the arc),
+/// texture rows 0.0355 → 0.0355 (the gate-off now on time, +0.22; the gate-on goes with the
+/// pulse writer and stays 1.78 periods early), air_assist 0.0184 → 0.0099 mm (edge speed
+/// 0.320 → 0.197 mm/s).
 fn flat_bed_bounds(example: &str) -> Bounds {
     match example {
-        // LinuxCNC switches a synchronized output up to 3 ms (0.057 mm at 20 mm/s) before the
-        // point where the program places it on frame_marking and the texture rows, and 0.1 mm
-        // before it at every dial_marks tick (~5 ms); dial_marks' circle goes dark 0.31 mm
-        // after its planned end. Why is not found yet (issue 13): these bounds pin today's
-        // behaviour so that a change shows.
-        "dial_marks" => Bounds::new(0.35, 0.5),
-        // The same early switch on rows at 100 mm/s: edges 0.279 mm off, the lit path 0.245
-        // (cycle 1.0031, beam 0.9989 of the model). Pinned (issue 13).
-        "image_engrave" => Bounds::new(0.3, 0.5),
+        "frame_marking" | "texture_array" | "texture_array_unidirectional" | "air_assist" => {
+            Bounds::new(0.04, 0.5)
+        }
+        // Each tick's edges within 0.13 periods (−1.5 to −2 before: 0.1 mm early). The
+        // circle's end: its switch rides on the lead-out, which meets the circle 0.66° off
+        // its tangent, so tp lays a blend arc over that junction and switched only after it,
+        // 8.8 periods (0.35 mm) late; the writer now cuts the lead-out past the blend
+        // (`lead::cut_at`), 3.2 periods (0.128 mm) late: tp swallows the short first part into
+        // the blend (`blendCheckConsume`), which then reaches further. The dotted arc's end
+        // gate (25 mm/s) 1.86 periods early. Edges 0.3529 → 0.1284 mm, lit path 0.3156 →
+        // 0.0466 (after: from the exact edges), edge speed 0.000, cycle 1.0012, beam 1.0043.
+        "dial_marks" => Bounds::new(0.14, 0.5),
+        // Rows at 100 mm/s, both edges of every row carried: −1.99/−1.52/−1.49 periods →
+        // −0.49/−0.28/0.51, edges 0.1986 → 0.0514 mm (0.279 with the old sampling), lit path
+        // 0.2451 → 0.0486 (after: from the exact edges); cycle 1.0031, beam 1.0011 of the model.
+        "image_engrave" => Bounds::new(0.06, 0.5),
         // Pinned (issue 13), at lit↔lit corners: its characters' strokes turn at sharp
         // corners between short lit lines. Before they were blended and held (branch
         // litfeed), LinuxCNC rounded them with its own blend arcs within G64 P0.01 (14.7 mm/s
@@ -466,12 +492,16 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // collinear lines as canon's naive-CAM detector does). Now lase plans those corners
         // and writes the held sub-blocks: cycle 1.0168 and beam-on 1.0256 of the model
         // (2026-12-02, merge of main into litfeed), the model now a little short. The edges
-        // (0.600 mm, 39.4 mm/s) and the lit path (3.00 mm) miss lase's plan: a stroke's first
-        // lit line continues its lead-in, so the blend arc LinuxCNC lays over the junction
-        // takes half the 1.3 mm lead-in and the lit line's output switches 0.66 mm late, where
-        // the segment carrying it starts; at some strokes it lights at rest.
+        // (0.600 mm, 39.4 mm/s) and the lit path (3.00 mm) miss lase's plan. Found (2026-12-02,
+        // `LASE_LINUXCNC_EDGES=1`): the worst edges (+17 periods, 0.70 mm at 40 mm/s, strokes
+        // of the top row) switch on where canon's naive CAM joins the lit lines after the
+        // switch into one chord (the program line jumps from the switch's block to the fourth
+        // after it), which meets the collinear lead-in ~1° off, so tp lays a blend arc over
+        // that junction and switches after it. With the lead the other edges fall within
+        // −0.58..+0.6 periods; these five stay late: edges 0.6097 → 0.7015 mm (exact edges,
+        // before → after), edge speed 39.4 mm/s, lit path 0.5899 mm.
         "serial_number" => Bounds {
-            place: 3.1,
+            place: 0.75,
             dv: 40.0,
             cycle: 0.02,
             beam: 0.03,

@@ -50,6 +50,10 @@ pub(super) struct Pending {
 /// the machine at the beam's edge.
 const MIN_PART_PERIODS: f64 = 1.25;
 
+/// Servo periods at the edge speed what a blend arc leaves of a cut block's first part lasts
+/// (the blend takes up to half of it: `BLEND_DIST_FRACTION`), just above tp.c's 1.02.
+const BEHIND_BLEND_PERIODS: f64 = 1.1;
+
 /// Where block `sub` (`len` mm from where the spot is, F `cap` or its own) is cut to carry a
 /// switch `left` mm along it, if at all. Only a straight block (a short arc piece runs as its
 /// chord, canon's naive CAM, and kinks against the move before it, which tp passes slowly),
@@ -60,7 +64,7 @@ const MIN_PART_PERIODS: f64 = 1.25;
 /// junction that takes up to half of the first part, and what is left of it runs at most its
 /// length per servo period (on the real machine dial_marks' circle went dark at 31 of
 /// 40 mm/s after a cut 0.06 mm into its lead-out): the first part then lasts at least twice
-/// [`MIN_PART_PERIODS`] at the edge speed, and the switch, which tp makes where that part
+/// [`BEHIND_BLEND_PERIODS`] at the edge speed, and the switch, which tp makes where that part
 /// ends, after the blend, is late by what that adds (without the cut it came after the whole
 /// blend arc: 0.35 mm on dial_marks). `None` (also where a rapid meets a feed, where tp stops): the switch goes
 /// to the nearer end of the block.
@@ -87,8 +91,10 @@ pub(super) fn cut_at(
         left
     } else {
         // The first part runs at about the edge's speed (air_assist's lit end is passed at
-        // 2.2 mm/s: at its block's 12 mm/s the minimum let tp reach 8.8 there).
-        left.max(2.0 * MIN_PART_PERIODS * servo_s * p.v)
+        // 2.2 mm/s: at its block's 12 mm/s the minimum let tp reach 8.8 there), and what the
+        // blend leaves of it caps tp's speed at its length over 1.02 periods: 1.1 periods keep
+        // that cap 8 % above the edge speed (at 1.25, 23 %: 2.77 for 2.19 mm/s, 0.58 off).
+        left.max(2.0 * BEHIND_BLEND_PERIODS * servo_s * p.v)
     };
     (left > 0.0 && len - at >= MIN_PART_PERIODS * servo_s * feed).then_some(at)
 }
