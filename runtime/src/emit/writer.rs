@@ -571,7 +571,7 @@ pub(super) fn write(
                             .iter()
                             .map(|t| format::fill(t, words(0.0)))
                             .collect();
-                        // A switch on still carried (a lit move shorter than its lead) first.
+                        // Any switch still carried first (none is, past its first block).
                         out.flush_pending()?;
                         let left = edge_lead(i, 1);
                         if left > 0.0 {
@@ -788,8 +788,9 @@ fn edge_speeds(job: &Job, facts: Option<&super::PlanFacts>, i: usize) -> [f64; 2
 }
 
 /// Writes the block `(op, to, q, cap)` (see [`motion_line`]) from where the spot is; where a
-/// beam switch is carried (`Out::pending`) and its place falls inside the block, the block is
-/// cut there and the switch written between its two parts (`lead`).
+/// beam switch is carried (`Out::pending`) and `lead::cut_at` finds its place inside the
+/// block, the block is cut there and the switch written between its two parts; else the
+/// switch goes before the block.
 fn write_block(
     out: &mut Out<'_>,
     m: &mut Modal,
@@ -798,41 +799,28 @@ fn write_block(
     arc_axes: Option<(usize, usize, Option<usize>)>,
     tag: Option<u32>,
 ) -> io::Result<()> {
-    let mut carried = None;
-    if let Some(mut p) = out.pending.take() {
+    if let Some(p) = out.pending.take() {
         let sub = lead::retarget(op, to);
         let len = sub.length_from(m.pos);
-        if p.left >= len - 1e-9 {
-            // Its place lies past this block: it waits for the next.
-            p.left = (p.left - len).max(0.0);
-            carried = Some(p);
-        } else if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine) {
+        if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine) {
             let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, at / len, arc_axes);
             out.put_with(
                 |line| motion_line(line, op, cut, cut_q, cap, m, machine, arc_axes),
                 tag,
             )?;
             out.stats.motion_blocks += 1;
-            out.pending = Some(p);
-            out.flush_pending()?;
-        } else if p.left <= len - p.left {
-            // Not cut (`lead::cut_at`): at the nearer end of the block.
-            out.pending = Some(p);
-            out.flush_pending()?;
-        } else {
-            p.left = 0.0;
-            carried = Some(p);
         }
+        // Where it was cut, or else where the block starts, as without the lead: never past
+        // the block (a short image run would take the next run's power, whose line is not
+        // carried).
+        out.pending = Some(p);
+        out.flush_pending()?;
     }
     out.put_with(
         |line| motion_line(line, op, to, q, cap, m, machine, arc_axes),
         tag,
     )?;
     out.stats.motion_blocks += 1;
-    out.pending = carried;
-    if out.pending.as_ref().is_some_and(|p| p.left <= 0.0) {
-        out.flush_pending()?;
-    }
     Ok(())
 }
 

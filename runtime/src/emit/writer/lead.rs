@@ -96,7 +96,7 @@ pub(super) fn cut_at(
         // that cap 8 % above the edge speed (at 1.25, 23 %: 2.77 for 2.19 mm/s, 0.58 off).
         left.max(2.0 * BEHIND_BLEND_PERIODS * servo_s * p.v)
     };
-    (left > 0.0 && len - at >= MIN_PART_PERIODS * servo_s * feed).then_some(at)
+    (left > 0.0 && at < len && len - at >= MIN_PART_PERIODS * servo_s * feed).then_some(at)
 }
 
 /// The end a motion op's block runs to.
