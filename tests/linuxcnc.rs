@@ -480,10 +480,14 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // gate (25 mm/s) 1.86 periods early. Edges 0.3529 → 0.1284 mm, lit path 0.3156 →
         // 0.0466 (after: from the exact edges), edge speed 0.000, cycle 1.0012, beam 1.0043.
         "dial_marks" => Bounds::new(0.14, 0.5),
-        // Rows at 100 mm/s, both edges of every row carried: −1.99/−1.52/−1.49 periods →
-        // −0.49/−0.28/0.51, edges 0.1986 → 0.0514 mm (0.279 with the old sampling), lit path
-        // 0.2451 → 0.0486 (after: from the exact edges); cycle 1.0031, beam 1.0011 of the model.
-        "image_engrave" => Bounds::new(0.06, 0.5),
+        // Rows at 100 mm/s: −1.99/−1.52/−1.49 periods → −1.49/−0.63/0.01, edges 0.1986 →
+        // 0.1486 mm (0.279 with the old sampling), lit path 0.2451 → 0.1486 (after: from the
+        // exact edges); cycle 1.0031, beam 0.9979 of the model. Every row's edges are carried
+        // but the starts of rows whose first run is one 0.25 mm pixel: a cut would leave
+        // 0.1 mm, under the 1.25 periods tp needs at 100 mm/s, and a switch after that run
+        // would land with the next run's power line (M67 steps are not carried), so those stay
+        // where the run starts, 1.5 periods early. Carrying every edge measured 0.0514 mm.
+        "image_engrave" => Bounds::new(0.15, 0.5),
         // Pinned (issue 13), at lit↔lit corners: its characters' strokes turn at sharp
         // corners between short lit lines. Before they were blended and held (branch
         // litfeed), LinuxCNC rounded them with its own blend arcs within G64 P0.01 (14.7 mm/s
