@@ -128,15 +128,37 @@ struct Block {
 /// `G0` runs dark in laser mode), an ISO one (the same S, lit between `M3` and `M5`, a power
 /// change as an `S` block of its own before the run's move) or a LinuxCNC one (`M67 E0 Q` is the power, `M62 P0`/`M63 P0`
 /// the gate, both taking effect with the next motion block).
+///
+/// LinuxCNC's programs carry each beam switch passed on the fly 1.5 servo periods (1 ms) of
+/// the row's speed along the row, where the controller's joints are when the output switches
+/// (`emit::writer::lead`, measured in `runtime/tests/switch_lead.rs` and on the real
+/// LinuxCNC): the beam is read here where it lights, that far back from the switch.
 fn blocks(nc: &str) -> Vec<Block> {
     let (mut x, mut y, mut s, mut q, mut gate, mut g) = (0.0, 0.0, 0.0, 0.0, false, 0);
-    let mut out = Vec::new();
+    let mut f = 0.0;
+    let mut out: Vec<Block> = Vec::new();
+    let linuxcnc = nc.contains("for linuxcnc");
     for line in nc.lines() {
         let w = nc_words(line);
         let get = |c: char| w.iter().find(|(k, _)| *k == c).map(|(_, v)| *v);
         if get('M') == Some(67.0) {
             q = get('Q').unwrap();
             continue;
+        }
+        if let Some(v) = get('F') {
+            f = v / 60.0;
+        }
+        let switch = matches!((get('M'), get('P')), (Some(m), Some(p)) if (m == 62.0 || m == 63.0) && p == 0.0);
+        // Where the beam switches: a switch carried by the lead ends a piece cut exactly that
+        // long from the row's block (elsewhere it stands where the block starts).
+        let lead = 1.5e-3 * f;
+        if linuxcnc
+            && switch
+            && out
+                .last()
+                .is_some_and(|b| b.y == y && b.x1 == x && ((b.x1 - b.x0).abs() - lead).abs() < 2e-4)
+        {
+            x = out.pop().unwrap().x0;
         }
         match (get('M'), get('P')) {
             (Some(m), Some(p)) if m == 62.0 && p == 0.0 => gate = true,

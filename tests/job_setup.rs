@@ -27,6 +27,8 @@ fn lit_runs(ngc: &str) -> (Vec<Run>, f64) {
     let mut motion = 0;
     let mut out: Vec<Run> = Vec::new();
     let mut unlit = 0.0;
+    // Where the beam lights: carried switches put back (`common::uncarried`).
+    let ngc = common::uncarried_text(ngc);
     for line in ngc.lines() {
         let w = nc_words(line);
         let get = |c: char| w.iter().find(|(l, _)| *l == c).map(|(_, v)| *v);

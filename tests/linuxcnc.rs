@@ -39,6 +39,10 @@ struct Measured {
     edge_place: f64,
     /// Largest difference of the axis-space speed at an edge, mm/s (deg/s).
     edge_speed: f64,
+    /// Where the executed edges fall along the path from the planned ones, in servo periods
+    /// of the edge's speed (negative: early), least, mean and greatest over the edges passed
+    /// moving (above 1 mm/s).
+    edge_periods: [f64; 3],
     pulses_planned: u64,
     pulses_executed: u64,
     /// Largest distance of a lit sample from the planned lit path, axis space (mm, deg).
@@ -48,23 +52,40 @@ struct Measured {
     beam_on_model_s: f64,
 }
 
-/// Axis positions (external units) and beam of the plan every `dt` from the first move.
-fn planned(job: &Job, dt: f64) -> Vec<(Vec<f64>, bool)> {
+/// Axis positions (external units) and beam of the plan `t` s after the first move.
+fn planned_at(job: &Job, t: f64) -> (Vec<f64>, bool) {
     let axes = &job.program.machine.axes;
-    let t0 = job.initial_dwell_s;
+    let t = job.initial_dwell_s + t.clamp(0.0, job.plan.duration());
+    let (s, lit, _) = lase_runtime::report::beam_at(job, t);
+    let q = axes
+        .iter()
+        .enumerate()
+        .map(|(i, a)| to_external(a.kind, s.pos[i]))
+        .collect();
+    (q, lit)
+}
+
+/// [`planned_at`] every `dt` from the first move.
+fn planned(job: &Job, dt: f64) -> Vec<(Vec<f64>, bool)> {
     let n = (job.plan.duration() / dt).ceil() as usize;
-    (0..=n)
-        .map(|k| {
-            let t = t0 + (k as f64 * dt).min(job.plan.duration());
-            let (s, lit, _) = lase_runtime::report::beam_at(job, t);
-            let q = axes
-                .iter()
-                .enumerate()
-                .map(|(i, a)| to_external(a.kind, s.pos[i]))
-                .collect();
-            (q, lit)
-        })
-        .collect()
+    (0..=n).map(|k| planned_at(job, k as f64 * dt)).collect()
+}
+
+/// Where the plan's beam edge found between samples `i - 1` and `i` (every `dt`) lies
+/// exactly: the edge's time bisected to 1 ns, so the planned place carries no sampling
+/// error (a 1 ms sample lands up to 0.1 mm past an edge passed at 100 mm/s).
+fn planned_edge(job: &Job, i: usize, dt: f64) -> Vec<f64> {
+    let (mut a, mut b) = ((i.max(1) - 1) as f64 * dt, i as f64 * dt);
+    let lit_b = planned_at(job, b).1;
+    while b - a > 1e-9 {
+        let m = 0.5 * (a + b);
+        if planned_at(job, m).1 == lit_b {
+            b = m;
+        } else {
+            a = m;
+        }
+    }
+    planned_at(job, b).0
 }
 
 fn dist(a: &[f64], b: &[f64]) -> f64 {
@@ -167,7 +188,8 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
         - 1;
     let last = (1..samples.len()).rev().find(|&i| moved(i)).unwrap();
     let run = &samples[first..=last];
-    let dt = 0.001;
+    // The harness samples every servo period, the machine file's (`servo_period`).
+    let dt = job.program.machine.servo_period_s();
     let executed_s = (last - first) as f64 * dt;
     let moving = |q: &[Vec<f64>]| q.windows(2).filter(|w| dist(&w[0], &w[1]) > 1e-9).count();
     let summary = lase_runtime::report::summarize(&job);
@@ -179,12 +201,54 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
     let run_edges = edges(run.iter().map(|s| s.dout[0]));
     let mut edge_place: f64 = 0.0;
     let mut edge_speed: f64 = 0.0;
+    let mut along: Vec<f64> = Vec::new();
     for (&(pi, pon), &(ri, ron)) in plan_edges.iter().zip(&run_edges) {
         assert_eq!(pon, ron, "{example}: the edges alternate alike");
-        edge_place = edge_place.max(dist(&plan_q[pi], &run_q[ri]));
+        let edge = planned_edge(&job, pi, dt);
+        edge_place = edge_place.max(dist(&edge, &run_q[ri]));
         let (vp, vr) = (speed(&plan_q, pi, dt), speed(&run_q, ri, dt));
         edge_speed = edge_speed.max((vr - vp).abs());
+        if vp > 1.0 {
+            // Signed along the planned direction of travel there.
+            let (a, b) = (
+                &plan_q[pi.saturating_sub(1)],
+                &plan_q[(pi + 1).min(plan_q.len() - 1)],
+            );
+            let d: Vec<f64> = a.iter().zip(b.iter()).map(|(x, y)| y - x).collect();
+            let n = d.iter().map(|x| x * x).sum::<f64>().sqrt();
+            if n > 0.0 {
+                let s: f64 = run_q[ri]
+                    .iter()
+                    .zip(&edge)
+                    .zip(&d)
+                    .map(|((r, e), u)| (r - e) * u / n)
+                    .sum();
+                along.push(s / (vp * dt));
+                if std::env::var_os("LASE_LINUXCNC_EDGES").is_some() {
+                    // Every edge passed moving: where, how far along, at what speeds.
+                    eprintln!(
+                        "{example} edge {} {}: planned {edge:.4?} executed {:.4?} along {:+.4} mm \
+                         ({:+.2} periods) v {vp:.2}/{vr:.2} line {}",
+                        along.len(),
+                        if pon { "on" } else { "off" },
+                        run_q[ri],
+                        s,
+                        s / (vp * dt),
+                        run[ri].line
+                    );
+                }
+            }
+        }
     }
+    let edge_periods = if along.is_empty() {
+        [0.0; 3]
+    } else {
+        [
+            along.iter().copied().fold(f64::INFINITY, f64::min),
+            along.iter().sum::<f64>() / along.len() as f64,
+            along.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+        ]
+    };
     // Each lit run against its planned lit run (the k-th with the k-th: the edges pair up),
     // walking forward along the planned one.
     let runs = |e: &[(usize, bool)], n: usize| -> Vec<(usize, usize)> {
@@ -197,7 +261,13 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
         .iter()
         .zip(&runs(&run_edges, run_q.len()))
     {
-        let lit_plan = &plan_q[pa..pb.max(pa + 2).min(plan_q.len())];
+        // From the exact planned edges (`planned_edge`): the first lit sample lies up to a
+        // period of travel past the edge, and a lit sample before it counted as off the path.
+        let mut lit_plan = vec![planned_edge(&job, pa, dt)];
+        lit_plan.extend_from_slice(&plan_q[pa..pb.max(pa + 2).min(plan_q.len())]);
+        if pb < plan_q.len() {
+            lit_plan.push(planned_edge(&job, pb, dt));
+        }
         let mut j = 0usize;
         for q in &run_q[ra..rb] {
             let (mut best, mut at) = (f64::INFINITY, j);
@@ -232,8 +302,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
     // LinuxCNC ran.
     let limits = lase_runtime::link::linuxcnc::tp::TpLimits::for_machine(
         &job.program.machine,
-        lase_runtime::link::linuxcnc::config::ConfigOptions::default().servo_period_ns as f64
-            * 1e-9,
+        job.program.machine.servo_period_s(),
     );
     let model = lase_runtime::link::linuxcnc::tp::run_program_from(&nc, &limits, &run[0].joints)
         .unwrap_or_else(|e| panic!("{example}: {e}"));
@@ -252,6 +321,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
         edges_executed: run_edges.len(),
         edge_place,
         edge_speed,
+        edge_periods,
         pulses_planned: summary.pulses,
         pulses_executed,
         deviation,
@@ -260,7 +330,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
 
 fn report(ms: &[Measured]) {
     eprintln!(
-        "{:<30} {:>9} {:>9} {:>7} {:>8} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8}",
+        "{:<30} {:>9} {:>9} {:>7} {:>8} {:>7} {:>9} {:>7} {:>7} {:>6} {:>8} {:>7} {:>13} {:>8} edge periods min/mean/max",
         "example",
         "plan s",
         "LinuxCNC",
@@ -278,7 +348,7 @@ fn report(ms: &[Measured]) {
     );
     for m in ms {
         eprintln!(
-            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>8.4} {:>7.4} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4}",
+            "{:<30} {:>9.3} {:>9.3} {:>7.4} {:>8.4} {:>7.4} {:>9.3} {:>7.4} {:>7.4} {:>3}/{:<3} {:>8.4} {:>7.3} {:>6}/{:<6} {:>8.4} {:>6.2}/{:.2}/{:.2}",
             m.name,
             m.planned_s,
             m.executed_s,
@@ -294,7 +364,10 @@ fn report(ms: &[Measured]) {
             m.edge_speed,
             m.pulses_executed,
             m.pulses_planned,
-            m.deviation
+            m.deviation,
+            m.edge_periods[0],
+            m.edge_periods[1],
+            m.edge_periods[2]
         );
     }
 }
@@ -380,17 +453,41 @@ fn long_examples() -> bool {
 
 /// The flat bed's bounds per example. Measured on the real LinuxCNC 2.9 (2026-12-02, executed
 /// / model, cycle and beam-on; edge place mm, edge speed mm/s, lit path mm).
+///
+/// Edge places are measured from the exact planned edge (`planned_edge`) since the beam-switch
+/// lead (`emit::writer::lead`); before, from the first lit 1 ms sample of the plan, up to a
+/// period of travel past it. LinuxCNC's synchronized outputs lead its joints by 1.5 servo
+/// periods (cubic interpolator), so the writer carries each switch passed on the fly that far
+/// along the path. Measured with `cargo test --test linuxcnc flat_bed -- --nocapture` (the
+/// last column: where the edges fall along the path, in servo periods, least/mean/greatest;
+/// `LASE_LINUXCNC_EDGES=1` lists them), before (the lead set to 0, exact edges) → after:
+/// frame_marking 0.0270 → 0.0152 mm (−1.35/0.09/1.53 → −0.35/0.59/1.53: its on-edges lie on
+/// arcs, which are not cut, and come 1.5 periods late, after tp's blend into the arc),
+/// texture rows 0.0355 → 0.0355 (the gate-off now on time, +0.22; the gate-on goes with the
+/// pulse writer and stays 1.78 periods early), air_assist 0.0184 → 0.0099 mm (edge speed
+/// 0.320 → 0.197 mm/s).
 fn flat_bed_bounds(example: &str) -> Bounds {
     match example {
-        // LinuxCNC switches a synchronized output up to 3 ms (0.057 mm at 20 mm/s) before the
-        // point where the program places it on frame_marking and the texture rows, and 0.1 mm
-        // before it at every dial_marks tick (~5 ms); dial_marks' circle goes dark 0.31 mm
-        // after its planned end. Why is not found yet (issue 13): these bounds pin today's
-        // behaviour so that a change shows.
-        "dial_marks" => Bounds::new(0.35, 0.5),
-        // The same early switch on rows at 100 mm/s: edges 0.279 mm off, the lit path 0.245
-        // (cycle 1.0031, beam 0.9989 of the model). Pinned (issue 13).
-        "image_engrave" => Bounds::new(0.3, 0.5),
+        "frame_marking" | "texture_array" | "texture_array_unidirectional" | "air_assist" => {
+            Bounds::new(0.04, 0.5)
+        }
+        // Each tick's edges within 0.13 periods (−1.5 to −2 before: 0.1 mm early). The
+        // circle's end: its switch rides on the lead-out, which meets the circle 0.66° off
+        // its tangent, so tp lays a blend arc over that junction and switched only after it,
+        // 8.8 periods (0.35 mm) late; the writer now cuts the lead-out past the blend
+        // (`lead::cut_at`), 3.2 periods (0.128 mm) late: tp swallows the short first part into
+        // the blend (`blendCheckConsume`), which then reaches further. The dotted arc's end
+        // gate (25 mm/s) 1.86 periods early. Edges 0.3529 → 0.1284 mm, lit path 0.3156 →
+        // 0.0466 (after: from the exact edges), edge speed 0.000, cycle 1.0012, beam 1.0043.
+        "dial_marks" => Bounds::new(0.14, 0.5),
+        // Rows at 100 mm/s: −1.99/−1.52/−1.49 periods → −1.49/−0.63/0.01, edges 0.1986 →
+        // 0.1486 mm (0.279 with the old sampling), lit path 0.2451 → 0.1486 (after: from the
+        // exact edges); cycle 1.0031, beam 0.9979 of the model. Every row's edges are carried
+        // but the starts of rows whose first run is one 0.25 mm pixel: a cut would leave
+        // 0.1 mm, under the 1.25 periods tp needs at 100 mm/s, and a switch after that run
+        // would land with the next run's power line (M67 steps are not carried), so those stay
+        // where the run starts, 1.5 periods early. Carrying every edge measured 0.0514 mm.
+        "image_engrave" => Bounds::new(0.15, 0.5),
         // Pinned (issue 13), at lit↔lit corners: its characters' strokes turn at sharp
         // corners between short lit lines. Before they were blended and held (branch
         // litfeed), LinuxCNC rounded them with its own blend arcs within G64 P0.01 (14.7 mm/s
@@ -399,12 +496,16 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // collinear lines as canon's naive-CAM detector does). Now lase plans those corners
         // and writes the held sub-blocks: cycle 1.0168 and beam-on 1.0256 of the model
         // (2026-12-02, merge of main into litfeed), the model now a little short. The edges
-        // (0.600 mm, 39.4 mm/s) and the lit path (3.00 mm) miss lase's plan: a stroke's first
-        // lit line continues its lead-in, so the blend arc LinuxCNC lays over the junction
-        // takes half the 1.3 mm lead-in and the lit line's output switches 0.66 mm late, where
-        // the segment carrying it starts; at some strokes it lights at rest.
+        // (0.600 mm, 39.4 mm/s) and the lit path (3.00 mm) miss lase's plan. Found (2026-12-02,
+        // `LASE_LINUXCNC_EDGES=1`): the worst edges (+17 periods, 0.70 mm at 40 mm/s, strokes
+        // of the top row) switch on where canon's naive CAM joins the lit lines after the
+        // switch into one chord (the program line jumps from the switch's block to the fourth
+        // after it), which meets the collinear lead-in ~1° off, so tp lays a blend arc over
+        // that junction and switches after it. With the lead the other edges fall within
+        // −0.58..+0.6 periods; these five stay late: edges 0.6097 → 0.7015 mm (exact edges,
+        // before → after), edge speed 39.4 mm/s, lit path 0.5899 mm.
         "serial_number" => Bounds {
-            place: 3.1,
+            place: 0.75,
             dv: 40.0,
             cycle: 0.02,
             beam: 0.03,

@@ -14,6 +14,8 @@ fn lit_points(ngc: &str) -> Vec<[f64; 2]> {
     let mut lit = false;
     let mut motion = 0;
     let mut out = Vec::new();
+    // Where the beam lights: carried switches put back (`common::uncarried`).
+    let ngc = uncarried_text(ngc);
     for line in ngc.lines() {
         let w = nc_words(line);
         let get = |c: char| w.iter().find(|(l, _)| *l == c).map(|(_, v)| *v);

@@ -135,6 +135,12 @@ pub struct DialectPost {
     /// no limit lase knows of. Checked before a program is written (`emit::validate`).
     #[serde(default)]
     pub budget: PulseBudget,
+    /// The controller's servo period, s (`servo_period`; LinuxCNC's `[EMCMOT] SERVO_PERIOD`,
+    /// which the generated INI writes): a motion-synchronized output leads the joints by a
+    /// fixed number of these periods (`emit::lead`), so the writer places each beam switch
+    /// that much further along the path. `None`: [`DEFAULT_SERVO_PERIOD_S`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub servo_period_s: Option<f64>,
     /// Where each template line is written in the machine file, so a diagnostic about one
     /// line points at it (empty for a post not read from a file).
     #[serde(skip)]
@@ -247,7 +253,18 @@ pub struct SettlePost {
     pub iso_call: Option<String>,
 }
 
+/// LinuxCNC's usual servo period, s (1 ms: its sample configurations' `SERVO_PERIOD`).
+pub const DEFAULT_SERVO_PERIOD_S: f64 = 0.001;
+
 impl Machine {
+    /// The LinuxCNC servo period of this machine (`[post.linuxcnc] servo_period`), s.
+    pub fn servo_period_s(&self) -> f64 {
+        self.post
+            .get("linuxcnc")
+            .and_then(|p| p.servo_period_s)
+            .unwrap_or(DEFAULT_SERVO_PERIOD_S)
+    }
+
     pub fn axis_index(&self, name: &str) -> Option<usize> {
         self.axes
             .iter()
@@ -364,6 +381,8 @@ struct FilePost {
     max_pulse_rate: Option<toml::Spanned<String>>,
     #[serde(default)]
     max_pulses: Option<toml::Spanned<u64>>,
+    #[serde(default)]
+    servo_period: Option<toml::Spanned<String>>,
 }
 
 fn texts(lines: &[toml::Spanned<String>]) -> Vec<String> {
@@ -791,9 +810,18 @@ pub fn parse_machine(text: &str, base: usize) -> Result<Machine, MachineError> {
                 p.max_pulses.as_ref().map(|n| at(n.span())),
             ],
         };
+        let servo_period_s = match &p.servo_period {
+            Some(t) => Some(positive(
+                qty(t, &[Dim::TIME], "servo_period")?,
+                t,
+                "servo_period",
+            )?),
+            None => None,
+        };
         post.insert(
             k,
             DialectPost {
+                servo_period_s,
                 laser_on: texts(&p.laser_on),
                 laser_off: texts(&p.laser_off),
                 power: texts(&p.power),

@@ -359,6 +359,8 @@ fn laser_goes_on_before_the_first_lit_move_and_off_after_the_run() {
             .unwrap_or_else(|| panic!("no `{t}` in {texts:#?}"))
     };
     // Run 1: on before op 1's G1 (power 50 % of 100 W), power change before op 3, off after op 3.
+    // Both edges sit at corners LinuxCNC does not pass tangentially (rapid → feed, 90° into
+    // the rapid), so neither switch is carried along the path (`emit::writer::lead`).
     let on = at("M62 P0");
     assert_eq!(texts[on - 1], "M67 E0 Q50");
     assert_eq!(texts[on + 1], "G1 X30 F1200");

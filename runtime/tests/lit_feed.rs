@@ -29,11 +29,14 @@ struct Block {
     to: [f64; 2],
 }
 
-/// Every lit straight feed block of a LinuxCNC or ISO program, with its modal feed.
+/// Every straight feed block of a lit op of a LinuxCNC or ISO program, with its modal feed.
+/// A block the writer cut only to carry a beam switch along it (LinuxCNC's outputs lead its
+/// joints: `emit::writer::lead`) is one block here: its two parts run at one F.
 fn lit_lines(j: &Job, dialect: Dialect) -> Vec<Block> {
     let (lines, _) = emit_lines(j, dialect, &EmitOptions::default()).unwrap();
-    let mut out = Vec::new();
-    let (mut lit, mut feed, mut pos, mut g) = (false, 0.0, [0.0f64; 2], "G0");
+    let mut out: Vec<Block> = Vec::new();
+    let (mut feed, mut pos, mut g) = (0.0, [0.0f64; 2], "G0");
+    let mut switched = false;
     for l in &lines {
         let words: Vec<&str> = l.text.split(' ').filter(|w| !w.starts_with('N')).collect();
         let num = |p: char| {
@@ -42,11 +45,11 @@ fn lit_lines(j: &Job, dialect: Dialect) -> Vec<Block> {
                 .find(|w| w.starts_with(p))
                 .and_then(|w| w[1..].parse::<f64>().ok())
         };
-        match words.first().copied() {
-            Some("M62" | "M3" | "M4") => lit = true,
-            Some("M63" | "M65" | "M5") => lit = false,
-            _ => {}
+        if matches!(words.first().copied(), Some("M62" | "M63" | "M67")) {
+            switched = true;
         }
+        let lit =
+            l.op.is_some_and(|i| j.program.ops[i as usize].laser().is_some());
         for w in &words {
             if matches!(*w, "G0" | "G1" | "G2" | "G3") {
                 g = w;
@@ -61,13 +64,18 @@ fn lit_lines(j: &Job, dialect: Dialect) -> Vec<Block> {
         }
         let to = [x.unwrap_or(pos[0]), y.unwrap_or(pos[1])];
         if lit && g == "G1" {
-            out.push(Block {
-                op: l.op.unwrap(),
-                feed,
-                from: pos,
-                to,
-            });
+            let op = l.op.unwrap();
+            match out.last_mut() {
+                Some(b) if switched && b.op == op && b.feed == feed && b.to == pos => b.to = to,
+                _ => out.push(Block {
+                    op,
+                    feed,
+                    from: pos,
+                    to,
+                }),
+            }
         }
+        switched = false;
         pos = to;
     }
     out

@@ -3,6 +3,8 @@
 //! stops (GRBL's `M8` empties its planner; LinuxCNC's `M62` switches with the next move).
 //! Measured on the emitted NC and on the plan's speeds.
 
+mod common;
+
 use lase_runtime::compile::{self, MemFiles};
 use lase_runtime::emit::{Dialect, emit_to_string};
 use lase_runtime::motion::Job;
@@ -148,7 +150,8 @@ grbl = { on = ["M8"], off = ["M9"] }
         (Dialect::GrblHal, "M8", "M9"),
         (Dialect::LinuxCnc, "M62 P2", "M63 P2"),
     ] {
-        let nc = lines(&emit_to_string(&j, d).unwrap());
+        // Where the beam lights: carried switches put back (`common::uncarried`).
+        let nc = lines(&common::uncarried_text(&emit_to_string(&j, d).unwrap()));
         assert_eq!(after_x(&nc, 20.0)[0], on, "{d}: {nc:#?}");
         // After the cut, at most its lead-out and the beam's switch-off come first.
         let rest = after_x(&nc, 40.0);

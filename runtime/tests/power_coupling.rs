@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{compile, job};
+use common::{compile, job, uncarried};
 use lase_runtime::emit::{Dialect, EmitError, EmitOptions, emit_lines, emit_to_string};
 use lase_runtime::motion::{Job, power};
 use lase_runtime::report::beam_at;
@@ -83,6 +83,15 @@ fn uncoupled_power_stays_constant() {
 /// program.
 fn lit_blocks(j: &Job, dialect: Dialect, max_power: f64) -> Vec<(u32, f64, [f64; 2])> {
     let (lines, _) = emit_lines(j, dialect, &EmitOptions::default()).unwrap();
+    // Where the beam lights: carried switches put back (`common::uncarried`).
+    struct Line {
+        text: String,
+        op: Option<u32>,
+    }
+    let lines: Vec<Line> = uncarried(lines.into_iter().map(|l| (l.text, l.op)).collect())
+        .into_iter()
+        .map(|(text, op)| Line { text, op })
+        .collect();
     let mut out = Vec::new();
     let (mut lit, mut power, mut pos) = (false, 0.0, [0.0f64; 2]);
     for l in &lines {

@@ -50,6 +50,9 @@ pub struct PlanFacts {
     /// `(op, speed where it ends)` of every unlit op that ends moving below its feed, when
     /// `split`.
     exits: Vec<(u32, f64)>,
+    /// `(op, [speed where the beam comes on, where it goes off])` of every lit op at a beam
+    /// edge passed moving, on LinuxCNC (`writer::lead`: the switch is carried by its speed).
+    edges: Option<Vec<(u32, [f64; 2])>>,
     /// The op whose segments are arriving, its entry and exit speed so far, and its segments
     /// (kept only for a lit op when `lit` is gathered).
     op: Option<u32>,
@@ -94,6 +97,7 @@ impl PlanFacts {
             lit: (split && oriented).then(Vec::new),
             pulses: (!budgets.is_empty()).then(PulseStream::new),
             budgets,
+            edges: dialects.contains(&Dialect::LinuxCnc).then(Vec::new),
             ..PlanFacts::default()
         }
     }
@@ -157,6 +161,24 @@ impl PlanFacts {
         if let Some(speeds) = &mut self.speeds {
             speeds.push((op, self.speed));
         }
+        if let Some(edges) = &mut self.edges
+            && lit(program, op)
+        {
+            // Only at edges (the neighbouring motion unlit), so a lit job of a million moves
+            // keeps a few of these, not one a move.
+            let lit_near = |o: Option<&crate::program::Op>| o.is_some_and(|o| o.laser().is_some());
+            let ops = &program.ops;
+            let moving = |o: &&crate::program::Op| o.target().is_some();
+            let before = ops[..op as usize].iter().rev().find(moving);
+            let after = ops[op as usize + 1..].iter().find(moving);
+            let v = [
+                if lit_near(before) { 0.0 } else { self.speed[0] },
+                if lit_near(after) { 0.0 } else { self.speed[1] },
+            ];
+            if v[0] > 0.0 || v[1] > 0.0 {
+                edges.push((op, v));
+            }
+        }
         if self.split {
             if lit(program, op) {
                 if let Some(blocks) = &mut self.lit {
@@ -188,6 +210,15 @@ impl PlanFacts {
             .binary_search_by_key(&op, |&(i, _)| i as usize)
             .ok()?;
         Some(self.exits[k].1)
+    }
+
+    /// The planned speeds where lit op `op` starts and ends at a beam edge (0 elsewhere).
+    pub(super) fn edge_speeds(&self, op: usize) -> [f64; 2] {
+        let Some(all) = &self.edges else {
+            return [0.0, 0.0];
+        };
+        all.binary_search_by_key(&op, |&(i, _)| i as usize)
+            .map_or([0.0, 0.0], |k| all[k].1)
     }
 }
 

@@ -26,6 +26,7 @@ use crate::motion::{Job, beam, power};
 use crate::program::{Coupling, Op, OpKind, P3};
 use std::io;
 
+mod lead;
 mod pulse;
 mod row;
 mod settle;
@@ -53,11 +54,18 @@ struct Out<'s> {
     /// The line handed to the sink, reused: a texturing job writes millions of lines, and a
     /// fresh `String` for each was a large part of emission time.
     line: NcLine,
+    /// A beam switch carried along the path on LinuxCNC (`lead`): [`write_block`] writes it
+    /// where the path reaches it, any other line first writes it where it stands.
+    pending: Option<lead::Pending>,
 }
 
 impl Out<'_> {
     /// Writes one block, numbered in ISO.
     fn put(&mut self, text: &str, op: Option<u32>) -> io::Result<()> {
+        // A comment does nothing on the controller: a carried switch may follow it.
+        if !text.starts_with('(') {
+            self.flush_pending()?;
+        }
         self.line.text.clear();
         if self.dialect == Dialect::Iso {
             self.block = if self.block >= BLOCK_WRAP {
@@ -74,6 +82,7 @@ impl Out<'_> {
 
     /// Writes one block, numbered in ISO, that `write` builds in place (no copy of its own).
     fn put_with(&mut self, write: impl FnOnce(&mut String), op: Option<u32>) -> io::Result<()> {
+        self.flush_pending()?;
         self.line.text.clear();
         if self.dialect == Dialect::Iso {
             self.block = if self.block >= BLOCK_WRAP {
@@ -86,6 +95,19 @@ impl Out<'_> {
         }
         write(&mut self.line.text);
         self.send(op)
+    }
+
+    /// Writes the carried beam switch where the path stands now: another line comes before the
+    /// path reaches its place (a stop, a power step, the program's end), and a switch is
+    /// never written after a line that came after it.
+    fn flush_pending(&mut self) -> io::Result<()> {
+        if let Some(p) = self.pending.take() {
+            for l in &p.lines {
+                self.put(l, p.tag)?;
+            }
+            self.after_off = p.off;
+        }
+        Ok(())
     }
 
     /// Writes a line as is (ISO's `%` and program number).
@@ -174,6 +196,10 @@ struct Modal {
     /// rounding becomes a speed error of its size over the block's length, which on the
     /// shortest oriented blocks (a few hundredths of a mm) was 0.02 % of the surface speed.
     fine: bool,
+    /// The direction of travel where the last block written ends (part space, unit; `None`
+    /// before the first): a carried beam switch cuts a block only where it continues that
+    /// one tangentially (`lead::cut_at`).
+    dir: Option<P3>,
 }
 
 pub(super) fn write(
@@ -198,6 +224,7 @@ pub(super) fn write(
             text: String::with_capacity(128),
             op: None,
         },
+        pending: None,
     };
     let words = |power_w: f64| LaserWords {
         power_w,
@@ -272,8 +299,15 @@ pub(super) fn write(
         location: String::new(),
         inverse_time: false,
         fine: job.kin.inverse_time(),
+        dir: None,
     };
     let inverse_time = job.kin.inverse_time();
+    // LinuxCNC's synchronized outputs lead its joints (`lead`): the beam switches are carried
+    // along the path, on programs in units per minute.
+    let servo_s = (dialect == Dialect::LinuxCnc && !inverse_time).then(|| machine.servo_period_s());
+    let edge_lead = |i: usize, end: usize| {
+        servo_s.map_or(0.0, |t| lead::distance(edge_speeds(job, facts, i)[end], t))
+    };
     let arc_axes = validate::arc_axes(machine);
     let mut train = pulse::Train::default();
     // What pulse lowering needs of this program (the same for every op).
@@ -392,16 +426,34 @@ pub(super) fn write(
                             m.laser_on = true;
                             m.power_w = laser.power_w;
                         } else if !m.laser_on {
-                            for t in &post.laser_on {
-                                let line = format::fill(t, words(first));
-                                out.put(
-                                    &if coupled {
+                            let lines: Vec<String> = post
+                                .laser_on
+                                .iter()
+                                .map(|t| {
+                                    let line = format::fill(t, words(first));
+                                    if coupled {
                                         dynamic(dialect, &line)
                                     } else {
                                         line
-                                    },
+                                    }
+                                })
+                                .collect();
+                            // A switch off still carried is written first, where it stands.
+                            out.flush_pending()?;
+                            let left = if k == 0 { edge_lead(i, 0) } else { 0.0 };
+                            if left > 0.0 {
+                                out.pending = Some(lead::Pending {
+                                    lines,
+                                    left,
+                                    off: false,
+                                    servo_s: servo_s.unwrap_or(0.0),
+                                    v: edge_speeds(job, facts, i)[0],
                                     tag,
-                                )?;
+                                });
+                            } else {
+                                for l in &lines {
+                                    out.put(l, tag)?;
+                                }
                             }
                             m.laser_on = true;
                             m.power_w = first;
@@ -437,26 +489,39 @@ pub(super) fn write(
                         } else {
                             lead_cap(job, facts, i, &ops[i + 1..], to)
                         };
-                        out.put_with(
-                            |line| {
-                                motion_line(line, op, to, q_end, cap, &mut m, machine, arc_axes);
-                                if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
-                                    // Every feed move carries its power, S0 when unlit: in laser
-                                    // mode an S word on a G1/G2/G3 block changes power as the
-                                    // block starts, without a stop. A G0 needs none: GRBL runs
-                                    // rapids with the laser off (gcode.c: a block not in
-                                    // G1/G2/G3 is GC_PARSER_LASER_DISABLE'd).
-                                    let s = s_word(op.laser().map_or(0.0, |l| l.power_w));
-                                    if m.s.as_deref() != Some(s.as_str()) {
-                                        line.push(' ');
-                                        line.push_str(&s);
-                                        m.s = Some(s);
+                        if !flying {
+                            write_block(
+                                &mut out,
+                                &mut m,
+                                (op, to, q_end, cap),
+                                machine,
+                                arc_axes,
+                                tag,
+                            )?;
+                        } else {
+                            out.put_with(
+                                |line| {
+                                    motion_line(
+                                        line, op, to, q_end, cap, &mut m, machine, arc_axes,
+                                    );
+                                    if flying && !matches!(op.kind, OpKind::Rapid { .. }) {
+                                        // Every feed move carries its power, S0 when unlit: in laser
+                                        // mode an S word on a G1/G2/G3 block changes power as the
+                                        // block starts, without a stop. A G0 needs none: GRBL runs
+                                        // rapids with the laser off (gcode.c: a block not in
+                                        // G1/G2/G3 is GC_PARSER_LASER_DISABLE'd).
+                                        let s = s_word(op.laser().map_or(0.0, |l| l.power_w));
+                                        if m.s.as_deref() != Some(s.as_str()) {
+                                            line.push(' ');
+                                            line.push_str(&s);
+                                            m.s = Some(s);
+                                        }
                                     }
-                                }
-                            },
-                            tag,
-                        )?;
-                        out.stats.motion_blocks += 1;
+                                },
+                                tag,
+                            )?;
+                            out.stats.motion_blocks += 1;
+                        }
                     } else {
                         let (from, from_q) = (m.pos, m.q);
                         let mut blocks = blocks;
@@ -493,32 +558,43 @@ pub(super) fn write(
                                 b.s_end / total
                             };
                             let (to, q) = part_way(op, (from, &from_q), &q_end, f, arc_axes);
-                            out.put_with(
-                                |line| {
-                                    motion_line(
-                                        line,
-                                        op,
-                                        to,
-                                        q,
-                                        Some(b.v_cap),
-                                        &mut m,
-                                        machine,
-                                        arc_axes,
-                                    )
-                                },
+                            write_block(
+                                &mut out,
+                                &mut m,
+                                (op, to, q, Some(b.v_cap)),
+                                machine,
+                                arc_axes,
                                 tag,
                             )?;
-                            out.stats.motion_blocks += 1;
                         }
                     }
                     if flying && m.laser_on && !(more || next_move_lit(&ops[i + 1..], m.pos)) {
                         // No M5 (it would stop the table): the next feed move says S0.
                         m.laser_on = false;
                     } else if m.laser_on && !(more || next_move_lit(&ops[i + 1..], m.pos)) {
-                        for t in &post.laser_off {
-                            out.put(&format::fill(t, words(0.0)), tag)?;
+                        let lines: Vec<String> = post
+                            .laser_off
+                            .iter()
+                            .map(|t| format::fill(t, words(0.0)))
+                            .collect();
+                        // Any switch still carried first (none is, past its first block).
+                        out.flush_pending()?;
+                        let left = edge_lead(i, 1);
+                        if left > 0.0 {
+                            out.pending = Some(lead::Pending {
+                                lines,
+                                left,
+                                off: true,
+                                servo_s: servo_s.unwrap_or(0.0),
+                                v: edge_speeds(job, facts, i)[1],
+                                tag,
+                            });
+                        } else {
+                            for l in &lines {
+                                out.put(l, tag)?;
+                            }
+                            out.after_off = true;
                         }
-                        out.after_off = true;
                         m.laser_on = false;
                     }
                 }
@@ -527,6 +603,7 @@ pub(super) fn write(
     }
 
     settle_upto(ops.len(), &mut out, &mut m)?;
+    out.flush_pending()?;
     if m.inverse_time {
         // Back to units-per-minute feeds, the mode any program after this one expects.
         out.put("G94", None)?;
@@ -699,6 +776,60 @@ fn arc_first_block(op: &Op, from: P3, blocks: &mut Vec<power::PowerBlock>, tol: 
     power::merge_front(blocks, s_min);
 }
 
+/// The plan's speeds where lit op `i` starts and ends, mm/s, from the whole plan or (planned
+/// in windows) `facts`; 0 where not known.
+fn edge_speeds(job: &Job, facts: Option<&super::PlanFacts>, i: usize) -> [f64; 2] {
+    if let Some(f) = facts {
+        return f.edge_speeds(i);
+    }
+    let r = power::op_segments(job, i);
+    let segs = job.plan.segments();
+    match (
+        segs.get(r.start),
+        r.end.checked_sub(1).and_then(|e| segs.get(e)),
+    ) {
+        (Some(a), Some(b)) if !r.is_empty() => [a.v_entry, b.v_exit],
+        _ => [0.0, 0.0],
+    }
+}
+
+/// Writes the block `(op, to, q, cap)` (see [`motion_line`]) from where the spot is; where a
+/// beam switch is carried (`Out::pending`) and `lead::cut_at` finds its place inside the
+/// block, the block is cut there and the switch written between its two parts; else the
+/// switch goes before the block.
+fn write_block(
+    out: &mut Out<'_>,
+    m: &mut Modal,
+    (op, to, q, cap): (&Op, P3, Axes, Option<f64>),
+    machine: &crate::machine::Machine,
+    arc_axes: Option<(usize, usize, Option<usize>)>,
+    tag: Option<u32>,
+) -> io::Result<()> {
+    if let Some(p) = out.pending.take() {
+        let sub = lead::retarget(op, to);
+        let len = sub.length_from(m.pos);
+        if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine) {
+            let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, at / len, arc_axes);
+            out.put_with(
+                |line| motion_line(line, op, cut, cut_q, cap, m, machine, arc_axes),
+                tag,
+            )?;
+            out.stats.motion_blocks += 1;
+        }
+        // Where it was cut, or else where the block starts, as without the lead: never past
+        // the block (a short image run would take the next run's power, whose line is not
+        // carried).
+        out.pending = Some(p);
+        out.flush_pending()?;
+    }
+    out.put_with(
+        |line| motion_line(line, op, to, q, cap, m, machine, arc_axes),
+        tag,
+    )?;
+    out.stats.motion_blocks += 1;
+    Ok(())
+}
+
 /// Whether the next op that moves the spot is lit (non-motion ops in between keep the beam
 /// as it is: the laser model of this module).
 fn next_move_lit(rest: &[Op], pos: P3) -> bool {
@@ -819,6 +950,7 @@ fn motion_line(
         None => m.feed.unset(),
     }
     m.scratch = v;
+    m.dir = lead::direction(op, m.pos, to, true);
     m.pos = to;
     m.q = q;
 }

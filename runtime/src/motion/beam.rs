@@ -159,6 +159,7 @@ mod tests {
             pulse_off: vec![],
             pso: vec![],
             budget: Default::default(),
+            servo_period_s: None,
             spans: Default::default(),
         }
     }

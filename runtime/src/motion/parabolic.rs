@@ -23,8 +23,8 @@
 //! chain on the servo clock, and a block that short ends on the period after it (14.53 ms ran
 //! as 15 on the real LinuxCNC and in `link::linuxcnc::tp`'s replay; a block longer than the
 //! period after its triangle time runs as planned or a little faster): so the triangle time
-//! rounded up to `SERVO_PERIOD_S` is the shortest block held. At each junction the blend
-//! speeds `tpComputeBlendVelocity` gives both sides are judged as well (a short block next to
+//! rounded up to the servo period (`[post.linuxcnc] servo_period`,
+//! `Machine::servo_period_s`) is the shortest block held. At each junction the blend speeds `tpComputeBlendVelocity` gives both sides are judged as well (a short block next to
 //! a long one caps the long one's blend too).
 //!
 //! What LinuxCNC would then do cannot be planned honestly by lase: the power coupled to lase's
@@ -43,10 +43,6 @@ use super::{Job, LitSection, MotionError};
 use crate::axes::Axes;
 use crate::machine::{AxisKind, Machine};
 use lase_lang::units::{Dim, format_quantity};
-
-/// The servo period of the LinuxCNC configuration lase generates
-/// (`link::linuxcnc::config::ConfigOptions`' default; a test there keeps the two equal), s.
-pub const SERVO_PERIOD_S: f64 = 1e-3;
 
 /// Whether `machine`'s programs run on LinuxCNC: its `dialect` (LinuxCNC when it names none)
 /// with a LinuxCNC post to write them.
@@ -93,12 +89,13 @@ impl Block {
         }
         let triangle = (2.0 * t_a).sqrt();
         // A relative hair below a whole period counts as on it (times summed from the plan).
-        let periods = (triangle / SERVO_PERIOD_S * (1.0 - 1e-9)).ceil();
+        let period = machine.servo_period_s();
+        let periods = (triangle / period * (1.0 - 1e-9)).ceil();
         Some(Block {
             len,
             req: len / time_s,
             acc: len / t_a,
-            shortest_s: periods * SERVO_PERIOD_S,
+            shortest_s: periods * period,
             rotary: rot > 1e-12,
         })
     }
@@ -291,6 +288,7 @@ fn slow_stretch(job: &Job, section: &LitSection, times: &[f64]) -> Option<Slow> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::machine::DEFAULT_SERVO_PERIOD_S as SERVO_PERIOD_S;
 
     /// A rotary block of `len` at acceleration `acc` along it, run in `time` s.
     fn block(len: f64, time: f64, acc: f64) -> Block {

@@ -21,8 +21,6 @@ use crate::machine::{AxisKind, Machine};
 pub struct ConfigOptions {
     /// linuxcncrsh's TCP port.
     pub port: u16,
-    /// Servo period, ns (1 ms: what the samples resolve).
-    pub servo_period_ns: u32,
     /// Samples the HAL `sampler` FIFO holds before `halsampler` must have read them.
     pub sampler_depth: u32,
     /// `[EMCMOT]COMM_TIMEOUT`, s: how long task waits for motion to take a command. When it
@@ -58,7 +56,6 @@ impl Default for ConfigOptions {
     fn default() -> Self {
         ConfigOptions {
             port: super::DEFAULT_PORT,
-            servo_period_ns: 1_000_000,
             sampler_depth: 16_000,
             comm_timeout_s: 60.0,
             scales: None,
@@ -176,7 +173,9 @@ pub fn generate(machine: &Machine, options: &ConfigOptions) -> Config {
          [KINS]\nKINEMATICS = trivkins coordinates={coords}\nJOINTS = {n}\n",
         name = machine.name,
         port = options.port,
-        servo = options.servo_period_ns,
+        // The machine file's servo period (`[post.linuxcnc] servo_period`), which the writer's
+        // beam-switch lead (`emit::lead`) and the tp model read too.
+        servo = (machine.servo_period_s() * 1e9).round() as u64,
         comm = num(options.comm_timeout_s),
         spaced = letters
             .iter()

@@ -192,10 +192,7 @@ pub fn controller_time_from(
 ) -> Option<Result<TpTime, String>> {
     let machine = &job.program.machine;
     machine.post.get("linuxcnc")?;
-    let limits = TpLimits::for_machine(
-        machine,
-        f64::from(super::config::ConfigOptions::default().servo_period_ns) * 1e-9,
-    );
+    let limits = TpLimits::for_machine(machine, machine.servo_period_s());
     let mut model = TpStream::new(&limits, &[], false);
     Some(
         crate::emit::emit_nc_lines(job, facts, crate::emit::Dialect::LinuxCnc, &mut |l| {

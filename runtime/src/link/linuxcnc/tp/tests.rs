@@ -239,11 +239,9 @@ fn collinear_feeds_join_into_one_segment_as_canons_naive_cam_detector_does() {
 /// the speed the chain runs at.
 #[test]
 fn a_chain_of_short_rotary_blocks_runs_at_the_share_of_speed_the_motion_rule_predicts() {
-    use crate::motion::parabolic::{self, Block, SERVO_PERIOD_S};
+    use crate::motion::parabolic::{self, Block};
     let m = crate::machine::parse_machine(lase_stdlib::machine("arm_3r").unwrap(), 0).unwrap();
-    let period =
-        f64::from(crate::link::linuxcnc::config::ConfigOptions::default().servo_period_ns) * 1e-9;
-    assert_eq!(period, SERVO_PERIOD_S);
+    let period = m.servo_period_s();
     let l = TpLimits::for_machine(&m, period);
     let delta = 0.19f64;
     let per_block = |t: f64| {

@@ -1,0 +1,177 @@
+//! Beam switches placed ahead of LinuxCNC's joint pipeline (issue 13: every beam edge at the
+//! planned place on the real controller).
+//!
+//! LinuxCNC 2.9 switches a motion-synchronized output (`M62`/`M63`/`M67`) from its trajectory
+//! planner, in the servo period in which tp takes up the block the output is attached to
+//! (tp.c `tpToggleDIOs` → `emcmotDioWrite`, which writes the HAL pin at once). The joints do
+//! not get tp's position at once: control.c `get_pos_cmds` feeds each tp point into a cubic
+//! interpolator per joint (`cubicAddPoint`), and `cubicInterpolate` returns the way point
+//! (x0 + 4·x1 + x2) / 6 of the 4-point queue, centred on the point added two trajectory
+//! periods before (cubic.c; at `TRAJ_PERIOD` = `SERVO_PERIOD`, what lase's INI leaves it,
+//! two servo periods). The output therefore switches while the joints are still two periods
+//! short of the block's start, less the part of a period tp ran past that start before the
+//! period ended (0 to 1 period, ½ on average): on the real machine the beam went on and off
+//! 1–3 periods before its planned place (0.057 mm at 20 mm/s, 0.28 mm at 100 mm/s with the
+//! test's own 1 ms rounding).
+//!
+//! So on LinuxCNC the writer attaches each beam switch [`LEAD_PERIODS`] servo periods of the
+//! planned edge speed further along the path: the block is cut there and the switch lines
+//! written between its two parts. The edge then falls within ±½ servo period of travel of its
+//! planned place, the spread tp's switching once per period leaves. At an edge the plan
+//! passes at rest the lead is 0: a switch is never carried past a stop.
+//!
+//! Only Cartesian (units-per-minute) programs are cut: in inverse time (G93) a block's F is
+//! its time, and a cut block would need its own.
+
+use crate::program::{Op, OpKind, P3};
+
+/// Servo periods a synchronized output leads the joints by (module doc): the cubic
+/// interpolator's two, less tp's mean half period past the block start.
+pub(super) const LEAD_PERIODS: f64 = 1.5;
+
+/// Switch lines waiting to be written `left` mm further along the path.
+#[derive(Debug)]
+pub(super) struct Pending {
+    pub lines: Vec<String>,
+    pub left: f64,
+    /// They are the laser-off lines (the footer need not repeat them).
+    pub off: bool,
+    /// The servo period, s.
+    pub servo_s: f64,
+    /// The planned speed at the edge, mm/s.
+    pub v: f64,
+    /// The op whose switch it is: the lines keep its tag wherever they land, as a journal of
+    /// a live run reads them.
+    pub tag: Option<u32>,
+}
+
+/// Servo periods each part of a cut block must last at its feed: tp.c caps a segment's speed
+/// at its length over `TP_MIN_SEGMENT_CYCLES` (1.02) periods, so a shorter part would slow
+/// the machine at the beam's edge.
+const MIN_PART_PERIODS: f64 = 1.25;
+
+/// Servo periods at the edge speed what a blend arc leaves of a cut block's first part lasts
+/// (the blend takes up to half of it: `BLEND_DIST_FRACTION`), just above tp.c's 1.02.
+const BEHIND_BLEND_PERIODS: f64 = 1.1;
+
+/// Where block `sub` (`len` mm from where the spot is, F `cap` or its own) is cut to carry a
+/// switch `left` mm along it, if at all. Only a straight block (a short arc piece runs as its
+/// chord, canon's naive CAM, and kinks against the move before it, which tp passes slowly),
+/// and only where the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (tp.c
+/// caps a shorter segment's speed). Where LinuxCNC joins the block tangentially to the one
+/// before (tp.c's rule, [`tangent`]) the cut is at `left` (the part before lasts 1.5 periods
+/// of the edge speed, which never exceeds the feed). Elsewhere tp lays a blend arc over the
+/// junction that takes up to half of the first part, and what is left of it runs at most its
+/// length per servo period (on the real machine dial_marks' circle went dark at 31 of
+/// 40 mm/s after a cut 0.06 mm into its lead-out): the first part then lasts at least twice
+/// [`BEHIND_BLEND_PERIODS`] at the edge speed, and the switch, which tp makes where that part
+/// ends, after the blend, is late by what that adds (without the cut it came after the whole
+/// blend arc: 0.35 mm on dial_marks). `None` (also where a rapid meets a feed, where tp stops): the switch goes
+/// to the nearer end of the block.
+pub(super) fn cut_at(
+    sub: &Op,
+    m: &super::Modal,
+    len: f64,
+    p: &Pending,
+    cap: Option<f64>,
+    machine: &crate::machine::Machine,
+) -> Option<f64> {
+    let (left, servo_s) = (p.left, p.servo_s);
+    let feed = match &sub.kind {
+        OpKind::Line { feed_mm_s, .. } => cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s)),
+        OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
+        _ => return None,
+    };
+    // A rapid meeting a feed is a stop to tp.c (`tpCheckCanonType`): the edge is at rest there.
+    if (m.motion == Some("G0")) != matches!(sub.kind, OpKind::Rapid { .. }) {
+        return None;
+    }
+    let (before, start) = (m.dir?, direction(sub, m.pos, sub_end(sub), false)?);
+    let at = if tangent(before, start, feed, servo_s, machine) {
+        left
+    } else {
+        // The first part runs at about the edge's speed (air_assist's lit end is passed at
+        // 2.2 mm/s: at its block's 12 mm/s the minimum let tp reach 8.8 there), and what the
+        // blend leaves of it caps tp's speed at its length over 1.02 periods: 1.1 periods keep
+        // that cap 8 % above the edge speed (at 1.25, 23 %: 2.77 for 2.19 mm/s, 0.58 off).
+        left.max(2.0 * BEHIND_BLEND_PERIODS * servo_s * p.v)
+    };
+    (left > 0.0 && at < len && len - at >= MIN_PART_PERIODS * servo_s * feed).then_some(at)
+}
+
+/// The end a motion op's block runs to.
+fn sub_end(op: &Op) -> P3 {
+    op.target().unwrap_or_default()
+}
+
+/// tp.c `tpSetupTangent`'s rule, on the safe side: LinuxCNC passes a junction without a blend
+/// arc where turning at speed `v` within one servo period, plus the next segment's own
+/// acceleration, needs under 10 % (`ARC_BLEND_KINK_RATIO`) of the axes' acceleration
+/// (`link::linuxcnc::tp` models it in full; here the least linear axis acceleration bounds
+/// every component).
+fn tangent(a: P3, b: P3, v: f64, servo_s: f64, machine: &crate::machine::Machine) -> bool {
+    let acc = machine
+        .axes
+        .iter()
+        .filter(|x| x.kind == crate::machine::AxisKind::Linear)
+        .map(|x| x.a_max)
+        .fold(f64::INFINITY, f64::min);
+    if !(acc.is_finite() && acc > 0.0 && servo_s > 0.0) {
+        return false;
+    }
+    let turn = (0..3).map(|k| (b[k] - a[k]).abs()).fold(0.0, f64::max);
+    (v / servo_s + acc) * turn / acc < 0.1
+}
+
+/// The unit direction of travel of block `op` from `from` to `to`, where it starts (`end`
+/// false) or ends; `None` for a block that does not move.
+pub(super) fn direction(op: &Op, from: P3, to: P3, end: bool) -> Option<P3> {
+    let d = match &op.kind {
+        OpKind::Arc { center, ccw, .. } => {
+            let p = if end { to } else { from };
+            let (rx, ry) = (p[0] - center[0], p[1] - center[1]);
+            if *ccw { [-ry, rx, 0.0] } else { [ry, -rx, 0.0] }
+        }
+        _ => [to[0] - from[0], to[1] - from[1], to[2] - from[2]],
+    };
+    let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+    (n > 1e-12).then(|| [d[0] / n, d[1] / n, d[2] / n])
+}
+
+/// How far the beam switch at an edge passed at `v` mm/s is carried on a machine with servo
+/// period `servo_s` (s).
+pub(super) fn distance(v: f64, servo_s: f64) -> f64 {
+    let d = LEAD_PERIODS * servo_s * v;
+    if d >= MIN_LEAD_MM { d } else { 0.0 }
+}
+
+/// The least lead written, mm: below it (an edge passed at under 0.7 mm/s at 1 ms) the cut
+/// would move the switch by less than the program's 0.1 µm words resolve and 1 µm a beam
+/// edge could show.
+const MIN_LEAD_MM: f64 = 1e-3;
+
+/// `op` with its end moved to `to` (a block cut from it ends there; arcs keep their centre).
+pub(super) fn retarget(op: &Op, to: P3) -> Op {
+    let mut sub = op.clone();
+    match &mut sub.kind {
+        OpKind::Rapid { to: t, .. } | OpKind::Line { to: t, .. } | OpKind::Arc { to: t, .. } => {
+            *t = to;
+        }
+        _ => {}
+    }
+    sub
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_lead_is_one_and_a_half_servo_periods_of_the_edge_speed() {
+        // 20 mm/s at 1 ms: 0.03 mm; 100 mm/s: 0.15 mm; at rest nothing is carried.
+        assert!((distance(20.0, 0.001) - 0.03).abs() < 1e-12);
+        assert!((distance(100.0, 0.001) - 0.15).abs() < 1e-12);
+        assert_eq!(distance(0.0, 0.001), 0.0);
+        assert_eq!(distance(0.5, 0.001), 0.0);
+    }
+}
