@@ -6,6 +6,9 @@
 //! random programs (arcs, blends, stops, dwells, synced and immediate outputs, inverse time,
 //! rotary axes, beam switches, comments) compare every number by its bits.
 
+mod common;
+
+use common::examples;
 use lase_runtime::compile::{self, Files, FsFiles};
 use lase_runtime::emit::{self, Dialect, PlanFacts};
 use lase_runtime::link::linuxcnc::tp::{self, TpLimits, TpStream, TpTime};
@@ -14,7 +17,6 @@ use lase_runtime::link::sim::motion::{self, ModelStream, Timeline};
 use lase_runtime::machine::{Machine, parse_machine};
 use lase_runtime::motion as planning;
 use lase_runtime::program::ProcessProgram;
-use std::path::Path;
 
 fn tp_bits(t: &TpTime) -> (u64, u64, usize, usize, Vec<(usize, u64)>) {
     (
@@ -88,17 +90,6 @@ fn grbl_limits(machine: &Machine, dialect: Dialect) -> (motion::Limits, [f64; 6]
 
 fn tp_limits(machine: &Machine) -> TpLimits {
     TpLimits::for_machine(machine, 0.001)
-}
-
-fn examples() -> Vec<std::path::PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let mut v: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "lase"))
-        .collect();
-    v.sort();
-    v
 }
 
 fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {

@@ -15,12 +15,15 @@
 //!   `SET_AUX_OUTPUT_*`, which drains the motion queue and stops the machine) where the plan
 //!   flies through.
 
+mod common;
+
+use common::examples;
 use lase_runtime::axes::{Axes, from_external};
 use lase_runtime::compile::{self, FsFiles};
 use lase_runtime::emit::{self, Dialect, EmitOptions, NcLine};
 use lase_runtime::motion::Job;
 use lase_runtime::program::OpKind;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 #[path = "../../tests/common/rs274.rs"]
 mod rs274;
@@ -31,17 +34,6 @@ const DIALECTS: [Dialect; 4] = [
     Dialect::GrblHal,
     Dialect::Iso,
 ];
-
-fn examples() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let mut v: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "lase"))
-        .collect();
-    v.sort();
-    v
-}
 
 fn job_of(path: &Path) -> Job {
     let (_, job) = compile::compile(&mut FsFiles, path.to_str().unwrap())

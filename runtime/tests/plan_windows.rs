@@ -5,6 +5,9 @@
 //! look-ahead's commit rule and the corner blends at window boundaries are exercised
 //! everywhere, not only past `planner::MIN_WINDOW` segments.
 
+mod common;
+
+use common::examples;
 use lase_runtime::compile::{self, Files, FsFiles, MemFiles};
 use lase_runtime::emit::{self, Dialect, PlanFacts};
 use lase_runtime::motion;
@@ -12,7 +15,6 @@ use lase_runtime::planner::{
     self, Along, AxisLimits, Corners, MAX_AXES, Move, Plan, PlannerConfig, ProfileKind, Segment,
 };
 use lase_runtime::program::ProcessProgram;
-use std::path::Path;
 
 #[path = "support/short_moves.rs"]
 mod short_moves;
@@ -105,17 +107,6 @@ fn same_plan(what: &str, whole: &Plan, windows: &[Plan], planned: &planner::Plan
         "{what}: end"
     );
     windows.len()
-}
-
-fn examples() -> Vec<std::path::PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let mut v: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "lase"))
-        .collect();
-    v.sort();
-    v
 }
 
 #[test]

@@ -7,13 +7,14 @@
 //! random pulse jobs (pitch and period pulses, sections that change their pulse or go dark,
 //! dwells between lit moves, dot-mode windows at rest) under random budgets.
 
+mod common;
+
 use lase_runtime::compile::{self, Files, FsFiles, MemFiles};
 use lase_runtime::emit::{self, Dialect, PlanFacts};
 use lase_runtime::motion;
 use lase_runtime::planner;
 use lase_runtime::program::ProcessProgram;
 use lase_runtime::report::{self, PulseStream, PulseTime};
-use std::path::Path;
 
 fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
     let mut recipe = compile::load(files, path).unwrap_or_else(|(_, f)| panic!("{path}: {f}"));
@@ -80,13 +81,7 @@ fn same_pulses_and_nc(what: &str, program: &ProcessProgram) -> usize {
 
 #[test]
 fn every_examples_pulses_and_budget_from_windows_are_the_whole_plans() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let mut examples: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "lase"))
-        .collect();
-    examples.sort();
+    let examples = common::examples();
     assert!(examples.len() >= 10, "{} examples", examples.len());
     let mut pulses = 0;
     for ex in examples {

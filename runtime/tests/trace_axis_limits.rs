@@ -19,6 +19,8 @@
 
 mod common;
 
+use common::examples;
+
 use common::axis_limits::{AxisWorst, worst_per_axis, worst_per_axis_outside};
 use lase_runtime::compile::{self, FsFiles, MemFiles};
 use lase_runtime::motion::Job;
@@ -28,17 +30,6 @@ use std::path::Path;
 
 /// Relative slack of "within the limit": finite differences of exact positions.
 const REL: f64 = 1e-6;
-
-fn examples() -> Vec<std::path::PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
-    let mut v: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "lase"))
-        .collect();
-    v.sort();
-    v
-}
 
 fn report(name: &str, w: &AxisWorst) -> String {
     let j = w.j.map_or(String::from("-"), |j| {

@@ -53,6 +53,18 @@ pub fn program(
 
 pub mod axis_limits;
 
+/// Every example recipe (`examples/*.lase`), sorted by path.
+pub fn examples() -> Vec<std::path::PathBuf> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    let mut v: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "lase"))
+        .collect();
+    v.sort();
+    v
+}
+
 /// A LinuxCNC program's lines (text, op tag) with each beam switch the writer carried along
 /// the path (`emit::writer::lead`: LinuxCNC's synchronized outputs lead its joints by 1.5
 /// servo periods, so the switch is written that far past the beam's edge, cutting a straight
