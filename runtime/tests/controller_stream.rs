@@ -214,7 +214,14 @@ fn random_lcnc(rng: &mut Rng, n: usize, letters: &[char]) -> String {
             16 => format!("M63 P0{axes}"),
             17 => ["M64 P0", "M65 P0", "M68 E0 Q50"][rng.below(3)].into(),
             18 => format!("G4 P{}", [0.0, 0.01, 0.2][rng.below(3)]),
-            19 => ["G61", "G64 P0.05", "G64 P0.01 Q0.005", "G64"][rng.below(4)].into(),
+            19 => [
+                "G61",
+                "G64 P0.05",
+                "G64 P0.01 Q0.005",
+                "G64",
+                "G64 P0.01 Q0",
+            ][rng.below(5)]
+            .into(),
             20 => "(a comment) M67 E0 Q20".into(),
             21 => "M8".into(),
             22 => String::new(),

@@ -417,7 +417,8 @@ fn header_names_recipe_machine_and_dialect() {
     assert!(head[1].contains("test.lase"));
     assert!(head[2].contains("xy_table"));
     assert_eq!(head[3], "G21 G90 G17 G94");
-    assert_eq!(head[4], "G64 P0.01");
+    // Q0: canon's naive CAM off, so LinuxCNC runs lase's own lines (writer.rs).
+    assert_eq!(head[4], "G64 P0.01 Q0");
     assert!(nc.lines().all(|l| !l.is_empty() && !l.contains('\n')));
 }
 

@@ -215,6 +215,7 @@ fn a_lit_start_on_a_slow_arc_is_led_in_at_the_planned_speed() {
     let tol: f64 = text
         .iter()
         .find_map(|l| l.strip_prefix("G64 P"))
+        .and_then(|l| l.split(' ').next())
         .unwrap()
         .parse()
         .unwrap();

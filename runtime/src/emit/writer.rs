@@ -252,9 +252,13 @@ pub(super) fn write(
         out.put(&format!("G{g}"), None)?;
     }
     if dialect == Dialect::LinuxCnc {
-        // Path blending within the junction deviation the planner assumed.
+        // Path blending within the junction deviation the planner assumed. `Q0` turns off
+        // canon's naive-CAM detector (Q defaults to P), which would join lase's short, nearly
+        // collinear lit lines into one chord: lase plans those lines and their corners itself,
+        // and a chord starting at a flying switch meets the lead-in off its line, so tp blends
+        // that junction and switches after the blend (serial_number's edges 0.7 mm late).
         let p = format::number(program.planner.junction_deviation_mm);
-        out.put(&format!("G64 P{p}"), None)?;
+        out.put(&format!("G64 P{p} Q0"), None)?;
         if let (Some(inputs), false) = (machine.settle.linuxcnc_inputs, program.settles.is_empty())
         {
             for l in settle::linuxcnc_sub(inputs) {
@@ -753,8 +757,10 @@ fn lead_cap(
     (seg.v_exit > 0.0 && seg.v_exit < seg.feed).then_some(seg.v_exit)
 }
 
-/// LinuxCNC runs an arc whose sagitta is below the naive CAM tolerance (`G64 P`, which emit
-/// writes as the corner tolerance) as its chord (canon's `ARC_FEED`). A lit arc's first
+/// LinuxCNC runs an arc whose sagitta is below the naive CAM tolerance (`G64 Q`, else `P`) as
+/// its chord (canon's `ARC_FEED`). Emit now writes `G64 P<corner> Q0`, under which canon keeps
+/// every arc an arc; the merge below is kept (measured with it on the real LinuxCNC, and an
+/// NC with a non-zero Q still needs it), at the corner tolerance `P`. A lit arc's first
 /// speed-held sub-block is short, and as a chord it meets the move before it (a lead-in along
 /// lase's first chord, a few degrees off the arc's tangent) at a kink, which tp.c passes at
 /// its kink speed (`tpSetupTangent`: 3 mm/s on the real machine where frame_marking's plan

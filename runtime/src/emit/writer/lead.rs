@@ -55,8 +55,9 @@ const MIN_PART_PERIODS: f64 = 1.25;
 const BEHIND_BLEND_PERIODS: f64 = 1.1;
 
 /// Where block `sub` (`len` mm from where the spot is, F `cap` or its own) is cut to carry a
-/// switch `left` mm along it, if at all. Only a straight block (a short arc piece runs as its
-/// chord, canon's naive CAM, and kinks against the move before it, which tp passes slowly),
+/// switch `left` mm along it, if at all. Only a straight block (a short arc piece ran as its
+/// chord under canon's naive CAM and kinked against the move before it, which tp passes
+/// slowly; the header's `G64 … Q0` now keeps it an arc, but cut arcs are not measured yet),
 /// and only where the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (tp.c
 /// caps a shorter segment's speed). Where LinuxCNC joins the block tangentially to the one
 /// before (tp.c's rule, [`tangent`]) the cut is at `left` (the part before lasts 1.5 periods

@@ -83,6 +83,10 @@ fn small_arcs_in_blending_mode_run_as_their_chords() {
     let exact = run_program(&nc("G61\n"), &l).unwrap();
     // The chord ramps at the line's acceleration, the arc at half of it.
     assert!(blended.total_s < exact.total_s, "{blended:?} {exact:?}");
+    // Q0 (what emit writes) turns the naive CAM off: canon keeps the arc an arc, since no
+    // chord deviation is below 0 (emccanon.cc ARC_FEED), so it ramps at half acceleration.
+    let kept = run_program(&nc("G64 P0.02 Q0\n"), &l).unwrap();
+    assert!(blended.total_s < kept.total_s, "{blended:?} {kept:?}");
 }
 
 #[test]
