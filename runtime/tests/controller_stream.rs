@@ -8,15 +8,14 @@
 
 mod common;
 
-use common::examples;
-use lase_runtime::compile::{self, Files, FsFiles};
+use common::{examples, program_of};
+use lase_runtime::compile::FsFiles;
 use lase_runtime::emit::{self, Dialect, PlanFacts};
 use lase_runtime::link::linuxcnc::tp::{self, TpLimits, TpStream, TpTime};
 use lase_runtime::link::sim::ControllerConfig;
 use lase_runtime::link::sim::motion::{self, ModelStream, Timeline};
 use lase_runtime::machine::{Machine, parse_machine};
 use lase_runtime::motion as planning;
-use lase_runtime::program::ProcessProgram;
 
 fn tp_bits(t: &TpTime) -> (u64, u64, usize, usize, Vec<(usize, u64)>) {
     (
@@ -90,12 +89,6 @@ fn grbl_limits(machine: &Machine, dialect: Dialect) -> (motion::Limits, [f64; 6]
 
 fn tp_limits(machine: &Machine) -> TpLimits {
     TpLimits::for_machine(machine, 0.001)
-}
-
-fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
-    let mut recipe = compile::load(files, path).unwrap_or_else(|(_, f)| panic!("{path}: {f}"));
-    compile::check(&recipe).unwrap_or_else(|f| panic!("{path}: {f}"));
-    compile::evaluate(&mut recipe, files).unwrap_or_else(|f| panic!("{path}: {f}"))
 }
 
 #[test]

@@ -7,8 +7,8 @@
 
 mod common;
 
-use common::examples;
-use lase_runtime::compile::{self, Files, FsFiles, MemFiles};
+use common::{examples, program_of};
+use lase_runtime::compile::{self, FsFiles, MemFiles};
 use lase_runtime::emit::{self, Dialect, PlanFacts};
 use lase_runtime::motion;
 use lase_runtime::planner::{
@@ -212,12 +212,6 @@ fn every_examples_summary_counted_from_windows_is_the_whole_plans() {
 }
 
 /// The program of recipe `path` in `files`.
-fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
-    let mut recipe = compile::load(files, path).unwrap_or_else(|(_, f)| panic!("{path}: {f}"));
-    compile::check(&recipe).unwrap_or_else(|f| panic!("{path}: {f}"));
-    compile::evaluate(&mut recipe, files).unwrap_or_else(|f| panic!("{path}: {f}"))
-}
-
 /// `lase emit`'s two ways, whole and in windows (`emit::PlanFacts`), give the same NC text, or
 /// the same refusal, in every dialect.
 fn same_nc(what: &str, program: &ProcessProgram) {
@@ -226,24 +220,12 @@ fn same_nc(what: &str, program: &ProcessProgram) {
         let want = emit::emit_to_string(&whole, dialect).map_err(|e| format!("{e:?}"));
         for min_window in [1, 3, planner::MIN_WINDOW] {
             // Also as `lase plan` gathers them, once for every dialect: each reads its own.
-            let mut facts = if min_window == 3 {
+            let facts = if min_window == 3 {
                 PlanFacts::for_dialects(program, &Dialect::ALL)
             } else {
                 PlanFacts::new(program, dialect)
             };
-            let (job, _) =
-                motion::plan_program_windows_sized(program.clone(), min_window, |p, w| {
-                    facts.window(p, &w)
-                })
-                .unwrap_or_else(|e| panic!("{what}: {e}"));
-            facts.finish(&job.program);
-            let mut got = String::new();
-            let r = emit::emit_planned(&job, &facts, dialect, &Default::default(), &mut |l| {
-                got.push_str(&l.text);
-                got.push('\n');
-                Ok(())
-            });
-            let got = r.map(|_| got).map_err(|e| format!("{e:?}"));
+            let got = common::emit_in_windows(what, program, facts, dialect, min_window);
             assert!(
                 got == want,
                 "{what}, {dialect}, windows from {min_window}: the NC differs from the whole \

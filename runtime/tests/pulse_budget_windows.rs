@@ -9,18 +9,14 @@
 
 mod common;
 
-use lase_runtime::compile::{self, Files, FsFiles, MemFiles};
+use common::program_of;
+
+use lase_runtime::compile::{FsFiles, MemFiles};
 use lase_runtime::emit::{self, Dialect, PlanFacts};
 use lase_runtime::motion;
 use lase_runtime::planner;
 use lase_runtime::program::ProcessProgram;
 use lase_runtime::report::{self, PulseStream, PulseTime};
-
-fn program_of(files: &mut impl Files, path: &str) -> ProcessProgram {
-    let mut recipe = compile::load(files, path).unwrap_or_else(|(_, f)| panic!("{path}: {f}"));
-    compile::check(&recipe).unwrap_or_else(|f| panic!("{path}: {f}"));
-    compile::evaluate(&mut recipe, files).unwrap_or_else(|f| panic!("{path}: {f}"))
-}
 
 /// `(time bits, op)` of every pulse.
 type Pulses = Vec<(u64, u32)>;
@@ -59,18 +55,8 @@ fn same_pulses_and_nc(what: &str, program: &ProcessProgram) -> usize {
     }
     for dialect in Dialect::ALL {
         let want = emit::emit_to_string(&whole, dialect).map_err(|e| format!("{e:?}"));
-        let mut facts = PlanFacts::for_dialects(program, &Dialect::ALL);
-        let (job, _) =
-            motion::plan_program_windows_sized(program.clone(), 3, |p, w| facts.window(p, &w))
-                .unwrap_or_else(|e| panic!("{what}: {e}"));
-        facts.finish(&job.program);
-        let mut got = String::new();
-        let r = emit::emit_planned(&job, &facts, dialect, &Default::default(), &mut |l| {
-            got.push_str(&l.text);
-            got.push('\n');
-            Ok(())
-        });
-        let got = r.map(|_| got).map_err(|e| format!("{e:?}"));
+        let facts = PlanFacts::for_dialects(program, &Dialect::ALL);
+        let got = common::emit_in_windows(what, program, facts, dialect, 3);
         match (&got, &want) {
             (Err(g), Err(w)) => assert_eq!(g, w, "{what}, {dialect}: the refusal"),
             _ => assert!(got == want, "{what}, {dialect}: the NC differs"),

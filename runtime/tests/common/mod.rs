@@ -65,6 +65,41 @@ pub fn examples() -> Vec<std::path::PathBuf> {
     v
 }
 
+/// A recipe file loaded, checked and evaluated (not planned): the program `lase` plans.
+pub fn program_of(
+    files: &mut impl lase_runtime::compile::Files,
+    path: &str,
+) -> lase_runtime::program::ProcessProgram {
+    let mut recipe = compile::load(files, path).unwrap_or_else(|(_, f)| panic!("{path}: {f}"));
+    compile::check(&recipe).unwrap_or_else(|f| panic!("{path}: {f}"));
+    compile::evaluate(&mut recipe, files).unwrap_or_else(|f| panic!("{path}: {f}"))
+}
+
+/// `lase emit`'s windowed path: `program` planned in windows of at least `min_window`
+/// segments, read by `facts`, then written in `dialect`: the NC text, or the refusal's `Debug`.
+pub fn emit_in_windows(
+    what: &str,
+    program: &lase_runtime::program::ProcessProgram,
+    mut facts: lase_runtime::emit::PlanFacts,
+    dialect: lase_runtime::emit::Dialect,
+    min_window: usize,
+) -> Result<String, String> {
+    let (job, _) =
+        lase_runtime::motion::plan_program_windows_sized(program.clone(), min_window, |p, w| {
+            facts.window(p, &w)
+        })
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
+    facts.finish(&job.program);
+    let mut got = String::new();
+    let r =
+        lase_runtime::emit::emit_planned(&job, &facts, dialect, &Default::default(), &mut |l| {
+            got.push_str(&l.text);
+            got.push('\n');
+            Ok(())
+        });
+    r.map(|_| got).map_err(|e| format!("{e:?}"))
+}
+
 mod uncarried;
 #[allow(unused_imports)]
 pub use uncarried::{uncarried, uncarried_text};
