@@ -298,53 +298,14 @@ fn plan_whole(st: Staged) -> Result<Job, MotionError> {
         })
     };
     let (plan, op_axes, initial_dwell_s) = plan_with(&st, false)?;
-    let Staged {
-        program,
-        kin,
-        start,
-        start_span,
-        limits,
-        cfg,
-        laser_switch_stops,
-        arm_stops,
-        sections,
-        leads,
-    } = st;
-    let job = Job {
-        program,
-        kin,
-        start,
-        op_axes,
-        initial_dwell_s,
-        plan,
-        sections,
-        leads,
-    };
+    let (job, rest) = st.split(op_axes, initial_dwell_s, plan);
     match held::check_held(&job) {
         Ok(()) => {
             parabolic::check_linuxcnc_held(&job)?;
             Ok(job)
         }
         Err(_) if job.kin.oriented() => {
-            let Job {
-                program,
-                kin,
-                sections,
-                leads,
-                ..
-            } = job;
-            let st = Staged {
-                program,
-                kin,
-                start,
-                start_span,
-                limits,
-                cfg,
-                laser_switch_stops,
-                arm_stops,
-                sections,
-                leads,
-            };
+            let st = rest.restage(job);
             let (plan, op_axes, initial_dwell_s) = plan_with(&st, true)?;
             let job = st.into_job(op_axes, initial_dwell_s, plan);
             held::check_held(&job)?;
@@ -417,15 +378,67 @@ impl Staged {
     }
 
     fn into_job(self, op_axes: OpAxes, initial_dwell_s: f64, plan: Plan) -> Job {
-        Job {
-            program: self.program,
-            kin: self.kin,
-            start: self.start,
+        self.split(op_axes, initial_dwell_s, plan).0
+    }
+
+    /// The job planned from this stage, and what the stage keeps beside it to plan again.
+    fn split(self, op_axes: OpAxes, initial_dwell_s: f64, plan: Plan) -> (Job, Rest) {
+        let Staged {
+            program,
+            kin,
+            start,
+            start_span,
+            limits,
+            cfg,
+            laser_switch_stops,
+            arm_stops,
+            sections,
+            leads,
+        } = self;
+        let job = Job {
+            program,
+            kin,
+            start,
             op_axes,
             initial_dwell_s,
             plan,
-            sections: self.sections,
-            leads: self.leads,
+            sections,
+            leads,
+        };
+        let rest = Rest {
+            start_span,
+            limits,
+            cfg,
+            laser_switch_stops,
+            arm_stops,
+        };
+        (job, rest)
+    }
+}
+
+/// What a [`Staged`] program holds beyond the [`Job`] planned from it: enough to stage the
+/// job's program again (`plan_whole`'s second plan).
+struct Rest {
+    start_span: Span,
+    limits: AxisLimits,
+    cfg: PlannerConfig,
+    laser_switch_stops: bool,
+    arm_stops: Vec<usize>,
+}
+
+impl Rest {
+    fn restage(self, job: Job) -> Staged {
+        Staged {
+            program: job.program,
+            kin: job.kin,
+            start: job.start,
+            start_span: self.start_span,
+            limits: self.limits,
+            cfg: self.cfg,
+            laser_switch_stops: self.laser_switch_stops,
+            arm_stops: self.arm_stops,
+            sections: job.sections,
+            leads: job.leads,
         }
     }
 }

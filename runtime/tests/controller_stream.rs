@@ -8,6 +8,7 @@
 
 mod common;
 
+use common::rng::Rng;
 use common::{examples, program_of};
 use lase_runtime::compile::FsFiles;
 use lase_runtime::emit::{self, Dialect, PlanFacts};
@@ -153,28 +154,12 @@ fn every_example_streamed_through_the_controller_models_times_as_the_tabled_mode
     assert!(modelled >= 20, "{modelled} programs modelled");
 }
 
-/// xorshift64*: the same programs on every run.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() * n as f64) as usize % n
-    }
-
-    fn coord(&mut self) -> f64 {
-        // Short and long moves, repeats (zero-length moves) and a grid (collinear runs).
-        match self.below(4) {
-            0 => (self.next() * 100.0 - 50.0).round() / 4.0,
-            1 => self.next() * 2.0 - 1.0,
-            _ => (self.next() * 40.0 - 20.0).round(),
-        }
+/// A coordinate: short and long moves, repeats (zero-length moves) and a grid (collinear runs).
+fn coord(rng: &mut Rng) -> f64 {
+    match rng.below(4) {
+        0 => (rng.next() * 100.0 - 50.0).round() / 4.0,
+        1 => rng.next() * 2.0 - 1.0,
+        _ => (rng.next() * 40.0 - 20.0).round(),
     }
 }
 
@@ -187,7 +172,7 @@ fn random_lcnc(rng: &mut Rng, n: usize, letters: &[char]) -> String {
         let mut axes = String::new();
         for &c in letters {
             if rng.below(3) > 0 {
-                axes.push_str(&format!(" {c}{:.4}", rng.coord()));
+                axes.push_str(&format!(" {c}{:.4}", coord(rng)));
             }
         }
         let line = match rng.below(24) {
@@ -196,10 +181,10 @@ fn random_lcnc(rng: &mut Rng, n: usize, letters: &[char]) -> String {
             12 | 13 if !rotary => format!(
                 "G{} X{:.4} Y{:.4} I{:.4} J{:.4} F1500",
                 2 + rng.below(2),
-                rng.coord(),
-                rng.coord(),
-                rng.coord(),
-                rng.coord()
+                coord(rng),
+                coord(rng),
+                coord(rng),
+                coord(rng)
             ),
             12 | 13 => format!("G93 G1{axes} F{:.3}", 1.0 + rng.next() * 400.0),
             14 => "G94".into(),
@@ -237,7 +222,7 @@ fn random_grbl(rng: &mut Rng, n: usize, letters: &[char], home: [f64; 6]) -> Str
         let mut to = pos;
         for (k, &c) in letters.iter().enumerate() {
             if rng.below(3) > 0 {
-                to[k] = rng.coord();
+                to[k] = coord(rng);
                 axes.push_str(&format!(" {c}{:.3}", to[k]));
             }
         }
@@ -249,7 +234,7 @@ fn random_grbl(rng: &mut Rng, n: usize, letters: &[char], home: [f64; 6]) -> Str
                 [0, 0, 250, 1000][rng.below(4)]
             ),
             12 | 13 => {
-                let (i, j) = (rng.coord() / 4.0 + 0.5, rng.coord() / 4.0);
+                let (i, j) = (coord(rng) / 4.0 + 0.5, coord(rng) / 4.0);
                 let r = i.hypot(j);
                 let a = rng.next() * std::f64::consts::TAU;
                 to = pos;
@@ -307,7 +292,7 @@ fn random_programs_streamed_through_the_linuxcnc_model_time_as_the_tabled_model(
             // Longer than the look-ahead's 50 pieces, and some far longer.
             let n = [5, 40, 120, 400][k % 4];
             let nc = random_lcnc(&mut rng, n, letters);
-            let start: Vec<f64> = (0..letters.len()).map(|_| rng.coord()).collect();
+            let start: Vec<f64> = (0..letters.len()).map(|_| coord(&mut rng)).collect();
             let what = format!("{machine} program {k}:\n{nc}");
             ran += usize::from(same_tp(&what, &nc, &limits, &start).is_ok());
         }

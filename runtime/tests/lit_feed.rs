@@ -9,7 +9,7 @@
 
 mod common;
 
-use common::job;
+use common::{job, time_at};
 use lase_runtime::emit::{Dialect, EmitOptions, emit_lines};
 use lase_runtime::motion::{Job, power};
 
@@ -79,21 +79,6 @@ fn lit_lines(j: &Job, dialect: Dialect) -> Vec<Block> {
         pos = to;
     }
     out
-}
-
-/// Plan time at which the path distance reaches `s` (`leave`: the last instant still there).
-fn time_at(j: &Job, s: f64, leave: bool) -> f64 {
-    let (mut lo, mut hi) = (0.0, j.plan.duration());
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        let here = j.plan.sample(mid).s;
-        if here < s || (leave && here <= s) {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
 }
 
 /// NC coordinates are written to 0.1 µm: a block's ends on the plan's path are known to half

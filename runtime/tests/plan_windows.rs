@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::rng::Rng;
 use common::{examples, program_of};
 use lase_runtime::compile::{self, FsFiles, MemFiles};
 use lase_runtime::emit::{self, Dialect, PlanFacts};
@@ -287,22 +288,6 @@ fn coupled_power_and_flying_switches_emitted_from_windows_are_those_of_the_whole
     // The flying M64 is refused where the beam goes on at speed (after the lead-in), and nowhere
     // else (`short` switches it on at rest): the check ran, on the windows' speeds too.
     assert_eq!(refused, ["rect on flying"]);
-}
-
-/// A deterministic generator (xorshift), so that a failure names its seed.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 << 13;
-        self.0 ^= self.0 >> 7;
-        self.0 ^= self.0 << 17;
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() * n as f64) as usize % n
-    }
 }
 
 /// A random path of `n` moves in `n_axes` axes: short and long moves, straight runs, sharp and

@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{compile, job, uncarried};
+use common::{compile, job, time_at, uncarried};
 use lase_runtime::emit::{Dialect, EmitError, EmitOptions, emit_lines, emit_to_string};
 use lase_runtime::motion::{Job, power};
 use lase_runtime::report::beam_at;
@@ -140,22 +140,6 @@ fn lit_blocks(j: &Job, dialect: Dialect, max_power: f64) -> Vec<(u32, f64, [f64;
         }
     }
     out
-}
-
-/// Plan time at which the path distance reaches `s` (`leave`: the last instant still at `s`,
-/// i.e. after any standstill there).
-fn time_at(j: &Job, s: f64, leave: bool) -> f64 {
-    let (mut lo, mut hi) = (0.0, j.plan.duration());
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        let here = j.plan.sample(mid).s;
-        if here < s || (leave && here <= s) {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
 }
 
 #[test]

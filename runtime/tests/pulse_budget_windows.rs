@@ -10,6 +10,7 @@
 mod common;
 
 use common::program_of;
+use common::rng::Rng;
 
 use lase_runtime::compile::{FsFiles, MemFiles};
 use lase_runtime::emit::{self, Dialect, PlanFacts};
@@ -75,22 +76,6 @@ fn every_examples_pulses_and_budget_from_windows_are_the_whole_plans() {
         pulses += same_pulses_and_nc(path, &program_of(&mut FsFiles, path));
     }
     assert!(pulses > 900, "{pulses} pulses in the examples");
-}
-
-/// xorshift64*: the same jobs on every run.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_f491_4f6c_dd1d) >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        ((self.next() * n as f64) as usize).min(n - 1)
-    }
 }
 
 /// A random pulse job on xy_table (its LinuxCNC and GRBL budgets, and maybe a `max_pulses`).

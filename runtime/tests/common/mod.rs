@@ -100,6 +100,23 @@ pub fn emit_in_windows(
     r.map(|_| got).map_err(|e| format!("{e:?}"))
 }
 
+pub mod rng;
 mod uncarried;
 #[allow(unused_imports)]
 pub use uncarried::{uncarried, uncarried_text};
+
+/// Plan time at which the path distance reaches `s` (`leave`: the last instant still at `s`,
+/// i.e. after any standstill there).
+pub fn time_at(j: &Job, s: f64, leave: bool) -> f64 {
+    let (mut lo, mut hi) = (0.0, j.plan.duration());
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        let here = j.plan.sample(mid).s;
+        if here < s || (leave && here <= s) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
