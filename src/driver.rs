@@ -2,6 +2,7 @@
 //! from disk, and the one place where diagnostics meet their source text and are rendered.
 
 use lase_lang::SourceMap;
+use lase_runtime::emit::Dialect;
 use lase_runtime::motion::Job;
 use miette::{Diagnostic, GraphicalReportHandler, GraphicalTheme};
 use std::fmt::Write as _;
@@ -16,12 +17,29 @@ pub fn compile(path: &Path) -> Result<(Recipe, Job), (SourceMap, Failure)> {
 
 /// [`compile`] with the plan made in windows and dropped (`lase check`, issue 18): the job
 /// holds no segments, only its cycle time, so a job of millions of moves is checked in
-/// memory that does not grow with its plan.
-pub fn check(path: &Path) -> Result<(Recipe, Job), (SourceMap, Failure)> {
+/// memory that does not grow with its plan. It also runs what `lase emit` checks before its
+/// first line for the controller that runs the program (`dialect`, else the machine file's,
+/// else LinuxCNC: `emit::check_planned`), so a recipe `lase check` passes is one `lase emit`
+/// writes; the warnings `lase emit` would print come back with the job.
+pub fn check(
+    path: &Path,
+    dialect: Option<Dialect>,
+) -> Result<(Recipe, Job, Vec<String>), (SourceMap, Failure)> {
     let (recipe, program) = program(path)?;
-    match lase_runtime::compile::plan_in_windows(program, |_, _| {}) {
-        Ok((job, _)) => Ok((recipe, job)),
-        Err(f) => Err((recipe.map, f)),
+    let dialect =
+        dialect.unwrap_or_else(|| lase_runtime::link::estimate::default_dialect(&program.machine));
+    let mut facts = lase_runtime::emit::PlanFacts::new(&program, dialect);
+    let job = match lase_runtime::compile::plan_in_windows(program, |p, w| facts.window(p, &w)) {
+        Ok((job, _)) => job,
+        Err(f) => return Err((recipe.map, f)),
+    };
+    facts.finish(&job.program);
+    match lase_runtime::emit::check_planned(&job, &facts, dialect) {
+        Ok(warnings) => {
+            let warnings = warnings.iter().map(|w| w.to_string()).collect();
+            Ok((recipe, job, warnings))
+        }
+        Err(e) => Err((recipe.map, Failure::one(e))),
     }
 }
 

@@ -32,8 +32,15 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Check a recipe: syntax, names, units, machine limits, reachability. Exit 1 on errors.
-    Check { file: PathBuf },
+    /// Check a recipe: syntax, names, units, machine limits, reachability, and what `lase emit`
+    /// refuses for the controller that runs it (post words, pulse budget). Exit 1 on errors.
+    Check {
+        file: PathBuf,
+        /// The controller's NC dialect: linuxcnc, grbl, grblhal or iso (default: the machine
+        /// file's `dialect`, else linuxcnc).
+        #[arg(long)]
+        dialect: Option<String>,
+    },
     /// Write the NC program of a recipe (stdout unless -o).
     Emit {
         file: PathBuf,
@@ -143,7 +150,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let color = std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none();
     let result = match cli.command {
-        Command::Check { file } => cmd_check(&file),
+        Command::Check { file, dialect } => cmd_check(&file, dialect.as_deref()),
         Command::Emit {
             file,
             output,
@@ -199,8 +206,12 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
     (SourceMap::new(), Failure::one(IoError { message }))
 }
 
-fn cmd_check(file: &Path) -> CmdResult {
-    let (recipe, job) = driver::check(file)?;
+fn cmd_check(file: &Path, dialect: Option<&str>) -> CmdResult {
+    let dialect = dialect.map(parse_dialect).transpose()?;
+    let (recipe, job, warnings) = driver::check(file, dialect)?;
+    for warn in &warnings {
+        eprintln!("warning: {warn}");
+    }
     outln!("{}", driver::ok_line(&recipe, &job));
     Ok(())
 }

@@ -72,7 +72,8 @@ fn every_lase_snippet_in_the_docs_checks_clean() {
         }
         for (i, snippet) in inline_statements(&text).into_iter().enumerate() {
             // `swing_right` is an event of the notcher's machine file; the scan rows name a
-            // region `pad` and fire with the pulse settings in force.
+            // region `pad` and fire with the pulse settings in force (a rate xy_table's LinuxCNC
+            // triggers: `lase check` holds a recipe to the controller's pulse budget).
             // `rotary` sets the object on a rotary attachment: the stock one's.
             let machine = if snippet.starts_with("event ") {
                 "notcher"
@@ -82,7 +83,7 @@ fn every_lase_snippet_in_the_docs_checks_clean() {
                 "xy_table"
             };
             let scan_setup = if snippet.starts_with("scan ") {
-                "let pad = profile rect((0, 0), 2 mm, 1 mm)\nlaser { power 1 W }\npulse { rate 20 kHz, width 100 ns }\n"
+                "let pad = profile rect((0, 0), 2 mm, 1 mm)\nlaser { power 1 W }\npulse { rate 200 Hz, width 100 ns }\n"
             } else {
                 ""
             };

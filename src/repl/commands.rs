@@ -402,8 +402,14 @@ impl Session {
 
     fn check(&self, arg: Option<&str>) {
         if let Some(file) = arg {
-            match driver::compile(Path::new(file)) {
-                Ok((recipe, job)) => println!("{}", driver::ok_line(&recipe, &job)),
+            // As `lase check FILE`: planned in windows, and what `lase emit` refuses checked.
+            match driver::check(Path::new(file), None) {
+                Ok((recipe, job, warnings)) => {
+                    for warn in &warnings {
+                        println!("warning: {warn}");
+                    }
+                    println!("{}", driver::ok_line(&recipe, &job));
+                }
                 Err((map, f)) => self.report_in(&map, &f),
             }
             return;

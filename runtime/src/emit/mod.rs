@@ -351,14 +351,26 @@ pub fn emit_planned(
     emit_with(job, Some(facts), dialect, options, sink)
 }
 
-fn emit_with(
+/// What `lase emit` refuses before the first NC line of a job planned in windows (`facts`
+/// gathered for `dialect`): the post's words and settles, flying switches an immediate output
+/// would stop, the pulse budget. `lase check` runs it for the machine's controller, so a
+/// recipe it passes is one `lase emit` writes.
+/// Its warnings are those `lase emit` prints.
+pub fn check_planned(
     job: &Job,
+    facts: &PlanFacts,
+    dialect: Dialect,
+) -> Result<Vec<EmitWarning>, EmitError> {
+    check_with(job, Some(facts), dialect, false).map(|c| c.warnings)
+}
+
+fn check_with<'j>(
+    job: &'j Job,
     facts: Option<&PlanFacts>,
     dialect: Dialect,
-    options: &EmitOptions<'_>,
-    sink: &mut dyn FnMut(&NcLine) -> std::io::Result<()>,
-) -> Result<EmitStats, EmitError> {
-    if !options.live {
+    live: bool,
+) -> Result<validate::Checked<'j>, EmitError> {
+    if !live {
         validate::check_settles(&job.program, dialect)?;
     }
     let checked = validate::validate(job, dialect, facts)?;
@@ -367,6 +379,17 @@ fn emit_with(
         // Checked on the pulses as the windows passed (`PlanFacts`).
         Some(facts) => facts.pulse_budget(&job.program, dialect)?,
     }
+    Ok(checked)
+}
+
+fn emit_with(
+    job: &Job,
+    facts: Option<&PlanFacts>,
+    dialect: Dialect,
+    options: &EmitOptions<'_>,
+    sink: &mut dyn FnMut(&NcLine) -> std::io::Result<()>,
+) -> Result<EmitStats, EmitError> {
+    let checked = check_with(job, facts, dialect, options.live)?;
     // Settled rows go out relative to their settled start (`relative`), whether a live link
     // or the control settles them.
     let rows = relative::row_ranges(&job.program);
