@@ -318,7 +318,9 @@ pub(super) fn write(
     let servo_s = (dialect == Dialect::LinuxCnc && (!inverse_time || parabolic))
         .then(|| machine.servo_period_s());
     let edge_lead = |i: usize, end: usize| {
-        servo_s.map_or(0.0, |t| lead::distance(edge_speeds(job, facts, i)[end], t))
+        servo_s.map_or(0.0, |t| {
+            lead::distance(lead::edge_speeds(job, facts, i)[end], t)
+        })
     };
     // The carry at an edge passed at the plan's speeds there: `lead::shift` asks for the
     // entry speed of the lit op after an unlit one (end 0) or the exit speed of a lit op.
@@ -478,7 +480,7 @@ pub(super) fn write(
                                     left,
                                     off: false,
                                     servo_s: servo_s.unwrap_or(0.0),
-                                    v: edge_speeds(job, facts, i)[0],
+                                    v: lead::edge_speeds(job, facts, i)[0],
                                     tag,
                                 });
                             } else {
@@ -518,7 +520,7 @@ pub(super) fn write(
                         let cap = if dialect.is_grbl_family() || op.laser().is_some() || more {
                             None
                         } else {
-                            lead_cap(job, facts, i, &ops[i + 1..], to)
+                            lead::lead_cap(job, facts, i, &ops[i + 1..], to)
                         };
                         let (to, q_end) = shifted.unwrap_or((to, q_end));
                         if split {
@@ -653,7 +655,7 @@ pub(super) fn write(
                                 left,
                                 off: true,
                                 servo_s: servo_s.unwrap_or(0.0),
-                                v: edge_speeds(job, facts, i)[1],
+                                v: lead::edge_speeds(job, facts, i)[1],
                                 tag,
                             });
                         } else {
@@ -795,31 +797,6 @@ fn part_way(
     }
 }
 
-/// The feed an unlit feed move that leads into a lit one is held to: the plan's speed where
-/// the beam comes on, where that is below the move's feed (a lit section that starts on a
-/// slow lit arc or corner). LinuxCNC runs the blend arc between two blocks at the higher of
-/// their feeds (`blendParamKinematics`' `v_goal`) and switches a synced output as the next
-/// block starts, after that blend: a lead-in written at its full feed carried 14.8 mm/s over
-/// frame_marking's beam edge, where the plan (and the held lit block) say 9.9. `None` at a
-/// stop (the controller stops there anyway) and where the plan keeps the feed.
-fn lead_cap(
-    job: &Job,
-    facts: Option<&super::PlanFacts>,
-    i: usize,
-    rest: &[Op],
-    to: P3,
-) -> Option<f64> {
-    if !next_move_lit(rest, to) {
-        return None;
-    }
-    // A plan made in windows left it in `facts` (`emit::PlanFacts`).
-    if let Some(f) = facts {
-        return f.exit_below_feed(i);
-    }
-    let seg = job.plan.segments()[power::op_segments(job, i)].last()?;
-    (seg.v_exit > 0.0 && seg.v_exit < seg.feed).then_some(seg.v_exit)
-}
-
 /// LinuxCNC runs an arc whose sagitta is below the naive CAM tolerance (`G64 Q`, else `P`) as
 /// its chord (canon's `ARC_FEED`). Emit now writes `G64 P<corner> Q0`, under which canon keeps
 /// every arc an arc; the merge below is kept (measured with it on the real LinuxCNC, and an
@@ -843,23 +820,6 @@ fn arc_first_block(op: &Op, from: P3, blocks: &mut Vec<power::PowerBlock>, tol: 
     let phi = 2.0 * (1.0 - tol / r).max(-1.0).acos();
     let s_min = total * (r * phi * (1.0 + 1e-6) / arc_len);
     power::merge_front(blocks, s_min);
-}
-
-/// The plan's speeds where lit op `i` starts and ends, mm/s, from the whole plan or (planned
-/// in windows) `facts`; 0 where not known.
-fn edge_speeds(job: &Job, facts: Option<&super::PlanFacts>, i: usize) -> [f64; 2] {
-    if let Some(f) = facts {
-        return f.edge_speeds(i);
-    }
-    let r = power::op_segments(job, i);
-    let segs = job.plan.segments();
-    match (
-        segs.get(r.start),
-        r.end.checked_sub(1).and_then(|e| segs.get(e)),
-    ) {
-        (Some(a), Some(b)) if !r.is_empty() => [a.v_entry, b.v_exit],
-        _ => [0.0, 0.0],
-    }
 }
 
 /// Writes the block `(op, to, q, cap)` (see [`motion_line`]) from where the spot is; where a

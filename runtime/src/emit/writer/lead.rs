@@ -29,6 +29,7 @@
 
 use crate::axes::Axes;
 use crate::machine::AxisKind;
+use crate::motion::{Job, power};
 use crate::program::{Op, OpKind, P3};
 
 /// Servo periods a synchronized output leads the joints by (module doc): the cubic
@@ -153,7 +154,7 @@ pub(super) fn triangle_s(machine: &crate::machine::Machine, a: &Axes, b: &Axes, 
 /// next op, which it must continue in a straight line, and the next op starts there. Both
 /// keep their speeds: in G93 each block's F is its own length over its feed.
 pub(super) fn shift(
-    job: &crate::motion::Job,
+    job: &Job,
     i: usize,
     (from, from_q): (P3, &Axes),
     carry: impl Fn((usize, usize)) -> f64,
@@ -206,7 +207,7 @@ pub(super) fn shift(
 /// carry the speed, 1.07° early at 151.7). The first of the two blocks blends on into the
 /// second (PARABOLIC: half), as the lit block does, and `motion::leadin` makes such a lead
 /// out long enough for both.
-pub(super) fn split(job: &crate::motion::Job, i: usize, from_q: &Axes, turned: bool) -> bool {
+pub(super) fn split(job: &Job, i: usize, from_q: &Axes, turned: bool) -> bool {
     let ops = &job.program.ops;
     let OpKind::Line { to, .. } = ops[i].kind else {
         return false;
@@ -281,6 +282,48 @@ pub(super) fn retarget(op: &Op, to: P3) -> Op {
         _ => {}
     }
     sub
+}
+
+/// The feed an unlit feed move that leads into a lit one is held to: the plan's speed where
+/// the beam comes on, where that is below the move's feed (a lit section that starts on a
+/// slow lit arc or corner). LinuxCNC runs the blend arc between two blocks at the higher of
+/// their feeds (`blendParamKinematics`' `v_goal`) and switches a synced output as the next
+/// block starts, after that blend: a lead-in written at its full feed carried 14.8 mm/s over
+/// frame_marking's beam edge, where the plan (and the held lit block) say 9.9. `None` at a
+/// stop (the controller stops there anyway) and where the plan keeps the feed.
+pub(super) fn lead_cap(
+    job: &Job,
+    facts: Option<&crate::emit::PlanFacts>,
+    i: usize,
+    rest: &[Op],
+    to: P3,
+) -> Option<f64> {
+    if !super::next_move_lit(rest, to) {
+        return None;
+    }
+    // A plan made in windows left it in `facts` (`emit::PlanFacts`).
+    if let Some(f) = facts {
+        return f.exit_below_feed(i);
+    }
+    let seg = job.plan.segments()[power::op_segments(job, i)].last()?;
+    (seg.v_exit > 0.0 && seg.v_exit < seg.feed).then_some(seg.v_exit)
+}
+
+/// The plan's speeds where lit op `i` starts and ends, mm/s, from the whole plan or (planned
+/// in windows) `facts`; 0 where not known.
+pub(super) fn edge_speeds(job: &Job, facts: Option<&crate::emit::PlanFacts>, i: usize) -> [f64; 2] {
+    if let Some(f) = facts {
+        return f.edge_speeds(i);
+    }
+    let r = power::op_segments(job, i);
+    let segs = job.plan.segments();
+    match (
+        segs.get(r.start),
+        r.end.checked_sub(1).and_then(|e| segs.get(e)),
+    ) {
+        (Some(a), Some(b)) if !r.is_empty() => [a.v_entry, b.v_exit],
+        _ => [0.0, 0.0],
+    }
 }
 
 #[cfg(test)]
