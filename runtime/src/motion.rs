@@ -339,7 +339,11 @@ pub fn plan_program_windows_sized(
     mut each: impl FnMut(&ProcessProgram, Plan),
 ) -> Result<(Job, planner::Planned), MotionError> {
     let st = stage(program)?;
-    if st.kin.oriented() {
+    // A rotary attachment's G93 blocks run on LinuxCNC under the same parabolic blends as an
+    // oriented machine's (`parabolic`): its lit sections are judged on the whole plan too.
+    let parabolic_blocks =
+        st.kin.inverse_time() && parabolic::runs_on_linuxcnc(&st.program.machine);
+    if st.kin.oriented() || parabolic_blocks {
         let mut job = plan_whole(st)?;
         let planned = planner::Planned {
             segments: job.plan.segments().len(),
@@ -443,6 +447,29 @@ impl Rest {
     }
 }
 
+/// LinuxCNC's parabolic blends at the lit edges (`leadin::ParabolicLeads`): on a machine
+/// whose programs run on LinuxCNC in inverse time with a rotary attachment (its lit blocks
+/// turn A). Machines that orient the beam keep their leads along the lit chord's axis-space
+/// continuation (`leadin`'s oriented leads), not measured with this rule yet.
+fn parabolic_leads(
+    machine: &crate::machine::Machine,
+    kin: &dyn Kinematics,
+) -> Option<leadin::ParabolicLeads> {
+    if !(kin.inverse_time() && !kin.oriented() && parabolic::runs_on_linuxcnc(machine)) {
+        return None;
+    }
+    let (mut a_max, mut rotary) = ([0.0; MAX_AXES], [false; MAX_AXES]);
+    for (k, a) in machine.axes.iter().enumerate().take(MAX_AXES) {
+        a_max[k] = a.a_max;
+        rotary[k] = a.kind == crate::machine::AxisKind::Rotary;
+    }
+    Some(leadin::ParabolicLeads {
+        servo_s: machine.servo_period_s(),
+        a_max,
+        rotary,
+    })
+}
+
 /// Adds the leads and derives the planner's inputs.
 fn stage(mut program: ProcessProgram) -> Result<Staged, MotionError> {
     let kin: Arc<dyn Kinematics> = Arc::from(kinematics::for_machine(&program.machine));
@@ -476,6 +503,7 @@ fn stage(mut program: ProcessProgram) -> Result<Staged, MotionError> {
             switch_stops: laser_switch_stops,
             arc_tolerance_mm: program.planner.arc_tolerance_mm,
             enabled: program.planner.leadin == LeadIn::Auto,
+            parabolic: parabolic_leads(&program.machine, &*kin),
         },
     )?;
     let leadin::Leads {

@@ -200,6 +200,9 @@ struct Modal {
     /// before the first): a carried beam switch cuts a block only where it continues that
     /// one tangentially (`lead::cut_at`).
     dir: Option<P3>,
+    /// The last block written turned a rotary axis: LinuxCNC joins it to the next one by a
+    /// parabolic blend (`lead::shift`), never by cutting the next block.
+    turned: bool,
 }
 
 pub(super) fn write(
@@ -304,14 +307,24 @@ pub(super) fn write(
         inverse_time: false,
         fine: job.kin.inverse_time(),
         dir: None,
+        turned: false,
     };
     let inverse_time = job.kin.inverse_time();
     // LinuxCNC's synchronized outputs lead its joints (`lead`): the beam switches are carried
     // along the path, on programs in units per minute.
-    let servo_s = (dialect == Dialect::LinuxCnc && !inverse_time).then(|| machine.servo_period_s());
+    // On a rotary attachment's G93 programs too: their X-only blocks meet tangentially, and
+    // where a block turns A the junction is moved instead (`lead::shift`).
+    let parabolic = dialect == Dialect::LinuxCnc && inverse_time && !job.kin.oriented();
+    let servo_s = (dialect == Dialect::LinuxCnc && (!inverse_time || parabolic))
+        .then(|| machine.servo_period_s());
     let edge_lead = |i: usize, end: usize| {
-        servo_s.map_or(0.0, |t| lead::distance(edge_speeds(job, facts, i)[end], t))
+        servo_s.map_or(0.0, |t| {
+            lead::distance(lead::edge_speeds(job, facts, i)[end], t)
+        })
     };
+    // The carry at an edge passed at the plan's speeds there: `lead::shift` asks for the
+    // entry speed of the lit op after an unlit one (end 0) or the exit speed of a lit op.
+    let edge_lead_at = |(j, end): (usize, usize)| edge_lead(j, end);
     let arc_axes = validate::arc_axes(machine);
     let mut train = pulse::Train::default();
     // What pulse lowering needs of this program (the same for every op).
@@ -344,6 +357,8 @@ pub(super) fn write(
         }
         Ok(())
     };
+    // Whether the last op that moved the spot was lit (a lead-out follows a lit move).
+    let mut last_move_lit = false;
     for (i, op) in ops.iter().enumerate() {
         let tag = Some(i as u32);
         settle_upto(i, &mut out, &mut m)?;
@@ -417,6 +432,20 @@ pub(super) fn write(
                 };
                 let pieces = row::pieces(job, blocks, i, m.pos, m.q);
                 let n_pieces = pieces.len();
+                // A flying switch at this op's end on a parabolic junction: where the block
+                // ends instead (`lead::shift`).
+                let shifted = if parabolic && n_pieces == 1 {
+                    lead::shift(job, i, (m.pos, &m.q), edge_lead_at)
+                } else {
+                    None
+                };
+                // A lead-out after a lit move, before a stop: in two blocks (`lead::split`).
+                let split = parabolic
+                    && n_pieces == 1
+                    && last_move_lit
+                    && op.laser().is_none()
+                    && lead::split(job, i, &m.q, m.turned);
+                last_move_lit = op.laser().is_some();
                 for (k, piece) in pieces.into_iter().enumerate() {
                     let (op, q_end, blocks) = (&*piece.op, piece.q, piece.blocks);
                     // The runs of a row are all lit: only its last piece looks past the row.
@@ -451,7 +480,7 @@ pub(super) fn write(
                                     left,
                                     off: false,
                                     servo_s: servo_s.unwrap_or(0.0),
-                                    v: edge_speeds(job, facts, i)[0],
+                                    v: lead::edge_speeds(job, facts, i)[0],
                                     tag,
                                 });
                             } else {
@@ -491,8 +520,23 @@ pub(super) fn write(
                         let cap = if dialect.is_grbl_family() || op.laser().is_some() || more {
                             None
                         } else {
-                            lead_cap(job, facts, i, &ops[i + 1..], to)
+                            lead::lead_cap(job, facts, i, &ops[i + 1..], to)
                         };
+                        let (to, q_end) = shifted.unwrap_or((to, q_end));
+                        if split {
+                            let (from, from_q) = (m.pos, m.q);
+                            let sub = lead::retarget(op, to);
+                            let (mid, mid_q) =
+                                part_way(&sub, (from, &from_q), &q_end, 0.5, arc_axes);
+                            write_block(
+                                &mut out,
+                                &mut m,
+                                (op, mid, mid_q, cap),
+                                machine,
+                                arc_axes,
+                                tag,
+                            )?;
+                        }
                         if !flying {
                             write_block(
                                 &mut out,
@@ -529,7 +573,25 @@ pub(super) fn write(
                     } else {
                         let (from, from_q) = (m.pos, m.q);
                         let mut blocks = blocks;
-                        if inverse_time && !coupled {
+                        // A rotary attachment's block that turns no rotary axis lies on the
+                        // surface part way too (X along it), and LinuxCNC joins such blocks
+                        // tangentially: its sub-blocks keep the plan's speeds (a lit X block
+                        // out of a corner ran at its mean 21.4 mm/s, crossing its edge there
+                        // where the plan was back at 30).
+                        let turned = lead::turns(machine, &from_q, &q_end);
+                        if parabolic && !coupled {
+                            if turned {
+                                // Its sub-blocks as long as tp.c's parabolic blends carry
+                                // at speed (`lead::triangle_s`): a lit block of the "S"
+                                // held whole ran at its mean 23 where the plan passed its
+                                // end at 45.7.
+                                let total_len = op.length_from(from);
+                                let tri = |ds: f64| {
+                                    lead::triangle_s(machine, &from_q, &q_end, ds / total_len)
+                                };
+                                power::merge_short(&mut blocks, tri);
+                            }
+                        } else if inverse_time && !coupled {
                             // In inverse time a block's F is its time: a lit move at constant
                             // power is held whole, in the plan's time, so no block ends part
                             // way, on the joints' straight line off the surface and its normal.
@@ -561,7 +623,10 @@ pub(super) fn write(
                             } else {
                                 b.s_end / total
                             };
-                            let (to, q) = part_way(op, (from, &from_q), &q_end, f, arc_axes);
+                            let (to, q) = match shifted {
+                                Some(end) if k + 1 == blocks.len() => end,
+                                _ => part_way(op, (from, &from_q), &q_end, f, arc_axes),
+                            };
                             write_block(
                                 &mut out,
                                 &mut m,
@@ -590,7 +655,7 @@ pub(super) fn write(
                                 left,
                                 off: true,
                                 servo_s: servo_s.unwrap_or(0.0),
-                                v: edge_speeds(job, facts, i)[1],
+                                v: lead::edge_speeds(job, facts, i)[1],
                                 tag,
                             });
                         } else {
@@ -732,31 +797,6 @@ fn part_way(
     }
 }
 
-/// The feed an unlit feed move that leads into a lit one is held to: the plan's speed where
-/// the beam comes on, where that is below the move's feed (a lit section that starts on a
-/// slow lit arc or corner). LinuxCNC runs the blend arc between two blocks at the higher of
-/// their feeds (`blendParamKinematics`' `v_goal`) and switches a synced output as the next
-/// block starts, after that blend: a lead-in written at its full feed carried 14.8 mm/s over
-/// frame_marking's beam edge, where the plan (and the held lit block) say 9.9. `None` at a
-/// stop (the controller stops there anyway) and where the plan keeps the feed.
-fn lead_cap(
-    job: &Job,
-    facts: Option<&super::PlanFacts>,
-    i: usize,
-    rest: &[Op],
-    to: P3,
-) -> Option<f64> {
-    if !next_move_lit(rest, to) {
-        return None;
-    }
-    // A plan made in windows left it in `facts` (`emit::PlanFacts`).
-    if let Some(f) = facts {
-        return f.exit_below_feed(i);
-    }
-    let seg = job.plan.segments()[power::op_segments(job, i)].last()?;
-    (seg.v_exit > 0.0 && seg.v_exit < seg.feed).then_some(seg.v_exit)
-}
-
 /// LinuxCNC runs an arc whose sagitta is below the naive CAM tolerance (`G64 Q`, else `P`) as
 /// its chord (canon's `ARC_FEED`). Emit now writes `G64 P<corner> Q0`, under which canon keeps
 /// every arc an arc; the merge below is kept (measured with it on the real LinuxCNC, and an
@@ -782,23 +822,6 @@ fn arc_first_block(op: &Op, from: P3, blocks: &mut Vec<power::PowerBlock>, tol: 
     power::merge_front(blocks, s_min);
 }
 
-/// The plan's speeds where lit op `i` starts and ends, mm/s, from the whole plan or (planned
-/// in windows) `facts`; 0 where not known.
-fn edge_speeds(job: &Job, facts: Option<&super::PlanFacts>, i: usize) -> [f64; 2] {
-    if let Some(f) = facts {
-        return f.edge_speeds(i);
-    }
-    let r = power::op_segments(job, i);
-    let segs = job.plan.segments();
-    match (
-        segs.get(r.start),
-        r.end.checked_sub(1).and_then(|e| segs.get(e)),
-    ) {
-        (Some(a), Some(b)) if !r.is_empty() => [a.v_entry, b.v_exit],
-        _ => [0.0, 0.0],
-    }
-}
-
 /// Writes the block `(op, to, q, cap)` (see [`motion_line`]) from where the spot is; where a
 /// beam switch is carried (`Out::pending`) and `lead::cut_at` finds its place inside the
 /// block, the block is cut there and the switch written between its two parts; else the
@@ -811,10 +834,13 @@ fn write_block(
     arc_axes: Option<(usize, usize, Option<usize>)>,
     tag: Option<u32>,
 ) -> io::Result<()> {
+    // A junction LinuxCNC blends parabolically is never cut (the piece would be a block far
+    // shorter than its triangle time); `lead::shift` moved it instead.
+    let parabolic = m.turned || lead::turns(machine, &m.q, &q);
     if let Some(p) = out.pending.take() {
         let sub = lead::retarget(op, to);
         let len = sub.length_from(m.pos);
-        if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine) {
+        if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine).filter(|_| !parabolic) {
             let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, at / len, arc_axes);
             out.put_with(
                 |line| motion_line(line, op, cut, cut_q, cap, m, machine, arc_axes),
@@ -957,6 +983,7 @@ fn motion_line(
     }
     m.scratch = v;
     m.dir = lead::direction(op, m.pos, to, true);
+    m.turned = lead::turns(machine, &m.q, &q);
     m.pos = to;
     m.q = q;
 }

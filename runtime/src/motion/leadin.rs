@@ -61,6 +61,67 @@ pub struct LeadContext<'a> {
     pub arc_tolerance_mm: f64,
     /// Add leads at all (`planner { leadin auto }`).
     pub enabled: bool,
+    /// Where the program runs on LinuxCNC and its lit junctions with the leads are parabolic
+    /// blends (a rotary attachment's G93 blocks, [`ParabolicLeads`]); `None` elsewhere.
+    pub parabolic: Option<ParabolicLeads>,
+}
+
+/// What LinuxCNC 2.9 needs of a lead that meets the lit path in a *parabolic* blend (tp.c
+/// joins blocks that turn a rotary axis only so: `tpSetupTangent` and `tpCheckBlendArcType`
+/// give up on A B C motion), so that the beam switches where and at the speed lase plans.
+///
+/// - The blend runs at the lead's speed only if the lead could reach it ramping from rest
+///   over its whole length at half its acceleration (`tcGetTangentialMaxAccel` halves it on
+///   both sides of a parabolic blend; `tpComputeBlendVelocity` caps the blend speed at that
+///   triangle speed `sqrt(a/2 · L)`): `L ≥ 2·v²/a`, where `a` is the acceleration canon gives
+///   the block (`getStraightAcceleration`: the block's length over `max_i |Δq_i| / a_i`), plus
+///   two servo periods of travel for tp's clock (`parabolic` rounds the triangle time up to a
+///   period too). The rings of rotary_engrave had 5.13° where 7.33° were needed: LinuxCNC
+///   crossed the edge at 96.8 of the planned 114.6 °/s.
+/// - tp switches the synchronized output in the middle of the blend, when the block that
+///   carries it becomes the faster of the two (`tpDoParabolicBlending` → `tpToggleDIOs`):
+///   with equal accelerations on both sides that is where the two blocks meet, and the writer
+///   moves that junction [`SWITCH_LEAD_PERIODS`] of travel past the edge (`emit`'s
+///   flying switches, the cubic interpolator's delay: control.c).
+/// - A lead-out before a stop would end in STOP, and ramp at its full acceleration against
+///   the lit block's half (the real machine: the ring's end went dark 0.53° early at 106.7
+///   of 114.6 °/s): the writer writes it as two blocks, the first of which blends on
+///   (PARABOLIC, half), so a lead-out holds two such lengths.
+#[derive(Clone, Copy, Debug)]
+pub struct ParabolicLeads {
+    /// The servo period, s.
+    pub servo_s: f64,
+    /// Each axis's acceleration as LinuxCNC's INI has it (the machine file's), internal units.
+    pub a_max: [f64; MAX_AXES],
+    /// Which axes are rotary: a lead that turns none, next to a lit block that turns none,
+    /// meets it tangentially and needs no more than the planner's ramp.
+    pub rotary: [bool; MAX_AXES],
+}
+
+/// Servo periods of the edge speed a flying switch is moved past its edge on LinuxCNC
+/// (`emit`'s `lead::LEAD_PERIODS`: the cubic interpolator's two periods less tp's mean half).
+pub const SWITCH_LEAD_PERIODS: f64 = 1.5;
+
+/// Servo periods of travel a parabolic lead keeps beyond its triangle length.
+const PARABOLIC_MARGIN_PERIODS: f64 = 2.0;
+
+impl ParabolicLeads {
+    /// The shortest lead from `from` toward `to` (a straight piece in the axes, `Δq` over
+    /// `len` mm) that carries `v` mm/s into a parabolic blend: `parts` triangle lengths with
+    /// their margins, and the switch's carry.
+    fn length(&self, dq: &[f64; MAX_AXES], len: f64, v: f64, parts: f64) -> f64 {
+        let turns = (0..MAX_AXES).any(|i| self.rotary[i] && dq[i].abs() > 1e-12);
+        if !(len > 0.0 && v > 0.0 && turns) {
+            return 0.0;
+        }
+        // s²/mm: t_a = max_i |Δq_i| / a_i per mm of the lead.
+        let k = (0..MAX_AXES)
+            .filter(|&i| self.a_max[i] > 0.0 && self.a_max[i].is_finite())
+            .map(|i| dq[i].abs() / len / self.a_max[i])
+            .fold(0.0, f64::max);
+        let one = 2.0 * v * v * k + PARABOLIC_MARGIN_PERIODS * self.servo_s * v;
+        parts * one + SWITCH_LEAD_PERIODS * self.servo_s * v
+    }
 }
 
 /// Whether an added move leads into or out of a section.
@@ -180,7 +241,9 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
         } else {
             0.0
         };
-        let d_in = planner::lead_distance(v, w_max, a, j) + margin + blend_room(cx);
+        let d_in = (planner::lead_distance(v, w_max, a, j) + margin + blend_room(cx)).max(
+            parabolic_length(cx, (p0, o_in), (chord_end, op.orient()), v, 1.0),
+        );
         let (p_lead, o_lead, room) =
             match oriented_lead(cx, (p0, o_in), (chord_end, op.orient()), d_in) {
                 Some((p, o)) => (p, Some(o), d_in),
@@ -263,8 +326,10 @@ pub fn add_leads(start: P3, ops: Vec<Op>, cx: &LeadContext<'_>) -> Result<Leads,
             Some(nm) if stop_between(last + 1, nm) => 0.0,
             Some(_) => v,
         };
-        let d_out = planner::lead_distance(v, w_max, a, j) + blend_room(cx);
         let o_start = orient_before(ops, last).or(op.orient());
+        let d_out = (planner::lead_distance(v, w_max, a, j) + blend_room(cx)).max(
+            parabolic_length(cx, (chord_start, o_start), (p1, op.orient()), v, 2.0),
+        );
         let (p_out, o_out, room) =
             match oriented_lead(cx, (p1, op.orient()), (chord_start, o_start), d_out) {
                 Some((p, o)) => (p, Some(o), d_out),
@@ -606,6 +671,27 @@ fn axes_at(
     let q = kin.inverse(&super::tool_pose(p, orient), prev).ok()?;
     kin.check(&q).ok()?;
     Some(q)
+}
+
+/// [`ParabolicLeads::length`] along the straight piece `from → to` (0 where the machine
+/// needs none or its ends are out of reach).
+fn parabolic_length(
+    cx: &LeadContext<'_>,
+    (from, o_from): (P3, Option<Orient>),
+    (to, o_to): (P3, Option<Orient>),
+    v: f64,
+    parts: f64,
+) -> f64 {
+    let Some(p) = cx.parabolic else {
+        return 0.0;
+    };
+    let q0 = axes_at(cx.kin, from, o_from, None);
+    let q1 = q0.and_then(|q0| axes_at(cx.kin, to, o_to, Some(&q0)));
+    let (Some(q0), Some(q1)) = (q0, q1) else {
+        return 0.0;
+    };
+    let dq: [f64; MAX_AXES] = std::array::from_fn(|k| q1[k] - q0[k]);
+    p.length(&dq, dist(from, to), v, parts)
 }
 
 /// Speed, acceleration and jerk limits of the straight piece `from → to` at `feed`, as the

@@ -160,7 +160,7 @@ pub struct Slow {
 /// The first lit section of an oriented job run on LinuxCNC whose blocks LinuxCNC cannot run
 /// at their planned speed, as a diagnostic at the recipe statement that made it.
 pub fn check_linuxcnc_held(job: &Job) -> Result<(), MotionError> {
-    if !job.kin.oriented() || !runs_on_linuxcnc(&job.program.machine) {
+    if !job.kin.inverse_time() || !runs_on_linuxcnc(&job.program.machine) {
         return Ok(());
     }
     let times = op_times(job);
@@ -202,7 +202,7 @@ pub fn check_linuxcnc_held(job: &Job) -> Result<(), MotionError> {
 /// `held::check_held` offers the lower of the plan's and this, so that the speed a refusal
 /// offers is one both hold.
 pub fn linuxcnc_section_limit(job: &Job, section: &LitSection) -> Option<f64> {
-    if !job.kin.oriented() || !runs_on_linuxcnc(&job.program.machine) {
+    if !job.kin.inverse_time() || !runs_on_linuxcnc(&job.program.machine) {
         return None;
     }
     slow_stretch(job, section, &op_times(job)).map(|s| s.section_held_mm_s)

@@ -348,12 +348,23 @@ pub fn merge_front(blocks: &mut Vec<PowerBlock>, s_min: f64) {
         .iter()
         .position(|b| b.s_end >= s_min)
         .map_or(blocks.len(), |k| k + 1);
-    if n < 2 {
+    merge_range(blocks, 0, n);
+}
+
+/// Merges `blocks[first..end]` into one, as [`merge_front`] merges the first ones.
+pub fn merge_range(blocks: &mut Vec<PowerBlock>, first: usize, end: usize) {
+    let end = end.min(blocks.len());
+    if end < first + 2 {
         return;
     }
-    let (mut s0, mut t, mut energy) = (0.0, 0.0, 0.0);
+    let start_s = if first == 0 {
+        0.0
+    } else {
+        blocks[first - 1].s_end
+    };
+    let (mut s0, mut t, mut energy) = (start_s, 0.0, 0.0);
     let (mut p_lo, mut p_hi) = (f64::INFINITY, f64::NEG_INFINITY);
-    for b in &blocks[..n] {
+    for b in &blocks[first..end] {
         let dt = if b.v_cap > 0.0 && b.v_cap.is_finite() {
             (b.s_end - s0) / b.v_cap
         } else {
@@ -368,20 +379,57 @@ pub fn merge_front(blocks: &mut Vec<PowerBlock>, s_min: f64) {
     let power_w = if t > 0.0 {
         energy / t
     } else {
-        blocks[n - 1].power_w
+        blocks[end - 1].power_w
     };
     let merged = PowerBlock {
         s_end: s0,
         power_w,
         max_error_w: (p_hi - power_w).max(power_w - p_lo).max(0.0),
         // A ramp at rest left to the controller (`free_rest_ramps`) stays so.
-        v_cap: if blocks[..n].iter().any(|b| !b.v_cap.is_finite()) {
+        v_cap: if blocks[first..end].iter().any(|b| !b.v_cap.is_finite()) {
             f64::INFINITY
         } else if t > 0.0 {
-            s0 / t
+            (s0 - start_s) / t
         } else {
-            blocks[n - 1].v_cap
+            blocks[end - 1].v_cap
         },
     };
-    blocks.splice(..n, [merged]);
+    blocks.splice(first..end, [merged]);
+}
+
+/// Merges runs of `blocks` until each lasts at least `min_time(Δs)` (s) for its length `Δs`
+/// (mm) at its mean speed, from the front; a short rest joins the run before it. For a
+/// controller that cannot carry a block shorter than some time at speed (LinuxCNC's parabolic
+/// blends, `parabolic`): the blocks keep as much of the plan's speed as that allows.
+pub fn merge_short(blocks: &mut Vec<PowerBlock>, min_time: impl Fn(f64) -> f64) {
+    let time = |b: &[PowerBlock], first: usize, end: usize| -> (f64, f64) {
+        let mut s0 = if first == 0 { 0.0 } else { b[first - 1].s_end };
+        let (start, mut t) = (s0, 0.0);
+        for x in &b[first..end] {
+            if x.v_cap > 0.0 && x.v_cap.is_finite() {
+                t += (x.s_end - s0) / x.v_cap;
+            }
+            s0 = x.s_end;
+        }
+        (s0 - start, t)
+    };
+    let mut first = 0;
+    while first < blocks.len() {
+        let mut end = first + 1;
+        loop {
+            let (ds, t) = time(blocks, first, end);
+            if t >= min_time(ds) || end == blocks.len() {
+                break;
+            }
+            end += 1;
+        }
+        let (ds, t) = time(blocks, first, end);
+        if end == blocks.len() && t < min_time(ds) && first > 0 {
+            // The rest is short: it joins the run before (merged already, at `first - 1`).
+            merge_range(blocks, first - 1, end);
+            return;
+        }
+        merge_range(blocks, first, end);
+        first += 1;
+    }
 }

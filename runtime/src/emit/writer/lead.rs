@@ -20,9 +20,16 @@
 //! planned place, the spread tp's switching once per period leaves. At an edge the plan
 //! passes at rest the lead is 0: a switch is never carried past a stop.
 //!
-//! Only Cartesian (units-per-minute) programs are cut: in inverse time (G93) a block's F is
-//! its time, and a cut block would need its own.
+//! Programs in units per minute are cut, and a rotary attachment's inverse-time (G93) ones
+//! (each part's F is its own length over the feed, `motion_line`) where neither block turns
+//! A. Where one does, tp.c joins them by a parabolic blend and switches in its middle: the
+//! junction moves instead ([`shift`]), and a lead-out before a stop is written in two
+//! ([`split`]). Oriented machines' G93 programs are not carried yet (their edges on the real
+//! LinuxCNC are within the cam examples' pins without it).
 
+use crate::axes::Axes;
+use crate::machine::AxisKind;
+use crate::motion::{Job, power};
 use crate::program::{Op, OpKind, P3};
 
 /// Servo periods a synchronized output leads the joints by (module doc): the cubic
@@ -100,6 +107,120 @@ pub(super) fn cut_at(
     (left > 0.0 && at < len && len - at >= MIN_PART_PERIODS * servo_s * feed).then_some(at)
 }
 
+/// Whether a block from axes `a` to `b` turns a rotary axis: tp.c then joins it to its
+/// neighbours only by parabolic blends (`tpSetupTangent`, `tpCheckBlendArcType`: no tangent
+/// join and no blend arc with A B C motion).
+pub(super) fn turns(machine: &crate::machine::Machine, a: &Axes, b: &Axes) -> bool {
+    machine
+        .axes
+        .iter()
+        .enumerate()
+        .any(|(k, x)| x.kind == AxisKind::Rotary && (b[k] - a[k]).abs() > 1e-12)
+}
+
+/// The shortest time a part `f` (0..1) of the block from axes `a` to `b` may last to run
+/// at its speed in a chain of parabolic blends (`motion::parabolic`): its triangle time
+/// `sqrt(2 · t_a)`, `t_a = max_i |Δq_i| / a_i`, rounded up to the servo period, and a period
+/// more for tp's clock (the leads keep two: `motion::leadin::ParabolicLeads`).
+pub(super) fn triangle_s(machine: &crate::machine::Machine, a: &Axes, b: &Axes, f: f64) -> f64 {
+    let t_a = machine
+        .axes
+        .iter()
+        .enumerate()
+        .filter(|(_, x)| x.a_max > 0.0)
+        .map(|(k, x)| (b[k] - a[k]).abs() * f / x.a_max)
+        .fold(0.0, f64::max);
+    let period = machine.servo_period_s();
+    ((2.0 * t_a).sqrt() / period).ceil() * period + period
+}
+
+/// Where lit or unlit Line op `i` (from spot `from` at axes `from_q`) ends instead, on a
+/// LinuxCNC program in inverse time, when a flying beam switch sits at its end on a junction
+/// tp.c blends parabolically (either block turns a rotary axis, [`turns`]); `None` elsewhere.
+///
+/// In a parabolic blend tp.c switches the next block's synchronized outputs in the first
+/// servo period in which that block runs faster than the finishing one
+/// (`tpDoParabolicBlending` → `tpToggleDIOs`), not as it starts. Both sides ramp at half
+/// their acceleration (`tcGetTangentialMaxAccel`), so where their accelerations match (a
+/// straight junction in the axes, and the leads `motion::leadin` makes long enough for the
+/// blend to run at the edge speed, `ParabolicLeads`) that moment is when each has half the
+/// speed, and the path point tp has then is the junction itself: the finishing block is
+/// `(v/2)²/a` short of its end, the next one as far into its start. The joints follow tp's
+/// point 2 periods late less the part of a period tp ran past it (control.c's cubic
+/// interpolator: `LEAD_PERIODS`, as for a block start). A block cannot be cut there (the cut
+/// would leave a block far shorter than its triangle time, which the blend could not carry
+/// at speed), so the junction itself moves: op `i` runs on `carry` mm (the edge's
+/// `LEAD_PERIODS` of travel, `carry((op, end))` of the lit op whose edge it is) along the
+/// next op, which it must continue in a straight line, and the next op starts there. Both
+/// keep their speeds: in G93 each block's F is its own length over its feed.
+pub(super) fn shift(
+    job: &Job,
+    i: usize,
+    (from, from_q): (P3, &Axes),
+    carry: impl Fn((usize, usize)) -> f64,
+) -> Option<(P3, Axes)> {
+    let ops = &job.program.ops;
+    let op = &ops[i];
+    let OpKind::Line { to, .. } = op.kind else {
+        return None;
+    };
+    let mut j = i + 1;
+    while !ops.get(j)?.moves_from(to) {
+        if !matches!(ops[j].kind, OpKind::Line { .. } | OpKind::Rapid { .. }) {
+            // An M code, event, output or dwell between: tp's queue is not one blend there.
+            return None;
+        }
+        j += 1;
+    }
+    let next = &ops[j];
+    let OpKind::Line { to: end, .. } = next.kind else {
+        return None;
+    };
+    let lit = op.laser().is_some();
+    if lit == next.laser().is_some() {
+        return None;
+    }
+    let d = if lit { carry((i, 1)) } else { carry((j, 0)) };
+    let (u, w) = (
+        direction(op, from, to, true)?,
+        direction(next, to, end, false)?,
+    );
+    let len = crate::program::dist(to, end);
+    let machine = &job.program.machine;
+    let (qa, qb) = (job.op_axes.get(i), job.op_axes.get(j));
+    let straight = (0..3).map(|k| u[k] * w[k]).sum::<f64>() > 1.0 - 1e-9;
+    let parabolic = turns(machine, from_q, &qa) || turns(machine, &qa, &qb);
+    (d > 0.0 && straight && parabolic && d < 0.5 * len).then(|| {
+        let p = std::array::from_fn(|k| to[k] + w[k] * d);
+        (p, qa.lerp(&qb, d / len))
+    })
+}
+
+/// Whether unlit Line op `i`, which follows a lit move, is written as two blocks: where it
+/// meets that lit move in a parabolic blend (`turned`: the lit block turned a rotary axis, or
+/// this one does from `from_q`) and a stop follows it (a rapid next, or nothing: tp.c's
+/// `tcSetTermCond` … STOP). A block that ends in STOP ramps at its full acceleration against
+/// the lit one's half (`tcGetTangentialMaxAccel` halves only where the term condition is
+/// PARABOLIC or `blend_prev` is set, and the real machine showed the full one), so the speeds
+/// add past the edge and the two become equal, where tp switches, before the junction (the
+/// ring's end went dark 0.53° early at 106.7 of 114.6 °/s; with a lead-out long enough to
+/// carry the speed, 1.07° early at 151.7). The first of the two blocks blends on into the
+/// second (PARABOLIC: half), as the lit block does, and `motion::leadin` makes such a lead
+/// out long enough for both.
+pub(super) fn split(job: &Job, i: usize, from_q: &Axes, turned: bool) -> bool {
+    let ops = &job.program.ops;
+    let OpKind::Line { to, .. } = ops[i].kind else {
+        return false;
+    };
+    let machine = &job.program.machine;
+    let parabolic = turned || turns(machine, from_q, &job.op_axes.get(i));
+    let stop_next = ops[i + 1..]
+        .iter()
+        .find(|o| o.moves_from(to) || !matches!(o.kind, OpKind::Line { .. }))
+        .is_none_or(|o| !matches!(o.kind, OpKind::Line { .. } | OpKind::Arc { .. }));
+    parabolic && stop_next
+}
+
 /// The end a motion op's block runs to.
 fn sub_end(op: &Op) -> P3 {
     op.target().unwrap_or_default()
@@ -161,6 +282,48 @@ pub(super) fn retarget(op: &Op, to: P3) -> Op {
         _ => {}
     }
     sub
+}
+
+/// The feed an unlit feed move that leads into a lit one is held to: the plan's speed where
+/// the beam comes on, where that is below the move's feed (a lit section that starts on a
+/// slow lit arc or corner). LinuxCNC runs the blend arc between two blocks at the higher of
+/// their feeds (`blendParamKinematics`' `v_goal`) and switches a synced output as the next
+/// block starts, after that blend: a lead-in written at its full feed carried 14.8 mm/s over
+/// frame_marking's beam edge, where the plan (and the held lit block) say 9.9. `None` at a
+/// stop (the controller stops there anyway) and where the plan keeps the feed.
+pub(super) fn lead_cap(
+    job: &Job,
+    facts: Option<&crate::emit::PlanFacts>,
+    i: usize,
+    rest: &[Op],
+    to: P3,
+) -> Option<f64> {
+    if !super::next_move_lit(rest, to) {
+        return None;
+    }
+    // A plan made in windows left it in `facts` (`emit::PlanFacts`).
+    if let Some(f) = facts {
+        return f.exit_below_feed(i);
+    }
+    let seg = job.plan.segments()[power::op_segments(job, i)].last()?;
+    (seg.v_exit > 0.0 && seg.v_exit < seg.feed).then_some(seg.v_exit)
+}
+
+/// The plan's speeds where lit op `i` starts and ends, mm/s, from the whole plan or (planned
+/// in windows) `facts`; 0 where not known.
+pub(super) fn edge_speeds(job: &Job, facts: Option<&crate::emit::PlanFacts>, i: usize) -> [f64; 2] {
+    if let Some(f) = facts {
+        return f.edge_speeds(i);
+    }
+    let r = power::op_segments(job, i);
+    let segs = job.plan.segments();
+    match (
+        segs.get(r.start),
+        r.end.checked_sub(1).and_then(|e| segs.get(e)),
+    ) {
+        (Some(a), Some(b)) if !r.is_empty() => [a.v_entry, b.v_exit],
+        _ => [0.0, 0.0],
+    }
 }
 
 #[cfg(test)]
