@@ -508,11 +508,14 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // lines as written and the switch as the lead-in meets the first, in line: edges
         // 0.7015 → 0.0199 mm (−0.56/0.03/0.50 periods), edge speed 39.4 → 1.18 mm/s, lit path
         // 0.5899 → 0.0193 mm; cycle 1.0167, beam-on 1.0235 of the model (2026-12-02, branch
-        // naivecam): the model still runs the glyphs' held strokes a little short.
+        // naivecam): the model ran the glyphs' held strokes short. Found (branch tpquant,
+        // comparing each NC line's start, `LASE_LINUXCNC_DUMP`): at the strokes' slow corners
+        // (0.6 mm/s) the model laid the tolerance's whole blend arc, LinuxCNC one only as large
+        // as the corner speed needs (`blendComputeParameters`' R_plan), 25 ms a corner; the
+        // held sub-blocks under 10 ms ramp at one acceleration (`TC_ACCEL_RAMP`); each run from
+        // rest to rest ends on a servo period. Now cycle 0.9940, beam-on 0.9905 (2026-12-02).
         "serial_number" => Bounds {
             dv: 1.2,
-            cycle: 0.02,
-            beam: 0.025,
             ..Bounds::new(0.07, 0.0)
         },
         // Every one of its 105 pulses fires. Where two dots touch (rows y = 1.05, 1.65, 2.25,
