@@ -522,12 +522,10 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // 3.75, 4.05) lase once wrote `M63 P1` and the next `M62 P1` before the same move, and
         // LinuxCNC keeps one synchronized switch per output and segment (tp.c `tpSetDout`),
         // so 5 pulses merged into their neighbours; the trigger now falls on a block of its
-        // own (`emit::writer::pulse`). Pinned (issue 13): cycle 1.0101 of the model; edges
-        // 0.126 mm off.
-        "codes" => Bounds {
-            cycle: 0.015,
-            ..Bounds::new(0.13, 0.5)
-        },
+        // own (`emit::writer::pulse`). Edges 0.126 mm off. Cycle 1.0101 of the model before
+        // the model ended each rest-to-rest run on a servo period (its dots are short stops),
+        // now 1.0000, beam-on 1.0006 (branch tpquant, 2026-12-02, edges 0.0355 mm).
+        "codes" => Bounds::new(0.13, 0.5),
         // Pinned (issue 13): edges 0.248 mm off. 1 300 of its 1 316 edges switch at cruise
         // (20-100 mm/s; on the 20 mm/s rows 1.8 ms early at both ends, as on frame_marking);
         // the 16 others sit in the labels' text, strokes with lit↔lit corners as in
