@@ -508,23 +508,24 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // lines as written and the switch as the lead-in meets the first, in line: edges
         // 0.7015 → 0.0199 mm (−0.56/0.03/0.50 periods), edge speed 39.4 → 1.18 mm/s, lit path
         // 0.5899 → 0.0193 mm; cycle 1.0167, beam-on 1.0235 of the model (2026-12-02, branch
-        // naivecam): the model still runs the glyphs' held strokes a little short.
+        // naivecam): the model ran the glyphs' held strokes short. Found (branch tpquant,
+        // comparing each NC line's start, `LASE_LINUXCNC_DUMP`): at the strokes' slow corners
+        // (0.6 mm/s) the model laid the tolerance's whole blend arc, LinuxCNC one only as large
+        // as the corner speed needs (`blendComputeParameters`' R_plan), 25 ms a corner; the
+        // held sub-blocks under 10 ms ramp at one acceleration (`TC_ACCEL_RAMP`); each run from
+        // rest to rest ends on a servo period. Now cycle 0.9940, beam-on 0.9905 (2026-12-02).
         "serial_number" => Bounds {
             dv: 1.2,
-            cycle: 0.02,
-            beam: 0.025,
             ..Bounds::new(0.07, 0.0)
         },
         // Every one of its 105 pulses fires. Where two dots touch (rows y = 1.05, 1.65, 2.25,
         // 3.75, 4.05) lase once wrote `M63 P1` and the next `M62 P1` before the same move, and
         // LinuxCNC keeps one synchronized switch per output and segment (tp.c `tpSetDout`),
         // so 5 pulses merged into their neighbours; the trigger now falls on a block of its
-        // own (`emit::writer::pulse`). Pinned (issue 13): cycle 1.0101 of the model; edges
-        // 0.126 mm off.
-        "codes" => Bounds {
-            cycle: 0.015,
-            ..Bounds::new(0.13, 0.5)
-        },
+        // own (`emit::writer::pulse`). Edges 0.126 mm off. Cycle 1.0101 of the model before
+        // the model ended each rest-to-rest run on a servo period (its dots are short stops),
+        // now 1.0000, beam-on 1.0006 (branch tpquant, 2026-12-02, edges 0.0355 mm).
+        "codes" => Bounds::new(0.13, 0.5),
         // Pinned (issue 13): edges 0.248 mm off. 1 300 of its 1 316 edges switch at cruise
         // (20-100 mm/s; on the 20 mm/s rows 1.8 ms early at both ends, as on frame_marking);
         // the 16 others sit in the labels' text, strokes with lit↔lit corners as in

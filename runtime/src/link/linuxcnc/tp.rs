@@ -38,8 +38,11 @@
 //!   - otherwise, without rotary motion, a *blend arc* (`blendComputeParameters`) that takes
 //!     from each side at most half the segment's programmed length (all of the previous one
 //!     when it can be consumed: a line without synced outputs, `tcCanConsume`) and what the
-//!     `G64 P` tolerance allows, at `sqrt(0.866·a·R)`, or the kink speed when that is faster
-//!     (`tpCheckTangentPerformance`). What a segment keeps between two blend arcs runs at most
+//!     `G64 P` tolerance allows (at most a quarter of either segment: `tcFindBlendTolerance`),
+//!     at `sqrt(0.866·a·R)` but at most the faster feed, or the kink speed when that is faster
+//!     (`tpCheckTangentPerformance`). The arc is only as large as that speed needs
+//!     (`blendComputeParameters`' `R_plan`: the larger of v²/a_n and the equivalent parabolic
+//!     blend's radius), so a slow corner (a held lit stroke's) runs nearly into its corner. What a segment keeps between two blend arcs runs at most
 //!     its length per servo period: two blend arcs that meet in the middle of a segment
 //!     carrying `M62/M63` nearly stop the machine there. That is dial_marks' 17 slowdowns.
 //!     A line without synced outputs whose remainder would take fewer than
@@ -60,6 +63,12 @@
 //!     acceleration too: where the task waits for motion to end before a dwell, an immediate
 //!     output (`M64`/`M65`/`M68`), another M-code or the program's end (conrod_notch's first
 //!     move). Each such drain rests the machine for about `DRAIN_CYCLES` servo periods.
+//! - **Ramps** (`tpActivateSegment`, `tpCalculateRampAccel`): a feed with term condition
+//!   TANGENT that would take under `1 / ARC_BLEND_RAMP_FREQ` (10 ms) runs at one constant
+//!   acceleration from its entry to its final speed, not a trapezoid ([`piece_time`]).
+//! - **Servo periods** outside parabolic chains: each run from rest to rest ends on a servo
+//!   period (`tpCheckEndCondition` removes a stopping segment in the period it lands on its
+//!   end; the next starts in the following one), half a period more on average ([`quantised`]).
 //! - **Look-ahead** (`tpRunOptimization`): end speeds are planned backward over at most
 //!   `ARC_BLEND_OPTIMIZATION_DEPTH` (50) pieces; further on the machine is assumed to stop.
 //! - **Synced outputs** (`M62`/`M63`/`M67`, `tpSetupSyncedIO`): they switch when the next
@@ -69,9 +78,9 @@
 //! Measured against the real controller (`tests/linuxcnc.rs`), every example it runs is within
 //! 1 % of the model in cycle and beam-on time, but for the disagreements `tests/linuxcnc.rs`
 //! pins and names. Not modelled: feed override, spindle sync, the naive CAM detector joining
-//! a flattened arc with its neighbours, the servo
-//! period's quantisation outside parabolic chains, and blend arcs in 3D or next to arcs
-//! beyond their chord. Of its constants, only `DRAIN_CYCLES` is measured rather than read
+//! a flattened arc with its neighbours, split periods within a run (the servo period is kept
+//! only where a run ends), the ramp decision on the optimizer's uncapped final speed, and
+//! blend arcs in 3D or next to arcs beyond their chord. Of its constants, only `DRAIN_CYCLES` is measured rather than read
 //! from LinuxCNC's source: it is task's latency, not the planner's.
 
 use crate::axes::to_external;
@@ -101,6 +110,13 @@ const BLEND_DIST_FRACTION: f64 = 0.5;
 const GAP_CYCLES: f64 = 4.0;
 /// `TP_MIN_ARC_ANGLE`.
 const MIN_ARC_ANGLE: f64 = 1e-3;
+/// `[TRAJ] ARC_BLEND_RAMP_FREQ`'s default (`arcBlendRampFreq`, Hz).
+const RAMP_FREQ: f64 = 100.0;
+/// `TP_MIN_ARC_LENGTH`: a shorter blend arc is given up (`blendComputeParameters`).
+const MIN_ARC_LENGTH: f64 = 1e-6;
+/// `tolerance_ratio` in `tcFindBlendTolerance`: a blend strays at most this share of either
+/// segment's programmed length from the corner.
+const BLEND_TOL_FRACTION: f64 = 0.25;
 /// `SHARP_CORNER_DEG` in `tpSetupTangent`: a turn this close to a reversal stops.
 const SHARP_CORNER_DEG: f64 = 2.0;
 /// Lengths below this are no motion (`TP_POS_EPSILON`, `CART_FUZZ`).
@@ -313,17 +329,37 @@ fn junction(a: &Seg, b: &Seg, tol: f64, cycle: f64) -> Kind {
         a.len * BLEND_DIST_FRACTION
     };
     let l2 = b.len * BLEND_DIST_FRACTION;
+    // tcFindBlendTolerance: at most a quarter of either segment's programmed length.
+    let tol = tol
+        .min(BLEND_TOL_FRACTION * a.len)
+        .min(BLEND_TOL_FRACTION * b.len);
     let d_tol = theta.cos() * tol / (1.0 - theta.sin());
-    let d = l1.min(l2).min(d_tol);
-    let r = theta.tan() * d;
-    let a_n = a
+    let d_geom = l1.min(l2).min(d_tol);
+    let r_geom = theta.tan() * d_geom;
+    let a_max = a
         .acc_bound
         .iter()
         .copied()
         .filter(|x| *x > 0.0)
-        .fold(f64::INFINITY, f64::min)
-        * ACC_RATIO_NORMAL;
-    let v = (a_n * r).sqrt().min(a.req.max(b.req));
+        .fold(f64::INFINITY, f64::min);
+    let a_n = a_max * ACC_RATIO_NORMAL;
+    // blendParamKinematics' goal (feed override at most 1: the INI sets no
+    // MAX_FEED_OVERRIDE), then blendComputeParameters.
+    let v_goal = a.req.min(a.vmax).max(b.req.min(b.vmax));
+    let v = (a_n * r_geom).sqrt().min(v_goal);
+    // The arc is only as large as its speed needs: the radius that turns at `v` within
+    // the normal acceleration, or the equivalent parabolic blend's, whichever is larger,
+    // never beyond the geometric one. A slow corner gets a tiny arc and runs nearly to the
+    // corner, instead of cutting it at the tolerance.
+    let a_parabolic = 0.5 * a_max;
+    let v_triangle = (2.0 * a_parabolic * d_geom).sqrt();
+    let s_blend = v_triangle.min(v) / a_parabolic * v;
+    let r_blend = (s_blend / phi).min(r_geom);
+    let r = (v * v / a_n).max(r_blend);
+    let d = r / theta.tan();
+    if r < POS_EPSILON || r * phi < MIN_ARC_LENGTH {
+        return kink; // blendComputeParameters gives the arc up
+    }
     if v < kink_vel {
         kink // tpCheckTangentPerformance: the kink is faster than the arc
     } else {
@@ -373,6 +409,34 @@ fn trapezoid(len: f64, v0: f64, v1: f64, vmax: f64, acc: f64) -> f64 {
     (peak - v0) / acc + (peak - v1) / acc + cruise / peak
 }
 
+/// How long piece `p` takes from `v0` to `v1`. A feed piece with term condition TANGENT
+/// whose time at the mean of its end speeds is under `1 / ARC_BLEND_RAMP_FREQ` runs at one
+/// constant acceleration from its entry to its final speed (`tpActivateSegment` sets
+/// `TC_ACCEL_RAMP`, `tpCalculateRampAccel`), not up to its feed and back down: a lit stroke's
+/// held sub-blocks (short G1s whose F steps along lase's speed profile) run at the mean of
+/// their end speeds, slower than trapezoids would. tp.c decides it with the optimizer's final
+/// speed, before the feeds cap it; the model uses the capped one (a block it ramps from and
+/// to its feed runs the same either way).
+fn piece_time(p: &Piece, v0: f64, v1: f64) -> f64 {
+    if p.ramp && v1 > 1e-9 {
+        let t = 2.0 * p.len / (v0 + v1);
+        if t < 1.0 / RAMP_FREQ && (v1 * v1 - v0 * v0).abs() <= 2.0 * p.acc * p.len {
+            return t;
+        }
+    }
+    trapezoid(p.len, v0, v1, p.v_top, p.acc)
+}
+
+/// The time a rest-to-rest run of `run` s takes in whole servo periods: a segment ending in
+/// a stop lands on its end in the period its trapezoid reaches it (`tpCheckEndCondition`
+/// flags it for removal only once it is there, `tcUpdateDistFromAccel` clips the last step
+/// onto the end), and the next one starts in the following period, so each run from rest to
+/// rest takes a whole number of periods: on average half a period more than the continuous
+/// ramps.
+fn quantised(run: f64, cycle: f64) -> f64 {
+    (run / cycle - 1e-6).ceil().max(0.0) * cycle
+}
+
 /// One piece of motion as the planner runs it: a queued segment (trimmed by blend arcs), or
 /// a blend arc.
 #[derive(Debug, Clone)]
@@ -384,6 +448,9 @@ struct Piece {
     dio: Vec<(u32, bool)>,
     /// What follows it.
     joint: Joint,
+    /// A feed whose term condition is TANGENT (a line into a tangent or a blend arc, or a
+    /// blend arc): short ones run at one constant acceleration ([`piece_time`]).
+    ramp: bool,
     /// The queued segment it is (or whose blend arc it is).
     seg: usize,
 }
@@ -436,12 +503,16 @@ fn seg_pieces(
             ratio: vb / va,
         },
     };
+    let ramp = !s.rapid
+        && matches!(joint, Joint::Through { .. })
+        && matches!(kind, Some(Kind::Tangent { .. } | Kind::Arc { .. }));
     pieces.extend([Piece {
         len: len.max(1e-12),
         v_top,
         acc: a,
         dio: s.dio.clone(),
         joint,
+        ramp,
         seg: i,
     }]);
     let Some(Kind::Arc { v, d, r, phi }) = kind else {
@@ -462,6 +533,7 @@ fn seg_pieces(
         acc: blend_acc,
         dio: Vec::new(),
         joint: Joint::Through { cap: v, ratio: 1.0 },
+        ramp: !s.rapid,
         seg: i,
     }]);
     d
@@ -574,6 +646,7 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
     };
     let mut stops = q.stops;
     let mut entry: f64 = 0.0;
+    let mut run_start = 0.0;
     let apply_immediate =
         |at: Option<usize>, outputs: &mut std::collections::BTreeMap<u32, bool>| {
             for &(i, o, on) in &q.immediate {
@@ -595,7 +668,7 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
         let v1 = exit[k]
             .min((v0 * v0 + 2.0 * p.acc * p.len).sqrt())
             .min(p.v_top);
-        let t = chain_time[k].unwrap_or_else(|| trapezoid(p.len, v0, v1, p.v_top, p.acc));
+        let t = chain_time[k].unwrap_or_else(|| piece_time(p, v0, v1));
         total += t;
         if lit(&outputs) {
             beam_on += t;
@@ -603,6 +676,12 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
         match p.joint {
             Joint::Stop { dwell, drain } => {
                 entry = 0.0;
+                let run = total - run_start;
+                let pad = quantised(run, cycle) - run;
+                total += pad;
+                if lit(&outputs) {
+                    beam_on += pad;
+                }
                 let lit_before = lit(&outputs);
                 apply_immediate(Some(p.seg), &mut outputs);
                 if k + 1 < m {
@@ -617,6 +696,7 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
                         beam_on += dwell;
                     }
                 }
+                run_start = total;
             }
             Joint::Through { ratio, .. } => entry = v1 * ratio,
         }

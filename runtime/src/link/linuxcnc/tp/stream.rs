@@ -23,7 +23,7 @@ use super::read::{Queue, Reader};
 use super::servo::{ChainSeg, run_chain};
 use super::{
     ACC_RATIO_TANGENTIAL, DRAIN_CYCLES, Joint, Kind, OPTIMIZATION_DEPTH, Piece, TpLimits, TpTime,
-    junction, seg_pieces, trapezoid,
+    junction, piece_time, quantised, seg_pieces,
 };
 use std::collections::{BTreeMap, VecDeque};
 
@@ -68,6 +68,8 @@ pub struct TpStream<'a> {
     outputs: BTreeMap<u32, bool>,
     stops: usize,
     entry: f64,
+    /// When the current rest-to-rest run began.
+    run_start: f64,
     last_seg: Option<usize>,
     starts: Option<Vec<(usize, f64)>>,
 }
@@ -92,6 +94,7 @@ impl<'a> TpStream<'a> {
             outputs: BTreeMap::new(),
             stops: 0,
             entry: 0.0,
+            run_start: 0.0,
             last_seg: None,
             starts: starts.then(Vec::new),
         }
@@ -283,7 +286,7 @@ impl<'a> TpStream<'a> {
             let v1 = exit
                 .min((v0 * v0 + 2.0 * p.acc * p.len).sqrt())
                 .min(p.v_top);
-            let t = chain_time.unwrap_or_else(|| trapezoid(p.len, v0, v1, p.v_top, p.acc));
+            let t = chain_time.unwrap_or_else(|| piece_time(&p, v0, v1));
             self.total += t;
             if lit(&self.outputs) {
                 self.beam_on += t;
@@ -291,6 +294,12 @@ impl<'a> TpStream<'a> {
             match p.joint {
                 Joint::Stop { dwell, drain } => {
                     self.entry = 0.0;
+                    let run = self.total - self.run_start;
+                    let pad = quantised(run, cycle) - run;
+                    self.total += pad;
+                    if lit(&self.outputs) {
+                        self.beam_on += pad;
+                    }
                     let lit_before = lit(&self.outputs);
                     self.apply_immediate(Some(p.seg));
                     if k + 1 < m {
@@ -304,6 +313,7 @@ impl<'a> TpStream<'a> {
                             self.beam_on += dwell;
                         }
                     }
+                    self.run_start = self.total;
                 }
                 Joint::Through { ratio, .. } => self.entry = v1 * ratio,
             }

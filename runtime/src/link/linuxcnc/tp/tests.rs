@@ -35,7 +35,8 @@ fn a_diagonal_line_gets_sqrt2_times_the_axis_limits_and_the_traj_cap() {
     let t = run_program("G1 X100 Y100 F60000\n", &table()).unwrap();
     let len = 100.0 * 2f64.sqrt();
     let v = 250.0; // MAX_LINEAR_VELOCITY caps the path speed
-    let expected = v / a * 2.0 + (len - v * v / a) / v;
+    // Rest to rest: it ends in the servo period its trapezoid reaches the end in.
+    let expected = quantised(v / a * 2.0 + (len - v * v / a) / v, 0.001);
     assert!(close(t.total_s, expected), "{t:?} vs {expected}");
 }
 
@@ -67,9 +68,14 @@ fn a_square_corner_gets_a_blend_arc_within_the_tolerance() {
     let d = 0.02 * 0.5f64.sqrt() / (1.0 - 0.5f64.sqrt());
     let v = (ACC_RATIO_NORMAL * 2000.0 * d).sqrt();
     let arc = d * std::f64::consts::FRAC_PI_2;
-    let expected = trapezoid(20.0 - d, 0.0, v, 20.0, 2000.0)
-        + arc / v
-        + trapezoid(20.0 - d, v, 0.0, 20.0, 1000.0);
+    // v_plan is the arc's own limit here, so R_plan is the tolerance's radius
+    // (blendComputeParameters); the run ends on a servo period.
+    let expected = quantised(
+        trapezoid(20.0 - d, 0.0, v, 20.0, 2000.0)
+            + arc / v
+            + trapezoid(20.0 - d, v, 0.0, 20.0, 1000.0),
+        0.001,
+    );
     assert!(close(corner.total_s, expected), "{corner:?} vs {expected}");
 }
 
@@ -272,4 +278,45 @@ fn a_chain_of_short_rotary_blocks_runs_at_the_share_of_speed_the_motion_rule_pre
         );
     }
     assert!((share(0.0054) - 0.36).abs() < 1e-9);
+}
+
+#[test]
+fn a_slow_corner_gets_only_the_blend_arc_its_speed_needs() {
+    // 90° at F60 (1 mm/s) under G64 P0.02 (blendComputeParameters): the tolerance allows
+    // d = 0.02·cos45°/(1 − sin45°) = 0.0483 mm (R_geom the same), but v_plan = min(sqrt(0.866
+    // ·2000·0.0483), 1) = 1 mm/s, so R_plan = max(v²/a_n, R_blend): v²/a_n = 1/1732 = 5.77e-4,
+    // and the equivalent parabolic blend's t = min(sqrt(2·1000·0.0483), 1)/1000 = 1 ms covers
+    // s = 1e-3 mm, R_blend = s/(π/2) = 6.366e-4 mm. The arc (1e-3 mm) takes d = R/tan45° =
+    // 6.366e-4 mm of each line: 20 − d at 1 mm/s up at 2000 (0.25 µm in 0.5 ms) and down at
+    // 1000 (the last segment: 0.5 µm in 1 ms), the arc at 1 mm/s. Continuous: 2·(20 − d)
+    // + 0.0005 − 0.00025 + 0.001 + 0.001 − 0.0005 = 40.000477 s, which ends in the servo
+    // period of 40.001 s. The tolerance's own arc (R = 0.0483) would have taken 39.98 s.
+    let t = run_program("G64 P0.02\nG1 X20 F60\nY20\n", &table()).unwrap();
+    assert!(close(t.total_s, 40.001), "{t:?}");
+    assert_eq!(t.stops, 0);
+}
+
+#[test]
+fn a_short_tangent_block_ramps_at_one_acceleration() {
+    // X10 F1200, X10.05 F900, X20 F600: collinear, so tangent. The middle block enters at
+    // min(20, 15) = 15 mm/s and ends at min(15, 10) = 10 mm/s; at their mean it takes
+    // 2·0.05/25 = 4 ms, under 1/ARC_BLEND_RAMP_FREQ (10 ms), so tpActivateSegment sets
+    // TC_ACCEL_RAMP: one constant acceleration, (10² − 15²)/(2·0.05) = −1250 mm/s² (within
+    // 2000), 4 ms. A trapezoid (cruise at 15, then 2000 mm/s² down) would take 3.75 ms. The
+    // beam is on for that block alone.
+    let t = run_program(
+        "G1 X10 F1200\nM62 P0\nX10.05 F900\nM63 P0\nX20 F600\n",
+        &table(),
+    )
+    .unwrap();
+    assert!(close(t.beam_on_s, 0.004), "{t:?}");
+}
+
+#[test]
+fn a_run_from_rest_to_rest_ends_on_a_servo_period() {
+    // 0.3 mm at F2400 from rest to rest, the last segment (1000 mm/s²): a triangle of
+    // 2·sqrt(0.3/1000) = 34.64 ms, which tp.c's trapezoid (tpCalculateTrapezoidalAccel,
+    // tcUpdateDistFromAccel) lands on its end in the 35th period.
+    let t = run_program("G1 X0.3 F2400\n", &table()).unwrap();
+    assert!(close(t.total_s, 0.035), "{t:?}");
 }
