@@ -48,7 +48,7 @@ pub(super) struct Pending {
 /// Servo periods each part of a cut block must last at its feed: tp.c caps a segment's speed
 /// at its length over `TP_MIN_SEGMENT_CYCLES` (1.02) periods, so a shorter part would slow
 /// the machine at the beam's edge.
-const MIN_PART_PERIODS: f64 = 1.25;
+pub(super) const MIN_PART_PERIODS: f64 = 1.25;
 
 /// Servo periods at the edge speed what a blend arc leaves of a cut block's first part lasts
 /// (the blend takes up to half of it: `BLEND_DIST_FRACTION`), just above tp.c's 1.02.
@@ -79,7 +79,9 @@ pub(super) fn cut_at(
 ) -> Option<f64> {
     let (left, servo_s) = (p.left, p.servo_s);
     let feed = match &sub.kind {
-        OpKind::Line { feed_mm_s, .. } => cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s)),
+        OpKind::Line { feed_mm_s, .. } | OpKind::Arc { feed_mm_s, .. } => {
+            cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s))
+        }
         OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
         _ => return None,
     };
