@@ -209,7 +209,11 @@ fn each_pulse_trigger_is_carried_like_the_beam_switch() {
         let to = j.program.ops[p.op as usize].target().unwrap();
         let (dx, dy) = (to[0] - p.pos[0], to[1] - p.pos[1]);
         let n = dx.hypot(dy);
-        let dir = if n > 1e-9 { [dx / n, dy / n] } else { [0.0, 0.0] };
+        let dir = if n > 1e-9 {
+            [dx / n, dy / n]
+        } else {
+            [0.0, 0.0]
+        };
         let want = [p.pos[0] + 0.03 * dir[0], p.pos[1] + 0.03 * dir[1]];
         assert!(
             (r[0] - want[0]).hypot(r[1] - want[1]) < 1.5e-4,
@@ -242,7 +246,11 @@ fn each_power_step_of_an_image_row_is_carried_like_the_beam_switch() {
             let n = dx.hypot(dy);
             let dir = [dx / n, dy / n];
             let mut want: Vec<[f64; 2]> = vec![[from[0], from[1]]];
-            want.extend(row.runs[..row.runs.len() - 1].iter().map(|&(c, _)| row.end_of(c)));
+            want.extend(
+                row.runs[..row.runs.len() - 1]
+                    .iter()
+                    .map(|&(c, _)| row.end_of(c)),
+            );
             for (p, w, tag) in &lines {
                 // The row's lines, and the beam-on lines written in its first block's cut.
                 if *tag != Some(i as u32) || !has(w, "M67", "E0") {

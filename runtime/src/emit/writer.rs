@@ -808,8 +808,12 @@ fn arc_first_block(op: &Op, from: P3, blocks: &mut Vec<power::PowerBlock>, tol: 
 /// `servo_s` (`pulse::write_gated`): the beam switch's lead where the plan runs the whole
 /// (straight) op at its feed, else 0.
 fn gated_lead(job: &Job, facts: Option<&super::PlanFacts>, i: usize, servo_s: f64) -> f64 {
-    let (OpKind::Line { feed_mm_s: feed, .. } | OpKind::Arc { feed_mm_s: feed, .. }) =
-        &job.program.ops[i].kind
+    let (OpKind::Line {
+        feed_mm_s: feed, ..
+    }
+    | OpKind::Arc {
+        feed_mm_s: feed, ..
+    }) = &job.program.ops[i].kind
     else {
         return 0.0;
     };
@@ -922,8 +926,7 @@ fn write_block(
             out.stats.motion_blocks += 1;
         }
         // Where it was cut, or else where the block starts, as without the lead: never past
-        // the block (a short image run would take the next run's power, whose line is not
-        // carried).
+        // the block (the next block may start with a switch line of its own).
         out.pending = Some(p);
         out.flush_pending()?;
     }

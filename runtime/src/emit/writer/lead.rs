@@ -20,6 +20,13 @@
 //! planned place, the spread tp's switching once per period leaves. At an edge the plan
 //! passes at rest the lead is 0: a switch is never carried past a stop.
 //!
+//! The other synchronized outputs lead alike (tp.c `tpSetAout` and `tpSetDout` fill the same
+//! slot, which `tpToggleDIOs` writes as tp takes up the block): an image row's power steps
+//! (`M67`, `row::Carry`) and the pulse triggers (`M62`/`M63 P1`, `pulse::carry_edges`) are
+//! carried as far where the plan runs the op at its feed. On the real machine (branch
+//! pulselead): image_engrave's edges 0.149 → 0.049 mm (every row start carried), the
+//! texture rows' 0.036 → 0.005, dial_marks' 0.128 → 0.033 with arcs cut.
+//!
 //! Only Cartesian (units-per-minute) programs are cut: in inverse time (G93) a block's F is
 //! its time, and a cut block would need its own.
 
@@ -55,10 +62,11 @@ pub(super) const MIN_PART_PERIODS: f64 = 1.25;
 const BEHIND_BLEND_PERIODS: f64 = 1.1;
 
 /// Where block `sub` (`len` mm from where the spot is, F `cap` or its own) is cut to carry a
-/// switch `left` mm along it, if at all. Only a straight block (a short arc piece ran as its
-/// chord under canon's naive CAM and kinked against the move before it, which tp passes
-/// slowly; the header's `G64 … Q0` now keeps it an arc, but cut arcs are not measured yet),
-/// and only where the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (tp.c
+/// switch `left` mm along it, if at all. A straight block or an arc (a short arc piece ran
+/// as its chord under canon's naive CAM and kinked against the move before it; the header's
+/// `G64 … Q0` keeps it an arc: cut, frame_marking's on-edges on arcs went from +1.53 to +0.59
+/// periods and dial_marks' circle start from +3.21 to +0.21 on the real LinuxCNC), and only
+/// where the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (tp.c
 /// caps a shorter segment's speed). Where LinuxCNC joins the block tangentially to the one
 /// before (tp.c's rule, [`tangent`]) the cut is at `left` (the part before lasts 1.5 periods
 /// of the edge speed, which never exceeds the feed). Elsewhere tp lays a blend arc over the

@@ -360,8 +360,7 @@ fn carry_edges(
     let mut out: Vec<(f64, bool)> = Vec::with_capacity(cuts.len() + 1);
     let mut beyond: Option<(f64, bool)> = None;
     let (mut start, mut state) = (0.0, before);
-    for (e, h) in std::iter::once((first, before)).chain(cuts.iter().map(|&(s, h)| (s + lead, h)))
-    {
+    for (e, h) in std::iter::once((first, before)).chain(cuts.iter().map(|&(s, h)| (s + lead, h))) {
         if start >= len - eps {
             if h != state {
                 if beyond.is_some() {
