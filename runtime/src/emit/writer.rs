@@ -423,7 +423,7 @@ pub(super) fn write(
                 };
                 let carry = servo_s
                     .filter(|_| at_feed)
-                    .and_then(|t| row_carry(job, facts, i, m.pos, t));
+                    .and_then(|t| lead::row(job, i, m.pos, t, edge_speeds(job, facts, i)));
                 let pieces = row::pieces(job, blocks, i, m.pos, m.q, carry);
                 // The beam-off's lead the last run already ran into the lead-out.
                 let ran_on = carry.filter(|c| c.past_end).map_or(0.0, |c| c.lead);
@@ -494,7 +494,8 @@ pub(super) fn write(
                         None
                     };
                     if let Some(pitch) = gated {
-                        let lead = servo_s.map_or(0.0, |t| gated_lead(job, facts, i, t));
+                        let lead = servo_s
+                            .map_or(0.0, |t| lead::gated(&ops[i], edge_speeds(job, facts, i), t));
                         pulse::write_gated(
                             ops, i, pitch, lead, &mut train, &mut out, &mut m, &gate, tag,
                         )?;
@@ -802,87 +803,6 @@ fn arc_first_block(op: &Op, from: P3, blocks: &mut Vec<power::PowerBlock>, tol: 
     let phi = 2.0 * (1.0 - tol / r).max(-1.0).acos();
     let s_min = total * (r * phi * (1.0 + 1e-6) / arc_len);
     power::merge_front(blocks, s_min);
-}
-
-/// How far pulsed op `i`'s trigger edges are carried along it on LinuxCNC at servo period
-/// `servo_s` (`pulse::write_gated`): the beam switch's lead where the plan runs the whole
-/// (straight) op at its feed, else 0.
-fn gated_lead(job: &Job, facts: Option<&super::PlanFacts>, i: usize, servo_s: f64) -> f64 {
-    let (OpKind::Line {
-        feed_mm_s: feed, ..
-    }
-    | OpKind::Arc {
-        feed_mm_s: feed, ..
-    }) = &job.program.ops[i].kind
-    else {
-        return 0.0;
-    };
-    let [v0, v1] = edge_speeds(job, facts, i);
-    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
-    if cruise(v0) && cruise(v1) {
-        lead::distance(*feed, servo_s)
-    } else {
-        0.0
-    }
-}
-
-/// How image row `i` (from `from`) carries its power steps on LinuxCNC at servo period
-/// `servo_s` (`row::Carry`): where the plan runs the whole row at its feed, each run's end
-/// by the beam switch's lead (tp.c `tpSetAout` queues an `M67` in the same synchronized slot
-/// as `tpSetDout` an `M62`/`M63`, and `tpToggleDIOs` writes both as tp takes up the block:
-/// they lead the joints alike). The last run runs on into the lead-out where that continues
-/// the row in line at its feed, long enough for what is left of it.
-fn row_carry(
-    job: &Job,
-    facts: Option<&super::PlanFacts>,
-    i: usize,
-    from: P3,
-    servo_s: f64,
-) -> Option<row::Carry> {
-    let ops = &job.program.ops;
-    let OpKind::Line {
-        to,
-        feed_mm_s: feed,
-        row: Some(_),
-        ..
-    } = &ops[i].kind
-    else {
-        return None;
-    };
-    if job.kin.oriented() {
-        return None;
-    }
-    let [v0, v1] = edge_speeds(job, facts, i);
-    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
-    let lead = lead::distance(*feed, servo_s);
-    if !(cruise(v0) && cruise(v1) && lead > 0.0) {
-        return None;
-    }
-    let min_block = lead::MIN_PART_PERIODS * servo_s * feed;
-    let dir = lead::direction(&ops[i], from, *to, true)?;
-    let past_end = ops[i + 1..]
-        .iter()
-        .find(|o| o.moves_from(*to))
-        .is_some_and(|o| match &o.kind {
-            OpKind::Line {
-                to: end,
-                feed_mm_s,
-                laser: None,
-                ..
-            } => {
-                let len = crate::program::dist(*to, *end);
-                lead::direction(o, *to, *end, false)
-                    .is_some_and(|d| (0..3).map(|k| d[k] * dir[k]).sum::<f64>() > 1.0 - 1e-9)
-                    && (feed_mm_s - feed).abs() <= 1e-9 * feed
-                    && len - lead >= min_block
-            }
-            _ => false,
-        });
-    Some(row::Carry {
-        lead,
-        past_end,
-        min_block,
-    })
 }
 
 /// The plan's speeds where lit op `i` starts and ends, mm/s, from the whole plan or (planned

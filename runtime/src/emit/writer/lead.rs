@@ -173,6 +173,87 @@ pub(super) fn retarget(op: &Op, to: P3) -> Op {
     sub
 }
 
+/// How far pulsed op `op`'s trigger edges are carried along it on LinuxCNC at servo period
+/// `servo_s` (`pulse::write_gated`; `[v0, v1]` the plan's speeds where it starts and ends):
+/// the beam switch's lead where the plan runs the whole op (a line or an arc) at its feed,
+/// else 0.
+pub(super) fn gated(op: &Op, [v0, v1]: [f64; 2], servo_s: f64) -> f64 {
+    let (OpKind::Line {
+        feed_mm_s: feed, ..
+    }
+    | OpKind::Arc {
+        feed_mm_s: feed, ..
+    }) = &op.kind
+    else {
+        return 0.0;
+    };
+    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
+    if cruise(v0) && cruise(v1) {
+        distance(*feed, servo_s)
+    } else {
+        0.0
+    }
+}
+
+/// How image row `i` of `job` (from `from`; `[v0, v1]` the plan's speeds where it starts and
+/// ends) carries its power steps on LinuxCNC at servo period
+/// `servo_s` (`row::Carry`): where the plan runs the whole row at its feed, each run's end
+/// by the beam switch's lead (tp.c `tpSetAout` queues an `M67` in the same synchronized slot
+/// as `tpSetDout` an `M62`/`M63`, and `tpToggleDIOs` writes both as tp takes up the block:
+/// they lead the joints alike). The last run runs on into the lead-out where that continues
+/// the row in line at its feed, long enough for what is left of it.
+pub(super) fn row(
+    job: &crate::motion::Job,
+    i: usize,
+    from: P3,
+    servo_s: f64,
+    [v0, v1]: [f64; 2],
+) -> Option<super::row::Carry> {
+    let ops = &job.program.ops;
+    let OpKind::Line {
+        to,
+        feed_mm_s: feed,
+        row: Some(_),
+        ..
+    } = &ops[i].kind
+    else {
+        return None;
+    };
+    if job.kin.oriented() {
+        return None;
+    }
+    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
+    let lead = distance(*feed, servo_s);
+    if !(cruise(v0) && cruise(v1) && lead > 0.0) {
+        return None;
+    }
+    let min_block = MIN_PART_PERIODS * servo_s * feed;
+    let dir = direction(&ops[i], from, *to, true)?;
+    let past_end = ops[i + 1..]
+        .iter()
+        .find(|o| o.moves_from(*to))
+        .is_some_and(|o| match &o.kind {
+            OpKind::Line {
+                to: end,
+                feed_mm_s,
+                laser: None,
+                ..
+            } => {
+                let len = crate::program::dist(*to, *end);
+                direction(o, *to, *end, false)
+                    .is_some_and(|d| (0..3).map(|k| d[k] * dir[k]).sum::<f64>() > 1.0 - 1e-9)
+                    && (feed_mm_s - feed).abs() <= 1e-9 * feed
+                    && len - lead >= min_block
+            }
+            _ => false,
+        });
+    Some(super::row::Carry {
+        lead,
+        past_end,
+        min_block,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
