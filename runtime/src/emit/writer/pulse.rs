@@ -327,6 +327,10 @@ pub(super) fn write_gated(
     Ok(())
 }
 
+/// A piece of a pulsed block: where it ends along the block (mm) and whether the trigger is
+/// high along it; for an edge carried past the block's end, how far into the next block.
+type Piece = (f64, bool);
+
 /// The pieces `cuts` (each's end along the op and the trigger along it; `before`: the
 /// trigger coming in) with every trigger edge carried `lead` mm further along a block `len`
 /// mm long, as the writer carries a beam switch (`lead`: LinuxCNC switches a synchronized
@@ -347,7 +351,7 @@ fn carry_edges(
     len: f64,
     low_at_end: bool,
     min_block: f64,
-) -> Option<(Vec<(f64, bool)>, Option<(f64, bool)>)> {
+) -> Option<(Vec<Piece>, Option<Piece>)> {
     let eps = 1e-9;
     let shortest = cuts
         .iter()
