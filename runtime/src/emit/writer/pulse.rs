@@ -533,3 +533,40 @@ pub(super) fn write_fire(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trigger_edges_are_carried_by_the_lead_and_a_last_fall_past_the_end() {
+        // Pulses at 0 and 0.2 mm of a 0.4 mm block, gates of 0.1 mm, carried 0.03 mm: the
+        // trigger comes in low up to 0.03, then every edge 0.03 later; the last piece shorter.
+        let cuts = [(0.1, true), (0.2, false), (0.3, true), (0.4, false)];
+        let (out, beyond) = carry_edges(&cuts, false, (0.03, 0.03), 0.4, true, 0.025).unwrap();
+        let want = [
+            (0.03, false),
+            (0.13, true),
+            (0.23, false),
+            (0.33, true),
+            (0.4, false),
+        ];
+        assert_eq!(out.len(), want.len());
+        for (a, b) in out.iter().zip(&want) {
+            assert!((a.0 - b.0).abs() < 1e-12 && a.1 == b.1, "{out:?}");
+        }
+        assert_eq!(beyond, None);
+        // A section ending high: its fall lands 0.03 mm into the next block.
+        let cuts = [(0.1, true), (0.2, false), (0.3, true)];
+        let (out, beyond) = carry_edges(&cuts, false, (0.03, 0.03), 0.3, true, 0.025).unwrap();
+        assert_eq!(out.last().map(|p| p.1), Some(true));
+        let (left, high) = beyond.unwrap();
+        assert!((left - 0.03).abs() < 1e-12 && !high);
+        // Carried past a gate (0.15 mm against 0.1 mm gates), a rise and a fall would both land
+        // past the end, on one block to LinuxCNC: nothing is carried.
+        assert_eq!(
+            carry_edges(&cuts, false, (0.15, 0.15), 0.3, true, 0.025),
+            None
+        );
+    }
+}
