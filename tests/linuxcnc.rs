@@ -540,10 +540,12 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // LinuxCNC keeps one synchronized switch per output and segment (tp.c `tpSetDout`),
         // so 5 pulses merged into their neighbours; the trigger now falls on a block of its
         // own (`emit::writer::pulse`). Pinned (issue 13): cycle 1.0101 of the model; edges
-        // 0.126 mm off.
+        // 0.126 mm off. With the triggers carried like the beam switch (branch pulselead,
+        // LASE_LINUXCNC_LONG=1, 2026-12-02): edges 0.126 → 0.0237 mm (−0.28/0.44/0.47
+        // periods), edge speed 0.001 mm/s, pulses 105/105, cycle 1.0101, beam-on 0.9986.
         "codes" => Bounds {
             cycle: 0.015,
-            ..Bounds::new(0.13, 0.5)
+            ..Bounds::new(0.03, 0.5)
         },
         // Pinned (issue 13): edges 0.248 mm off. 1 300 of its 1 316 edges switch at cruise
         // (20-100 mm/s; on the 20 mm/s rows 1.8 ms early at both ends, as on frame_marking);
@@ -554,7 +556,9 @@ fn flat_bed_bounds(example: &str) -> Bounds {
         // and the lit path 0.248 mm. Under `G64 P0.01 Q0` (branch naivecam, LASE_LINUXCNC_LONG=1,
         // 2026-12-02) edges 0.0486 mm and lit path 0.0486 mm, but edge speed 0.607 mm/s, over
         // this pin (not loosened: which edges, not yet found; LASE_LINUXCNC_EDGES=1 lists them).
-        "material_test" => Bounds::new(0.26, 0.5),
+        // Branch pulselead (2026-12-02): edges 0.0486 mm, lit path 0.0486, edge speed still
+        // 0.607 mm/s (not looked into), cycle 1.0039, beam-on 1.0035.
+        "material_test" => Bounds::new(0.05, 0.5),
         _ => Bounds::new(0.07, 0.5),
     }
 }

@@ -93,6 +93,12 @@ pub(super) fn cut_at(
         OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
         _ => return None,
     };
+    // An arc held below the edge's speed (a lit corner arc's first sub-block, its F the plan's
+    // mean over it): tp slows to that F on the arc, so a switch cut into it came at 1.37 of
+    // 2.66 mm/s on nested_parts (before it, 0.5 off); it stays where the arc starts.
+    if matches!(sub.kind, OpKind::Arc { .. }) && feed < 0.99 * p.v {
+        return None;
+    }
     // A rapid meeting a feed is a stop to tp.c (`tpCheckCanonType`): the edge is at rest there.
     if (m.motion == Some("G0")) != matches!(sub.kind, OpKind::Rapid { .. }) {
         return None;
