@@ -203,12 +203,18 @@ fn spot_distance(p: [f64; 2]) -> f64 {
 fn linuxcnc_triggers_each_pulse_where_its_spot_is_and_rs274_accepts_it() {
     let (code, ngc, err) = lase(&["emit", "examples/texture_array.lase"]);
     assert_eq!(code, 0, "{err}");
-    // A synchronized `M62 P1` switches at the start of the block it stands on.
+    // A synchronized `M62 P1` switches at the start of the block it stands on, which the
+    // writer puts 1.5 servo periods of the rows' 20 mm/s (0.03 mm) past the spot: LinuxCNC
+    // switches it that far ahead of its joints (`emit::writer::lead`).
     let path = nc_path(&ngc);
     let triggers: Vec<[f64; 2]> = path
         .iter()
         .filter(|b| b.words.contains(&('M', 62.0)) && b.words.contains(&('P', 1.0)))
-        .map(|b| b.from)
+        .map(|b| {
+            let (dx, dy) = (b.to[0] - b.from[0], b.to[1] - b.from[1]);
+            let n = dx.hypot(dy);
+            [b.from[0] - 0.03 * dx / n, b.from[1] - 0.03 * dy / n]
+        })
         .collect();
     assert_eq!(triggers.len(), (ROWS * COLS) as usize * PASSES);
     for t in &triggers {

@@ -155,3 +155,127 @@ fn the_servo_period_is_a_machine_file_fact() {
     let m = parse_machine(&stock.replace("servo_period = \"1 ms\"", ""), 0).unwrap();
     assert_eq!(m.servo_period_s(), 0.001);
 }
+
+/// The spot's (x, y) before each line of a LinuxCNC program (where a synchronized output
+/// written on that line switches) and the line's words and op tag.
+fn walk(j: &Job) -> Vec<([f64; 2], Vec<String>, Option<u32>)> {
+    let (lines, _) = emit_lines(j, Dialect::LinuxCnc, &EmitOptions::default()).unwrap();
+    let mut pos = [0.0f64; 2];
+    let mut out = Vec::new();
+    for l in &lines {
+        let words: Vec<String> = l
+            .text
+            .split(' ')
+            .filter(|w| !w.starts_with('N'))
+            .map(str::to_string)
+            .collect();
+        let num = |p: char| {
+            words
+                .iter()
+                .find(|w| w.starts_with(p))
+                .and_then(|w| w[1..].parse::<f64>().ok())
+        };
+        let next = [num('X').unwrap_or(pos[0]), num('Y').unwrap_or(pos[1])];
+        out.push((pos, words.clone(), l.op));
+        if words.first().map(String::as_str) != Some("G4") {
+            pos = next;
+        }
+    }
+    out
+}
+
+fn has(words: &[String], a: &str, b: &str) -> bool {
+    words.iter().any(|w| w == a) && words.iter().any(|w| w == b)
+}
+
+#[test]
+fn each_pulse_trigger_is_carried_like_the_beam_switch() {
+    // texture_array's dots: rows at 20 mm/s, a pulse every 0.2 mm from each row's start. Each
+    // trigger rise (`M62 P1`) is written 1.5 servo periods of 20 mm/s (0.03 mm) past its
+    // planned pulse, on the row; before, on the pulse itself, 1.5 periods early on LinuxCNC.
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    let name = root.join("texture_array.lase").display().to_string();
+    let (_, j) = lase_runtime::compile(&mut lase_runtime::FsFiles, &name)
+        .unwrap_or_else(|(_, f)| panic!("{f}"));
+    let rises: Vec<[f64; 2]> = walk(&j)
+        .into_iter()
+        .filter(|(_, w, _)| has(w, "M62", "P1"))
+        .map(|(p, _, _)| p)
+        .collect();
+    let pulses: Vec<_> = lase_runtime::report::pulse_events(&j).collect();
+    assert_eq!(rises.len(), pulses.len());
+    assert_eq!(pulses.len(), 360);
+    for (r, p) in rises.iter().zip(&pulses) {
+        let to = j.program.ops[p.op as usize].target().unwrap();
+        let (dx, dy) = (to[0] - p.pos[0], to[1] - p.pos[1]);
+        let n = dx.hypot(dy);
+        let dir = if n > 1e-9 {
+            [dx / n, dy / n]
+        } else {
+            [0.0, 0.0]
+        };
+        let want = [p.pos[0] + 0.03 * dir[0], p.pos[1] + 0.03 * dir[1]];
+        assert!(
+            (r[0] - want[0]).hypot(r[1] - want[1]) < 1.5e-4,
+            "rise at {r:?}, pulse at {:?}: want {want:?}",
+            p.pos
+        );
+    }
+}
+
+#[test]
+fn each_power_step_of_an_image_row_is_carried_like_the_beam_switch() {
+    // image_engrave's rows at 100 mm/s: every `M67` of a row (its runs' power steps, and the
+    // beam-on's) is written 1.5 servo periods of 100 mm/s (0.15 mm) past the run's end (the
+    // row's start), on the row. Before, the steps sat on the run ends (1.5 periods early on
+    // LinuxCNC) and rows starting with a one-pixel run switched the beam on 1.5 periods early.
+    use lase_runtime::program::OpKind;
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples");
+    let name = root.join("image_engrave.lase").display().to_string();
+    let (_, j) = lase_runtime::compile(&mut lase_runtime::FsFiles, &name)
+        .unwrap_or_else(|(_, f)| panic!("{f}"));
+    let lines = walk(&j);
+    let (mut carried, mut steps, mut rows) = (0, 0, 0);
+    let mut from = j.program.start;
+    let mut prev_pos = [0.0f64; 2];
+    for (i, op) in j.program.ops.iter().enumerate() {
+        let Some(to) = op.target() else { continue };
+        if let OpKind::Line { row: Some(row), .. } = &op.kind {
+            rows += 1;
+            let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
+            let n = dx.hypot(dy);
+            let dir = [dx / n, dy / n];
+            let mut want: Vec<[f64; 2]> = vec![[from[0], from[1]]];
+            want.extend(
+                row.runs[..row.runs.len() - 1]
+                    .iter()
+                    .map(|&(c, _)| row.end_of(c)),
+            );
+            for (p, w, tag) in &lines {
+                // The row's lines, and the beam-on lines written in its first block's cut.
+                if *tag != Some(i as u32) || !has(w, "M67", "E0") {
+                    continue;
+                }
+                steps += 1;
+                let off = want
+                    .iter()
+                    .map(|q| {
+                        let (ex, ey) = (p[0] - q[0], p[1] - q[1]);
+                        (ex * dir[0] + ey * dir[1], (ex * dir[1] - ey * dir[0]).abs())
+                    })
+                    .find(|&(along, across)| along.abs() < 0.2 && across < 1.5e-4)
+                    .unwrap_or_else(|| panic!("row {i}: M67 at {p:?}, run ends {want:?}"));
+                if (off.0 - 0.15).abs() < 1.5e-4 {
+                    carried += 1;
+                } else {
+                    assert!(off.0.abs() < 1.5e-4, "row {i}: M67 {} mm past", off.0);
+                }
+            }
+        }
+        let _ = prev_pos;
+        prev_pos = [to[0], to[1]];
+        from = to;
+    }
+    assert!(rows > 0);
+    assert_eq!((carried, steps), (steps, steps), "{rows} rows");
+}

@@ -317,6 +317,9 @@ pub(super) fn write(
     let parabolic = dialect == Dialect::LinuxCnc && inverse_time && !job.kin.oriented();
     let servo_s = (dialect == Dialect::LinuxCnc && (!inverse_time || parabolic))
         .then(|| machine.servo_period_s());
+    // Image-row power steps and pulse triggers are carried on programs in units per minute
+    // only: a cut G93 block that turns A would need the parabolic rules `lead::shift` follows.
+    let servo_g94 = servo_s.filter(|_| !inverse_time);
     let edge_lead = |i: usize, end: usize| {
         servo_s.map_or(0.0, |t| {
             lead::distance(lead::edge_speeds(job, facts, i)[end], t)
@@ -430,7 +433,18 @@ pub(super) fn write(
                 } else {
                     lit.of(i)?
                 };
-                let pieces = row::pieces(job, blocks, i, m.pos, m.q);
+                // A row held to its feed throughout: no sub-block of the plan's own.
+                let at_feed = match (&op.kind, blocks.as_slice()) {
+                    (_, []) => true,
+                    (OpKind::Line { feed_mm_s, .. }, [b]) => b.v_cap >= feed_mm_s * (1.0 - 1e-3),
+                    _ => false,
+                };
+                let carry = servo_g94
+                    .filter(|_| at_feed)
+                    .and_then(|t| lead::row(job, i, m.pos, t, lead::edge_speeds(job, facts, i)));
+                let pieces = row::pieces(job, blocks, i, m.pos, m.q, carry);
+                // The beam-off's lead the last run already ran into the lead-out.
+                let ran_on = carry.filter(|c| c.past_end).map_or(0.0, |c| c.lead);
                 let n_pieces = pieces.len();
                 // A flying switch at this op's end on a parabolic junction: where the block
                 // ends instead (`lead::shift`).
@@ -512,8 +526,11 @@ pub(super) fn write(
                         None
                     };
                     if let Some(pitch) = gated {
+                        let lead = servo_g94.map_or(0.0, |t| {
+                            lead::gated(&ops[i], lead::edge_speeds(job, facts, i), t)
+                        });
                         pulse::write_gated(
-                            ops, i, pitch, &mut train, &mut out, &mut m, &gate, tag,
+                            ops, i, pitch, lead, &mut train, &mut out, &mut m, &gate, tag,
                         )?;
                     } else if blocks.is_empty() {
                         let to = op.target().unwrap_or(m.pos);
@@ -646,10 +663,19 @@ pub(super) fn write(
                             .iter()
                             .map(|t| format::fill(t, words(0.0)))
                             .collect();
-                        // Any switch still carried first (none is, past its first block).
-                        out.flush_pending()?;
-                        let left = edge_lead(i, 1);
-                        if left > 0.0 {
+                        let left = if ran_on > 0.0 { 0.0 } else { edge_lead(i, 1) };
+                        // A trigger edge the pulse writer carried as far past the end (its
+                        // last gate's fall) goes with it; any other switch still carried is
+                        // written first, where it stands.
+                        if let Some(p) = out
+                            .pending
+                            .as_mut()
+                            .filter(|p| left > 0.0 && (p.left - left).abs() < 1e-4)
+                        {
+                            p.lines.extend(lines);
+                            p.off = true;
+                        } else if left > 0.0 {
+                            out.flush_pending()?;
                             out.pending = Some(lead::Pending {
                                 lines,
                                 left,
@@ -659,6 +685,7 @@ pub(super) fn write(
                                 tag,
                             });
                         } else {
+                            out.flush_pending()?;
                             for l in &lines {
                                 out.put(l, tag)?;
                             }
@@ -849,8 +876,7 @@ fn write_block(
             out.stats.motion_blocks += 1;
         }
         // Where it was cut, or else where the block starts, as without the lead: never past
-        // the block (a short image run would take the next run's power, whose line is not
-        // carried).
+        // the block (the next block may start with a switch line of its own).
         out.pending = Some(p);
         out.flush_pending()?;
     }

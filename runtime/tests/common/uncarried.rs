@@ -52,7 +52,9 @@ pub fn uncarried(lines: Vec<(String, Option<u32>)>) -> Vec<(String, Option<u32>)
             while j < lines.len() && is_switch(&lines[j].0) {
                 j += 1;
             }
-            // A beam switch among them (a power step alone is not carried).
+            // A beam switch among them. A power step alone (an image row's `M67`, carried
+            // with its run's end) and a pulse trigger (`M62`/`M63 P1`, carried in the pulse
+            // writer) stay where written: switch_lead.rs measures them.
             let beam = lines[i..j]
                 .iter()
                 .any(|(s, _)| matches!(s.trim(), "M62 P0" | "M63 P0"));

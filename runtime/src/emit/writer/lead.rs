@@ -20,6 +20,13 @@
 //! planned place, the spread tp's switching once per period leaves. At an edge the plan
 //! passes at rest the lead is 0: a switch is never carried past a stop.
 //!
+//! The other synchronized outputs lead alike (tp.c `tpSetAout` and `tpSetDout` fill the same
+//! slot, which `tpToggleDIOs` writes as tp takes up the block): an image row's power steps
+//! (`M67`, `row::Carry`) and the pulse triggers (`M62`/`M63 P1`, `pulse::carry_edges`) are
+//! carried as far where the plan runs the op at its feed. On the real machine (branch
+//! pulselead): image_engrave's edges 0.149 → 0.049 mm (every row start carried), the
+//! texture rows' 0.036 → 0.005, dial_marks' 0.128 → 0.033 with arcs cut.
+//!
 //! Programs in units per minute are cut, and a rotary attachment's inverse-time (G93) ones
 //! (each part's F is its own length over the feed, `motion_line`) where neither block turns
 //! A. Where one does, tp.c joins them by a parabolic blend and switches in its middle: the
@@ -55,17 +62,18 @@ pub(super) struct Pending {
 /// Servo periods each part of a cut block must last at its feed: tp.c caps a segment's speed
 /// at its length over `TP_MIN_SEGMENT_CYCLES` (1.02) periods, so a shorter part would slow
 /// the machine at the beam's edge.
-const MIN_PART_PERIODS: f64 = 1.25;
+pub(super) const MIN_PART_PERIODS: f64 = 1.25;
 
 /// Servo periods at the edge speed what a blend arc leaves of a cut block's first part lasts
 /// (the blend takes up to half of it: `BLEND_DIST_FRACTION`), just above tp.c's 1.02.
 const BEHIND_BLEND_PERIODS: f64 = 1.1;
 
 /// Where block `sub` (`len` mm from where the spot is, F `cap` or its own) is cut to carry a
-/// switch `left` mm along it, if at all. Only a straight block (a short arc piece ran as its
-/// chord under canon's naive CAM and kinked against the move before it, which tp passes
-/// slowly; the header's `G64 … Q0` now keeps it an arc, but cut arcs are not measured yet),
-/// and only where the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (tp.c
+/// switch `left` mm along it, if at all. A straight block or an arc (a short arc piece ran
+/// as its chord under canon's naive CAM and kinked against the move before it; the header's
+/// `G64 … Q0` keeps it an arc: cut, frame_marking's on-edges on arcs went from +1.53 to +0.59
+/// periods and dial_marks' circle start from +3.21 to +0.21 on the real LinuxCNC), and only
+/// where the part after the cut lasts [`MIN_PART_PERIODS`] at the block's feed (tp.c
 /// caps a shorter segment's speed). Where LinuxCNC joins the block tangentially to the one
 /// before (tp.c's rule, [`tangent`]) the cut is at `left` (the part before lasts 1.5 periods
 /// of the edge speed, which never exceeds the feed). Elsewhere tp lays a blend arc over the
@@ -86,10 +94,19 @@ pub(super) fn cut_at(
 ) -> Option<f64> {
     let (left, servo_s) = (p.left, p.servo_s);
     let feed = match &sub.kind {
-        OpKind::Line { feed_mm_s, .. } => cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s)),
+        OpKind::Line { feed_mm_s, .. } | OpKind::Arc { feed_mm_s, .. } => {
+            cap.map_or(*feed_mm_s, |c| c.min(*feed_mm_s))
+        }
         OpKind::Rapid { .. } => machine.axes.iter().map(|a| a.v_max).fold(0.0, f64::max),
         _ => return None,
     };
+    // An arc held below the edge's speed (a lit corner arc's first sub-block, its F the plan's
+    // mean over it): tp slows to that F on the arc, so a switch cut into it came at 1.37 of
+    // 2.66 mm/s on nested_parts (before it, 0.5 off); it stays where the arc starts. (At
+    // frame_marking's 9.49 of 9.92 mm/s the cut measured right: +1.53 → +0.59 periods.)
+    if matches!(sub.kind, OpKind::Arc { .. }) && feed < 0.9 * p.v {
+        return None;
+    }
     // A rapid meeting a feed is a stop to tp.c (`tpCheckCanonType`): the edge is at rest there.
     if (m.motion == Some("G0")) != matches!(sub.kind, OpKind::Rapid { .. }) {
         return None;
@@ -324,6 +341,87 @@ pub(super) fn edge_speeds(job: &Job, facts: Option<&crate::emit::PlanFacts>, i: 
         (Some(a), Some(b)) if !r.is_empty() => [a.v_entry, b.v_exit],
         _ => [0.0, 0.0],
     }
+}
+
+/// How far pulsed op `op`'s trigger edges are carried along it on LinuxCNC at servo period
+/// `servo_s` (`pulse::write_gated`; `[v0, v1]` the plan's speeds where it starts and ends):
+/// the beam switch's lead where the plan runs the whole op (a line or an arc) at its feed,
+/// else 0.
+pub(super) fn gated(op: &Op, [v0, v1]: [f64; 2], servo_s: f64) -> f64 {
+    let (OpKind::Line {
+        feed_mm_s: feed, ..
+    }
+    | OpKind::Arc {
+        feed_mm_s: feed, ..
+    }) = &op.kind
+    else {
+        return 0.0;
+    };
+    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
+    if cruise(v0) && cruise(v1) {
+        distance(*feed, servo_s)
+    } else {
+        0.0
+    }
+}
+
+/// How image row `i` of `job` (from `from`; `[v0, v1]` the plan's speeds where it starts and
+/// ends) carries its power steps on LinuxCNC at servo period
+/// `servo_s` (`row::Carry`): where the plan runs the whole row at its feed, each run's end
+/// by the beam switch's lead (tp.c `tpSetAout` queues an `M67` in the same synchronized slot
+/// as `tpSetDout` an `M62`/`M63`, and `tpToggleDIOs` writes both as tp takes up the block:
+/// they lead the joints alike). The last run runs on into the lead-out where that continues
+/// the row in line at its feed, long enough for what is left of it.
+pub(super) fn row(
+    job: &crate::motion::Job,
+    i: usize,
+    from: P3,
+    servo_s: f64,
+    [v0, v1]: [f64; 2],
+) -> Option<super::row::Carry> {
+    let ops = &job.program.ops;
+    let OpKind::Line {
+        to,
+        feed_mm_s: feed,
+        row: Some(_),
+        ..
+    } = &ops[i].kind
+    else {
+        return None;
+    };
+    if job.kin.oriented() {
+        return None;
+    }
+    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
+    let lead = distance(*feed, servo_s);
+    if !(cruise(v0) && cruise(v1) && lead > 0.0) {
+        return None;
+    }
+    let min_block = MIN_PART_PERIODS * servo_s * feed;
+    let dir = direction(&ops[i], from, *to, true)?;
+    let past_end = ops[i + 1..]
+        .iter()
+        .find(|o| o.moves_from(*to))
+        .is_some_and(|o| match &o.kind {
+            OpKind::Line {
+                to: end,
+                feed_mm_s,
+                laser: None,
+                ..
+            } => {
+                let len = crate::program::dist(*to, *end);
+                direction(o, *to, *end, false)
+                    .is_some_and(|d| (0..3).map(|k| d[k] * dir[k]).sum::<f64>() > 1.0 - 1e-9)
+                    && (feed_mm_s - feed).abs() <= 1e-9 * feed
+                    && len - lead >= min_block
+            }
+            _ => false,
+        });
+    Some(super::row::Carry {
+        lead,
+        past_end,
+        min_block,
+    })
 }
 
 #[cfg(test)]

@@ -169,6 +169,7 @@ pub(super) fn write_gated(
     ops: &[Op],
     i: usize,
     pitch: f64,
+    lead: f64,
     train: &mut Train,
     out: &mut Out<'_>,
     m: &mut Modal,
@@ -224,7 +225,55 @@ pub(super) fn write_gated(
     }
     train.next_mm = (at(k) - len).max(0.0);
     let mut trigger = train.trigger;
+    // A beam switch carried here (`lead`): where `lead::cut_at` puts it in this block, else
+    // before it.
+    let incoming = out.pending.take();
+    let servo_s = g.machine.servo_period_s();
+    let feed = match &op.kind {
+        OpKind::Line { feed_mm_s, .. } | OpKind::Arc { feed_mm_s, .. } => *feed_mm_s,
+        _ => 0.0,
+    };
+    let min_block = super::lead::MIN_PART_PERIODS * servo_s * feed;
+    // Where the first carried edge can go: `lead` where the block continues the one before
+    // in line, else past tp's blend arc over the junction (`lead::cut_at`, as a beam switch).
+    let first_at = (lead > 0.0)
+        .then(|| {
+            let p = super::lead::Pending {
+                lines: Vec::new(),
+                left: lead,
+                off: false,
+                servo_s,
+                v: feed,
+                tag,
+            };
+            let sub = super::lead::retarget(op, op.target().unwrap_or(from));
+            super::lead::cut_at(&sub, m, len, &p, None, g.machine)
+        })
+        .flatten();
+    let carried = first_at
+        .filter(|_| !g.post.pulse_on.is_empty() && !g.post.pulse_off.is_empty())
+        .and_then(|first| carry_edges(&cuts, trigger, (first, lead), len, !goes_on, min_block));
+    let (mut cuts, beyond) = match carried {
+        Some(c) => c,
+        None => (cuts, None),
+    };
+    let switch_at = incoming.as_ref().and_then(|p| {
+        let sub = super::lead::retarget(op, op.target().unwrap_or(from));
+        super::lead::cut_at(&sub, m, len, p, None, g.machine)
+    });
+    let switch_at = switch_at.map(|a| split_at(&mut cuts, a, min_block));
+    let mut incoming = incoming;
+    if switch_at.is_none() {
+        out.pending = incoming.take();
+        out.flush_pending()?;
+    }
+    let mut start = 0.0;
     for (s, high) in cuts {
+        if switch_at.is_some_and(|a| (a - start).abs() < 1e-9) {
+            // Written by the next line, before its block.
+            out.pending = incoming.take();
+        }
+        start = s;
         let f = if len > 0.0 { s / len } else { 1.0 };
         let (to, q) = part_way(op, (from, &from_q), &g.op_axes.get(i), f, g.arc_axes);
         let block = |line: &mut String, m: &mut Modal| {
@@ -242,7 +291,29 @@ pub(super) fn write_gated(
         }
         out.stats.motion_blocks += 1;
     }
-    if trigger && !goes_on {
+    if let Some(p) = incoming.take() {
+        out.pending = Some(p);
+        out.flush_pending()?;
+    }
+    if let Some((left, high)) = beyond {
+        // The edge carried past the block's end: written `left` mm into the next block, as a
+        // beam switch is (the beam-off, carried as far, joins it).
+        let w = (g.words)(if high { power } else { 0.0 });
+        let lines = if high {
+            &g.post.pulse_on
+        } else {
+            &g.post.pulse_off
+        };
+        out.pending = Some(super::lead::Pending {
+            lines: lines.iter().map(|t| format::fill(t, w)).collect(),
+            left,
+            off: false,
+            servo_s,
+            v: feed,
+            tag,
+        });
+        trigger = high;
+    } else if trigger && !goes_on {
         // Lowered with the next motion, the section's end (GRBL: the beam-off line does it).
         if !g.dialect.is_grbl_family() {
             let w = (g.words)(0.0);
@@ -254,6 +325,102 @@ pub(super) fn write_gated(
     }
     train.trigger = trigger;
     Ok(())
+}
+
+/// A piece of a pulsed block: where it ends along the block (mm) and whether the trigger is
+/// high along it; for an edge carried past the block's end, how far into the next block.
+type Piece = (f64, bool);
+
+/// The pieces `cuts` (each's end along the op and the trigger along it; `before`: the
+/// trigger coming in) with every trigger edge carried `lead` mm further along a block `len`
+/// mm long, as the writer carries a beam switch (`lead`: LinuxCNC switches a synchronized
+/// output, `M62`/`M63` as tp.c `tpSetDout` queues them, as tp takes up the block, 1.5 servo
+/// periods before the joints get there). The pieces keep their lengths; the first, the
+/// trigger as it came in, is `first` long (`lead`, or past tp's blend arc where the block
+/// does not continue the one before in line: an edge on the block's start comes there) and
+/// the last shorter. An
+/// edge carried past the end is returned (how far into the next block, the trigger then) for
+/// the next block; with `low_at_end` (the section ends here) the trigger falls `lead` past
+/// the end if it is high there. `None` (nothing carried) where a piece would be left shorter
+/// than tp runs at speed (`min_block`, unless the pieces were already as short) or two edges
+/// would fall past the end.
+fn carry_edges(
+    cuts: &[(f64, bool)],
+    before: bool,
+    (first, lead): (f64, f64),
+    len: f64,
+    low_at_end: bool,
+    min_block: f64,
+) -> Option<(Vec<Piece>, Option<Piece>)> {
+    let eps = 1e-9;
+    let shortest = cuts
+        .iter()
+        .scan(0.0, |s0, &(s, _)| {
+            let l = s - *s0;
+            *s0 = s;
+            Some(l)
+        })
+        .fold(f64::INFINITY, f64::min);
+    let mut out: Vec<(f64, bool)> = Vec::with_capacity(cuts.len() + 1);
+    let mut beyond: Option<(f64, bool)> = None;
+    let (mut start, mut state) = (0.0, before);
+    for (e, h) in std::iter::once((first, before)).chain(cuts.iter().map(|&(s, h)| (s + lead, h))) {
+        if start >= len - eps {
+            if h != state {
+                if beyond.is_some() {
+                    return None;
+                }
+                beyond = Some((start - len, h));
+            }
+        } else if let Some(last) = out.last_mut().filter(|l| l.1 == h) {
+            // The same trigger on: one block.
+            last.0 = last.0.max(e.min(len));
+        } else {
+            out.push((e.min(len), h));
+        }
+        start = e;
+        state = h;
+    }
+    if low_at_end && state {
+        if beyond.is_some() {
+            return None;
+        }
+        beyond = Some((start - len, false));
+    }
+    let mut s0 = 0.0;
+    for &(s, _) in &out {
+        if s - s0 < min_block.min(shortest) - eps {
+            return None;
+        }
+        s0 = s;
+    }
+    Some((out, beyond))
+}
+
+/// Where the pieces `cuts` are split for a carried beam switch `at` mm along: at a piece's
+/// end within 0.1 µm of it, else the piece `at` falls in is cut there where both parts last
+/// `min_block` (else the switch goes where that piece starts). Returns where the switch is
+/// written.
+fn split_at(cuts: &mut Vec<(f64, bool)>, at: f64, min_block: f64) -> f64 {
+    let mut s0 = 0.0;
+    for k in 0..cuts.len() {
+        let (s, h) = cuts[k];
+        if (at - s0).abs() < 1e-4 {
+            return s0;
+        }
+        if at < s {
+            if (s - at).abs() < 1e-4 {
+                return s;
+            }
+            if at - s0 >= min_block && s - at >= min_block {
+                cuts.insert(k, (at, h));
+                return at;
+            }
+            return s0;
+        }
+        s0 = s;
+    }
+    s0
 }
 
 /// The S word of `power_w` on a GRBL-family gate block.
@@ -365,4 +532,41 @@ pub(super) fn write_fire(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trigger_edges_are_carried_by_the_lead_and_a_last_fall_past_the_end() {
+        // Pulses at 0 and 0.2 mm of a 0.4 mm block, gates of 0.1 mm, carried 0.03 mm: the
+        // trigger comes in low up to 0.03, then every edge 0.03 later; the last piece shorter.
+        let cuts = [(0.1, true), (0.2, false), (0.3, true), (0.4, false)];
+        let (out, beyond) = carry_edges(&cuts, false, (0.03, 0.03), 0.4, true, 0.025).unwrap();
+        let want = [
+            (0.03, false),
+            (0.13, true),
+            (0.23, false),
+            (0.33, true),
+            (0.4, false),
+        ];
+        assert_eq!(out.len(), want.len());
+        for (a, b) in out.iter().zip(&want) {
+            assert!((a.0 - b.0).abs() < 1e-12 && a.1 == b.1, "{out:?}");
+        }
+        assert_eq!(beyond, None);
+        // A section ending high: its fall lands 0.03 mm into the next block.
+        let cuts = [(0.1, true), (0.2, false), (0.3, true)];
+        let (out, beyond) = carry_edges(&cuts, false, (0.03, 0.03), 0.3, true, 0.025).unwrap();
+        assert_eq!(out.last().map(|p| p.1), Some(true));
+        let (left, high) = beyond.unwrap();
+        assert!((left - 0.03).abs() < 1e-12 && !high);
+        // Carried past a gate (0.15 mm against 0.1 mm gates), a rise and a fall would both land
+        // past the end, on one block to LinuxCNC: nothing is carried.
+        assert_eq!(
+            carry_edges(&cuts, false, (0.15, 0.15), 0.3, true, 0.025),
+            None
+        );
+    }
 }

@@ -14,6 +14,18 @@ use crate::motion::{Job, tool_pose};
 use crate::program::{Laser, Op, OpKind, P3, dist};
 use std::borrow::Cow;
 
+/// How far a row's power steps are carried along it on LinuxCNC (`lead`): each run's end
+/// moves `lead` mm on, so its power line (`M67`, a synchronized output that leads the joints
+/// as the beam switch does) reaches the spot where the run ends; with `past_end` the last run
+/// runs on `lead` mm into the lead-out too (which the beam-off then needs no cut of).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Carry {
+    pub lead: f64,
+    pub past_end: bool,
+    /// The shortest block tp runs at the row's speed (`lead::MIN_PART_PERIODS`), mm.
+    pub min_block: f64,
+}
+
 /// One motion block (or a coupled op's sub-blocks) to write.
 pub(super) struct Piece<'a> {
     pub op: Cow<'a, Op>,
@@ -32,6 +44,7 @@ pub(super) fn pieces<'j>(
     i: usize,
     from: P3,
     from_q: Axes,
+    carry: Option<Carry>,
 ) -> Vec<Piece<'j>> {
     let op = &job.program.ops[i];
     let OpKind::Line {
@@ -49,18 +62,29 @@ pub(super) fn pieces<'j>(
         }];
     };
     let total = dist(from, *to);
+    let shifts = carry
+        .filter(|_| blocks.len() <= 1 && total > 0.0)
+        .map(|c| shifts(row, from, total, c))
+        .unwrap_or_default();
     let mut out = Vec::with_capacity(row.runs.len());
     let (mut s0, mut q_prev, mut b) = (0.0, from_q, 0);
     for (k, &(c, shade)) in row.runs.iter().enumerate() {
         let last = k + 1 == row.runs.len();
+        let sh = shifts.get(k).copied().unwrap_or(0.0);
         let p = if last {
             *to
         } else {
             let [x, y] = row.end_of(c);
             [x, y, to[2]]
         };
-        let s1 = if last { total } else { dist(from, p) };
-        let q = if last {
+        // Carried `sh` mm further along the row (`Carry`).
+        let p: P3 = std::array::from_fn(|j| p[j] + sh * (to[j] - from[j]) / total);
+        let s1 = if last && sh == 0.0 {
+            total
+        } else {
+            dist(from, p)
+        };
+        let q = if last && sh == 0.0 {
             job.op_axes.get(i)
         } else {
             run_axes(
@@ -77,7 +101,12 @@ pub(super) fn pieces<'j>(
         let mut sub = Vec::new();
         // The row's planned blocks over [s0, s1], at this run's power.
         while b < blocks.len() {
-            let end = blocks[b].s_end.min(s1);
+            // A last run carried past the row's end runs on to its own end.
+            let end = if last && b + 1 == blocks.len() {
+                s1
+            } else {
+                blocks[b].s_end.min(s1)
+            };
             let scale = scale(laser, power_w);
             sub.push(PowerBlock {
                 s_end: end - s0,
@@ -111,6 +140,35 @@ pub(super) fn pieces<'j>(
         q_prev = q;
     }
     out
+}
+
+/// How far each run's end is carried (`Carry`; the last entry, the row's end, only
+/// `past_end`): `lead`, but where a run's block would be left shorter than tp runs at the
+/// row's speed (a one-pixel run at the end of a row that cannot run on into its lead-out),
+/// the ends before it stay where they are, from the row's end back.
+fn shifts(row: &crate::program::PixelRow, from: P3, total: f64, c: Carry) -> Vec<f64> {
+    let n = row.runs.len();
+    let ends: Vec<f64> = row
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(k, &(col, _))| {
+            if k + 1 == n {
+                total
+            } else {
+                let [x, y] = row.end_of(col);
+                ((x - from[0]).powi(2) + (y - from[1]).powi(2)).sqrt()
+            }
+        })
+        .collect();
+    let mut sh = vec![0.0; n];
+    sh[n - 1] = if c.past_end { c.lead } else { 0.0 };
+    for k in (0..n - 1).rev() {
+        // Run k + 1's block, from run k's carried end to its own.
+        let len = ends[k + 1] + sh[k + 1] - (ends[k] + c.lead);
+        sh[k] = if len >= c.min_block { c.lead } else { 0.0 };
+    }
+    sh
 }
 
 /// The factor from the row's power to a run's (0 for a row lit at 0 W throughout).
