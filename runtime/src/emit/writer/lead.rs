@@ -424,6 +424,31 @@ pub(super) fn row(
     })
 }
 
+/// LinuxCNC runs an arc whose sagitta is below the naive CAM tolerance (`G64 Q`, else `P`) as
+/// its chord (canon's `ARC_FEED`). Emit now writes `G64 P<corner> Q0`, under which canon keeps
+/// every arc an arc; the merge below is kept (measured with it on the real LinuxCNC, and an
+/// NC with a non-zero Q still needs it), at the corner tolerance `P`. A lit arc's first
+/// speed-held sub-block is short, and as a chord it meets the move before it (a lead-in along
+/// lase's first chord, a few degrees off the arc's tangent) at a kink, which tp.c passes at
+/// its kink speed (`tpSetupTangent`: 3 mm/s on the real machine where frame_marking's plan
+/// says 9.9 at the beam's edge). So the first sub-blocks are merged until the first one is an
+/// arc to LinuxCNC too (sagitta at least the tolerance), which it blends with the line before
+/// it (`power::merge_front`: their mean speed and time-mean power).
+pub(super) fn arc_first_block(op: &Op, from: P3, blocks: &mut Vec<power::PowerBlock>, tol: f64) {
+    let Some((r, _, sweep)) = op.arc_from(from) else {
+        return;
+    };
+    let total = blocks.last().map_or(0.0, |b| b.s_end);
+    let arc_len = r * sweep.abs();
+    if !(tol > 0.0 && r > 0.0 && arc_len > 0.0 && total > 0.0) {
+        return;
+    }
+    // Sagitta r·(1 − cos(φ/2)) ≥ tol: φ ≥ 2·acos(1 − tol/r) (the whole arc when r < tol/2).
+    let phi = 2.0 * (1.0 - tol / r).max(-1.0).acos();
+    let s_min = total * (r * phi * (1.0 + 1e-6) / arc_len);
+    power::merge_front(blocks, s_min);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
