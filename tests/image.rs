@@ -141,9 +141,29 @@ fn blocks(nc: &str) -> Vec<Block> {
     for line in nc.lines() {
         let w = nc_words(line);
         let get = |c: char| w.iter().find(|(k, _)| *k == c).map(|(_, v)| *v);
+        // LinuxCNC carries a row's power steps and its beam-off the lead (1.5 servo periods,
+        // `emit::writer::lead`) past the run's end: the block before ends that much later, so
+        // the step stands where the run ends.
+        let carried_back = |out: &mut Vec<Block>, x: &mut f64| {
+            let lead = 1.5e-3 * f;
+            if let Some(b) = out.last_mut()
+                && linuxcnc
+                && b.y == y
+                && b.x1 == *x
+                && b.pct > 0.0
+                && (b.x1 - b.x0).abs() > lead + 1e-9
+            {
+                b.x1 -= lead * (b.x1 - b.x0).signum();
+                *x = b.x1;
+            }
+        };
         if get('M') == Some(67.0) {
+            carried_back(&mut out, &mut x);
             q = get('Q').unwrap();
             continue;
+        }
+        if linuxcnc && matches!((get('M'), get('P')), (Some(m), Some(p)) if m == 63.0 && p == 0.0) {
+            carried_back(&mut out, &mut x);
         }
         if let Some(v) = get('F') {
             f = v / 60.0;
