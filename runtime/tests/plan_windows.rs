@@ -228,11 +228,17 @@ fn same_nc(what: &str, program: &ProcessProgram) {
                 PlanFacts::new(program, dialect)
             };
             let got = common::emit_in_windows(what, program, facts, dialect, min_window);
-            assert!(
-                got == want,
-                "{what}, {dialect}, windows from {min_window}: the NC differs from the whole \
-                 plan's"
-            );
+            if got != want {
+                let (g, w) = (format!("{got:?}"), format!("{want:?}"));
+                let at = g.bytes().zip(w.bytes()).take_while(|(a, b)| a == b).count();
+                let from = g[..at].rfind("\\n").unwrap_or(0);
+                panic!(
+                    "{what}, {dialect}, windows from {min_window}: the NC differs from the whole \
+                     plan's from {:?} (windows) / {:?} (whole)",
+                    &g[from..(at + 80).min(g.len())],
+                    &w[from..(at + 80).min(w.len())]
+                );
+            }
         }
     }
 }

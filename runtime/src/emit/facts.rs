@@ -51,7 +51,8 @@ pub struct PlanFacts {
     /// `split`.
     exits: Vec<(u32, f64)>,
     /// `(op, [speed where the beam comes on, where it goes off])` of every lit op at a beam
-    /// edge passed moving, on LinuxCNC (`writer::lead`: the switch is carried by its speed).
+    /// edge passed moving (0 at an end that is not an edge), and of every pulsed op and image
+    /// row (both ends), on LinuxCNC (`writer::lead`: the switch is carried by its speed).
     edges: Option<Vec<(u32, [f64; 2])>>,
     /// The op whose segments are arriving, its entry and exit speed so far, and its segments
     /// (kept only for a lit op when `lit` is gathered).
@@ -165,15 +166,28 @@ impl PlanFacts {
             && lit(program, op)
         {
             // Only at edges (the neighbouring motion unlit), so a lit job of a million moves
-            // keeps a few of these, not one a move.
+            // keeps a few of these, not one a move; both ends of a pulsed op or an image row,
+            // whose trigger edges and power steps are carried where the plan runs the whole
+            // op at its feed (`writer::lead::gated`, `writer::lead::row`): one per row.
             let lit_near = |o: Option<&crate::program::Op>| o.is_some_and(|o| o.laser().is_some());
             let ops = &program.ops;
+            let this = &ops[op as usize];
+            let whole = this.laser().is_some_and(|l| l.pulse.is_some())
+                || matches!(this.kind, crate::program::OpKind::Line { row: Some(_), .. });
             let moving = |o: &&crate::program::Op| o.target().is_some();
             let before = ops[..op as usize].iter().rev().find(moving);
             let after = ops[op as usize + 1..].iter().find(moving);
             let v = [
-                if lit_near(before) { 0.0 } else { self.speed[0] },
-                if lit_near(after) { 0.0 } else { self.speed[1] },
+                if lit_near(before) && !whole {
+                    0.0
+                } else {
+                    self.speed[0]
+                },
+                if lit_near(after) && !whole {
+                    0.0
+                } else {
+                    self.speed[1]
+                },
             ];
             if v[0] > 0.0 || v[1] > 0.0 {
                 edges.push((op, v));
@@ -212,7 +226,8 @@ impl PlanFacts {
         Some(self.exits[k].1)
     }
 
-    /// The planned speeds where lit op `op` starts and ends at a beam edge (0 elsewhere).
+    /// The planned speeds where lit op `op` starts and ends at a beam edge (0 elsewhere), and
+    /// at both ends of a pulsed op or an image row.
     pub(super) fn edge_speeds(&self, op: usize) -> [f64; 2] {
         let Some(all) = &self.edges else {
             return [0.0, 0.0];
