@@ -229,19 +229,30 @@ fn a_lit_start_on_a_slow_arc_is_led_in_at_the_planned_speed() {
         let v_edge = edges[seen];
         seen += 1;
         assert!(v_edge < 0.6 * 20.0, "the plan's edge at {v_edge} mm/s");
-        // The lead-in: the last motion line before the edge.
+        // The lead-in: the last G1 line before the edge; between it and the switch, the
+        // arc's first piece the switch is carried over (`emit::writer::lead`). The feed in
+        // force over both (the last F word before the switch) is the plan's at the edge.
         let lead = text[..k]
             .iter()
             .rev()
-            .find(|l| l.starts_with('G') || l.starts_with('X') || l.starts_with('Y'))
+            .find(|l| l.starts_with("G1"))
             .unwrap();
-        let f = word(lead, 'F').expect("the lead-in carries its held feed") / 60.0;
+        let f = text[..k]
+            .iter()
+            .rev()
+            .find_map(|l| word(l, 'F'))
+            .expect("the lead-in carries its held feed")
+            / 60.0;
         assert!(
             (f - v_edge).abs() < 0.01 * v_edge,
             "lead-in F {f} mm/s, edge {v_edge}"
         );
-        // The first lit block: an arc whose sagitta LinuxCNC sees (r = 1.5 mm).
-        let first = text[k + 1..].iter().find(|l| l.starts_with("G3")).unwrap();
+        // The first lit block, from the lead-in's end to the end of the first motion line
+        // after the switch: an arc whose sagitta LinuxCNC sees (r = 1.5 mm).
+        let first = text[k + 1..]
+            .iter()
+            .find(|l| l.starts_with('X') || l.starts_with('Y') || l.starts_with("G3"))
+            .unwrap();
         let (x0, y0) = (word(lead, 'X').unwrap_or(-1.5), word(lead, 'Y').unwrap());
         let (x1, y1) = (word(first, 'X').unwrap(), word(first, 'Y').unwrap());
         let chord = (x1 - x0).hypot(y1 - y0);

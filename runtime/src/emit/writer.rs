@@ -644,10 +644,23 @@ pub(super) fn write(
                                 Some(end) if k + 1 == blocks.len() => end,
                                 _ => part_way(op, (from, &from_q), &q_end, f, arc_axes),
                             };
+                            // The last sub-block before a beam-off edge passed moving: no
+                            // slower than the plan at the edge, which the lead-out's first
+                            // part is held to (`write_block`), so LinuxCNC crosses the edge at
+                            // the plan's speed where the plan speeds up through it (its mean
+                            // is below that speed; above it where the plan slows down).
+                            let cap = if servo_g94.is_some()
+                                && k + 1 == blocks.len()
+                                && !(more || next_move_lit(&ops[i + 1..], to))
+                            {
+                                b.v_cap.max(lead::edge_speeds(job, facts, i)[1])
+                            } else {
+                                b.v_cap
+                            };
                             write_block(
                                 &mut out,
                                 &mut m,
-                                (op, to, q, Some(b.v_cap)),
+                                (op, to, q, Some(cap)),
                                 machine,
                                 arc_axes,
                                 tag,
@@ -839,16 +852,31 @@ fn write_block(
     // A junction LinuxCNC blends parabolically is never cut (the piece would be a block far
     // shorter than its triangle time); `lead::shift` moved it instead.
     let parabolic = m.turned || lead::turns(machine, &m.q, &q);
+    let mut cap = cap;
     if let Some(p) = out.pending.take() {
         let sub = lead::retarget(op, to);
         let len = sub.length_from(m.pos);
+        // tp.c passes a tangent junction at the lower of its two blocks' feeds
+        // (`tpGetRealFinalVel`), so the part from the edge to the carried switch is written at
+        // the plan's speed at the edge: with the held lit block's mean there (or a lead-out's
+        // full feed) LinuxCNC crossed the edges of serial_number's strokes 1.2 mm/s off it.
+        let edge_cap = (p.v > 0.0).then_some(p.v);
         if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine).filter(|_| !parabolic) {
             let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, at / len, arc_axes);
+            let first = edge_cap.or(cap);
             out.put_with(
-                |line| motion_line(line, op, cut, cut_q, cap, m, machine, arc_axes),
+                |line| motion_line(line, op, cut, cut_q, first, m, machine, arc_axes),
                 tag,
             )?;
             out.stats.motion_blocks += 1;
+        } else if let Some(v) = edge_cap.filter(|_| !parabolic) {
+            // Not cut: the switch goes before the block, which starts at the edge. A lead-out
+            // no faster than the edge, a lit block no slower.
+            cap = if p.off {
+                Some(cap.map_or(v, |c| c.min(v)))
+            } else {
+                cap.map(|c| c.max(v))
+            };
         }
         // Where it was cut, or else where the block starts, as without the lead: never past
         // the block (the next block may start with a switch line of its own).
