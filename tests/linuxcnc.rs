@@ -650,8 +650,14 @@ fn rotary_example_on_linuxcnc() {
     // off speed (the "S"'s last lit block, which the plan accelerates through to 45.7 where
     // its merged sub-block runs 41.9; the rings pass at 115.8: tp's first blend period adds
     // the lead's last step, ~1 % at a/2·T), cycle 0.9934 and beam-on 0.9991 of the model.
+    //
+    // The S's last lit block now merged from the back (the shortest tp carries at the edge)
+    // and held no slower than the plan's speed there (`emit::writer`): its off-edge 41.85 →
+    // 46.33 of 45.73, edge speed 3.88 → 2.03 (2026-12-02). What is left: on-edges in
+    // parabolic blends 1-4 % fast (the "S"'s start 47.76 of 45.73), where the lit block
+    // gains speed along its own direction faster than the lead-in loses it.
     for m in &run_all("xy_rotary", &["rotary_engrave"]) {
-        assert_close(m, Bounds::new(0.05, 4.0));
+        assert_close(m, Bounds::new(0.05, 2.5));
     }
 }
 

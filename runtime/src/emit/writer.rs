@@ -596,6 +596,10 @@ pub(super) fn write(
                         // out of a corner ran at its mean 21.4 mm/s, crossing its edge there
                         // where the plan was back at 30).
                         let turned = lead::turns(machine, &from_q, &q_end);
+                        // This op ends at a beam-off edge passed moving, on LinuxCNC.
+                        let off_edge = servo_s.is_some()
+                            && !(more || next_move_lit(&ops[i + 1..], op.target().unwrap_or(from)))
+                            && lead::edge_speeds(job, facts, i)[1] > 0.0;
                         if parabolic && !coupled {
                             if turned {
                                 // Its sub-blocks as long as tp.c's parabolic blends carry
@@ -606,7 +610,13 @@ pub(super) fn write(
                                 let tri = |ds: f64| {
                                     lead::triangle_s(machine, &from_q, &q_end, ds / total_len)
                                 };
-                                power::merge_short(&mut blocks, tri);
+                                // Ending at a beam-off edge passed moving: the last block the
+                                // shortest tp carries, held no slower than the edge (below).
+                                if off_edge {
+                                    power::merge_short_from_back(&mut blocks, tri);
+                                } else {
+                                    power::merge_short(&mut blocks, tri);
+                                }
                             }
                         } else if inverse_time && !coupled {
                             // In inverse time a block's F is its time: a lit move at constant
@@ -648,11 +658,11 @@ pub(super) fn write(
                             // slower than the plan at the edge, which the lead-out's first
                             // part is held to (`write_block`), so LinuxCNC crosses the edge at
                             // the plan's speed where the plan speeds up through it (its mean
-                            // is below that speed; above it where the plan slows down).
-                            let cap = if servo_g94.is_some()
-                                && k + 1 == blocks.len()
-                                && !(more || next_move_lit(&ops[i + 1..], to))
-                            {
+                            // is below that speed; above it where the plan slows down). In a
+                            // parabolic chain tp switches as the next block overtakes this
+                            // one's fading speed (`tpDoParabolicBlending`), about this block's
+                            // own speed: rotary_engrave's "S" went dark at 41.9 of 45.7.
+                            let cap = if off_edge && k + 1 == blocks.len() {
                                 b.v_cap.max(lead::edge_speeds(job, facts, i)[1])
                             } else {
                                 b.v_cap

@@ -397,6 +397,28 @@ pub fn merge_range(blocks: &mut Vec<PowerBlock>, first: usize, end: usize) {
     blocks.splice(first..end, [merged]);
 }
 
+/// [`merge_short`] from the back, for a block that ends at a beam edge: its last run is the
+/// shortest that lasts `min_time`, so the block that carries the edge holds the plan's speed
+/// nearest the edge (`emit`'s LinuxCNC writer in a parabolic chain; `min_time` must not
+/// depend on where a run lies, only on its length).
+pub fn merge_short_from_back(blocks: &mut Vec<PowerBlock>, min_time: impl Fn(f64) -> f64) {
+    // Mirrored: block k spans [s_{k-1}, s_k], mirrored [total - s_k, total - s_{k-1}].
+    let mirror = |b: &mut Vec<PowerBlock>| {
+        let total = b.last().map_or(0.0, |x| x.s_end);
+        let starts: Vec<f64> = std::iter::once(0.0)
+            .chain(b.iter().map(|x| x.s_end))
+            .collect();
+        let n = b.len();
+        b.reverse();
+        for (j, x) in b.iter_mut().enumerate() {
+            x.s_end = total - starts[n - 1 - j];
+        }
+    };
+    mirror(blocks);
+    merge_short(blocks, min_time);
+    mirror(blocks);
+}
+
 /// Merges runs of `blocks` until each lasts at least `min_time(Δs)` (s) for its length `Δs`
 /// (mm) at its mean speed, from the front; a short rest joins the run before it. For a
 /// controller that cannot carry a block shorter than some time at speed (LinuxCNC's parabolic
@@ -431,5 +453,56 @@ pub fn merge_short(blocks: &mut Vec<PowerBlock>, min_time: impl Fn(f64) -> f64) 
         }
         merge_range(blocks, first, end);
         first += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn blocks(v: &[f64]) -> Vec<PowerBlock> {
+        v.iter()
+            .enumerate()
+            .map(|(k, &v)| PowerBlock {
+                s_end: (k + 1) as f64,
+                power_w: 10.0,
+                max_error_w: 0.0,
+                v_cap: v,
+            })
+            .collect()
+    }
+
+    /// A ramp 1..=5 mm/s in 1 mm blocks, each run to last 0.6 s: from the front the short
+    /// rest joins the last run; from the back the last run is the shortest that lasts, and
+    /// the first run takes the rest. Lengths and times are kept either way.
+    #[test]
+    fn merging_from_the_back_keeps_the_last_run_shortest() {
+        let min = |_: f64| 0.6;
+        let mut front = blocks(&[1.0, 2.0, 3.0, 4.0, 5.0]);
+        merge_short(&mut front, min);
+        let mut back = blocks(&[1.0, 2.0, 3.0, 4.0, 5.0]);
+        merge_short_from_back(&mut back, min);
+        let time = |b: &[PowerBlock]| {
+            let mut s0 = 0.0;
+            b.iter()
+                .map(|x| {
+                    let t = (x.s_end - s0) / x.v_cap;
+                    s0 = x.s_end;
+                    t
+                })
+                .collect::<Vec<f64>>()
+        };
+        let ends = |b: &[PowerBlock]| b.iter().map(|x| x.s_end).collect::<Vec<f64>>();
+        // Front: [1] 1 s, [2, 3] 0.83 s, [4, 5] 0.45 s short: joins → [2..5].
+        assert_eq!(ends(&front), vec![1.0, 5.0]);
+        // Back: [5, 4] 0.45 s short, [5, 4, 3] 0.78 s; [2] 0.5 s short, [2, 1] 1.5 s.
+        assert_eq!(ends(&back), vec![2.0, 5.0]);
+        let total = |b: &[PowerBlock]| time(b).iter().sum::<f64>();
+        let want = 1.0 + 0.5 + 1.0 / 3.0 + 0.25 + 0.2;
+        assert!((total(&front) - want).abs() < 1e-12);
+        assert!((total(&back) - want).abs() < 1e-12);
+        assert!(time(&back).iter().all(|&t| t >= 0.6));
+        // The last run's speed: 3 mm over 0.783 s.
+        assert!((back[1].v_cap - 3.0 / (1.0 / 3.0 + 0.25 + 0.2)).abs() < 1e-12);
     }
 }
