@@ -166,14 +166,18 @@ impl PlanFacts {
             && lit(program, op)
         {
             // Only at edges (the neighbouring motion unlit), so a lit job of a million moves
-            // keeps a few of these, not one a move; both ends of a pulsed op or an image row,
-            // whose trigger edges and power steps are carried where the plan runs the whole
-            // op at its feed (`writer::lead::gated`, `writer::lead::row`): one per row.
+            // keeps a few of these, not one a move; both ends of a pulsed op or an image row
+            // the plan runs whole at its feed, whose trigger edges and power steps are carried
+            // (`writer::lead::gated`, `writer::lead::row`; elsewhere they read 0, as where not
+            // at cruise): one per row, none on a zigzag of short pulsed moves.
             let lit_near = |o: Option<&crate::program::Op>| o.is_some_and(|o| o.laser().is_some());
             let ops = &program.ops;
             let this = &ops[op as usize];
-            let whole = this.laser().is_some_and(|l| l.pulse.is_some())
-                || matches!(this.kind, crate::program::OpKind::Line { row: Some(_), .. });
+            let cruise = |v: f64| (v - self.feed).abs() <= 1e-3 * self.feed;
+            let whole = (this.laser().is_some_and(|l| l.pulse.is_some())
+                || matches!(this.kind, crate::program::OpKind::Line { row: Some(_), .. }))
+                && cruise(self.speed[0])
+                && cruise(self.speed[1]);
             let moving = |o: &&crate::program::Op| o.target().is_some();
             let before = ops[..op as usize].iter().rev().find(moving);
             let after = ops[op as usize + 1..].iter().find(moving);
