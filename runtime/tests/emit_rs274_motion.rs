@@ -240,7 +240,18 @@ fn every_planned_feed_move_is_a_feed_at_its_feed_and_every_rapid_a_traverse_in_e
                     .iter()
                     .find(|o| o.target().is_some())
                     .is_some_and(|o| o.laser().is_some());
-                let held = !dialect.is_grbl_family() && (op.laser().is_some() || next_lit);
+                // On LinuxCNC also the lead-out after a lit move: the part from the beam-off
+                // edge to its carried switch is held to the plan's speed at the edge
+                // (`emit::writer::block::write_block`).
+                let prev_lit = job.program.ops[..tag]
+                    .iter()
+                    .rev()
+                    .find(|o| o.target().is_some())
+                    .is_some_and(|o| o.laser().is_some());
+                let held = !dialect.is_grbl_family()
+                    && (op.laser().is_some()
+                        || next_lit
+                        || (prev_lit && dialect == Dialect::LinuxCnc));
                 if !inverse_time {
                     let want = feed * 60.0;
                     if held {
