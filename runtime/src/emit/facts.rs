@@ -173,7 +173,7 @@ impl PlanFacts {
             let lit_near = |o: Option<&crate::program::Op>| o.is_some_and(|o| o.laser().is_some());
             let ops = &program.ops;
             let this = &ops[op as usize];
-            let cruise = |v: f64| (v - self.feed).abs() <= 1e-3 * self.feed;
+            let cruise = |v: f64| super::writer::at_cruise(v, self.feed);
             let whole = (this.laser().is_some_and(|l| l.pulse.is_some())
                 || matches!(this.kind, crate::program::OpKind::Line { row: Some(_), .. }))
                 && cruise(self.speed[0])

@@ -25,6 +25,7 @@ use crate::machine::AxisKind;
 use crate::motion::{Job, beam, power};
 use crate::program::{Coupling, Op, OpKind, P3};
 use block::{part_way, write_block};
+pub(super) use lead::at_cruise;
 use std::io;
 
 mod block;
@@ -598,10 +599,13 @@ pub(super) fn write(
                         // out of a corner ran at its mean 21.4 mm/s, crossing its edge there
                         // where the plan was back at 30).
                         let turned = lead::turns(machine, &from_q, &q_end);
-                        // This op ends at a beam-off edge passed moving, on LinuxCNC.
-                        let off_edge = servo_s.is_some()
-                            && !(more || next_move_lit(&ops[i + 1..], op.target().unwrap_or(from)))
-                            && lead::edge_speeds(job, facts, i)[1] > 0.0;
+                        // The plan's speed where this op ends at a beam-off edge passed
+                        // moving, on LinuxCNC.
+                        let off_edge = (servo_s.is_some()
+                            && !(more
+                                || next_move_lit(&ops[i + 1..], op.target().unwrap_or(from))))
+                        .then(|| lead::edge_speeds(job, facts, i)[1])
+                        .filter(|&v| v > 0.0);
                         if parabolic && !coupled {
                             if turned {
                                 // Its sub-blocks as long as tp.c's parabolic blends carry
@@ -614,7 +618,7 @@ pub(super) fn write(
                                 };
                                 // Ending at a beam-off edge passed moving: the last block the
                                 // shortest tp carries, held no slower than the edge (below).
-                                if off_edge {
+                                if off_edge.is_some() {
                                     power::merge_short_from_back(&mut blocks, tri);
                                 } else {
                                     power::merge_short(&mut blocks, tri);
@@ -664,10 +668,9 @@ pub(super) fn write(
                             // parabolic chain tp switches as the next block overtakes this
                             // one's fading speed (`tpDoParabolicBlending`), about this block's
                             // own speed: rotary_engrave's "S" went dark at 41.9 of 45.7.
-                            let cap = if off_edge && k + 1 == blocks.len() {
-                                b.v_cap.max(lead::edge_speeds(job, facts, i)[1])
-                            } else {
-                                b.v_cap
+                            let cap = match off_edge {
+                                Some(v) if k + 1 == blocks.len() => b.v_cap.max(v),
+                                _ => b.v_cap,
                             };
                             write_block(
                                 &mut out,

@@ -284,6 +284,13 @@ pub(super) fn distance(v: f64, servo_s: f64) -> f64 {
     if d >= MIN_LEAD_MM { d } else { 0.0 }
 }
 
+/// Whether the plan's speed `v` is the feed `feed` (to 1e-3 of it): where an op runs whole at
+/// its feed, its pulse triggers and image-row power steps are carried ([`gated`], [`row`];
+/// `emit::PlanFacts` keeps those ops' speeds by the same rule).
+pub(in crate::emit) fn at_cruise(v: f64, feed: f64) -> bool {
+    (v - feed).abs() <= 1e-3 * feed
+}
+
 /// The least lead written, mm: below it (an edge passed at under 0.7 mm/s at 1 ms) the cut
 /// would move the switch by less than the program's 0.1 µm words resolve and 1 µm a beam
 /// edge could show.
@@ -357,7 +364,7 @@ pub(super) fn gated(op: &Op, [v0, v1]: [f64; 2], servo_s: f64) -> f64 {
     else {
         return 0.0;
     };
-    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
+    let cruise = |v: f64| at_cruise(v, *feed);
     if cruise(v0) && cruise(v1) {
         distance(*feed, servo_s)
     } else {
@@ -392,7 +399,7 @@ pub(super) fn row(
     if job.kin.oriented() {
         return None;
     }
-    let cruise = |v: f64| (v - feed).abs() <= 1e-3 * feed;
+    let cruise = |v: f64| at_cruise(v, *feed);
     let lead = distance(*feed, servo_s);
     if !(cruise(v0) && cruise(v1) && lead > 0.0) {
         return None;
