@@ -96,18 +96,26 @@ fn dist(a: &[f64], b: &[f64]) -> f64 {
         .sqrt()
 }
 
-/// Distance from `p` to the segment `a`–`b`.
+/// Distance from `p` to the segment `a`–`b`. Without allocations: the lit-path deviation
+/// calls it hundreds of times per executed sample, and test code builds unoptimized.
 fn seg_dist(p: &[f64], a: &[f64], b: &[f64]) -> f64 {
-    let ab: Vec<f64> = a.iter().zip(b).map(|(x, y)| y - x).collect();
-    let ap: Vec<f64> = a.iter().zip(p).map(|(x, y)| y - x).collect();
-    let l2: f64 = ab.iter().map(|v| v * v).sum();
+    let (mut l2, mut dot) = (0.0, 0.0);
+    for i in 0..a.len() {
+        let d = b[i] - a[i];
+        l2 += d * d;
+        dot += d * (p[i] - a[i]);
+    }
     let t = if l2 > 0.0 {
-        (ab.iter().zip(&ap).map(|(x, y)| x * y).sum::<f64>() / l2).clamp(0.0, 1.0)
+        (dot / l2).clamp(0.0, 1.0)
     } else {
         0.0
     };
-    let q: Vec<f64> = a.iter().zip(&ab).map(|(x, d)| x + t * d).collect();
-    dist(p, &q)
+    let mut s = 0.0;
+    for i in 0..a.len() {
+        let e = p[i] - (a[i] + t * (b[i] - a[i]));
+        s += e * e;
+    }
+    s.sqrt()
 }
 
 /// Edges of a beam signal: (index, on) at each change.
