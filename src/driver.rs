@@ -15,19 +15,35 @@ pub fn compile(path: &Path) -> Result<(Recipe, Job), (SourceMap, Failure)> {
     lase_runtime::compile(&mut lase_runtime::FsFiles, &path.to_string_lossy())
 }
 
+/// [`compile`] planned for the controller that runs it, whatever the machine file names
+/// (`Machine::run_on`): `dialect`, or with `None` the GRBL-family one a link speaks.
+pub fn compile_for(
+    path: &Path,
+    dialect: Option<Dialect>,
+) -> Result<(Recipe, Job), (SourceMap, Failure)> {
+    let (recipe, mut program) = program(path)?;
+    let dialect = dialect.unwrap_or_else(|| lase_runtime::link::live_dialect(&program.machine));
+    program.machine.run_on(dialect.name());
+    match lase_runtime::compile::plan(program) {
+        Ok(job) => Ok((recipe, job)),
+        Err(f) => Err((recipe.map, f)),
+    }
+}
+
 /// [`compile`] with the plan made in windows and dropped (`lase check`, issue 18): the job
 /// holds no segments, only its cycle time, so a job of millions of moves is checked in
 /// memory that does not grow with its plan. It also runs what `lase emit` checks before its
-/// first line for the controller that runs the program (`dialect`, else the machine file's,
-/// else LinuxCNC: `emit::check_planned`), so a recipe `lase check` passes is one `lase emit`
-/// writes; the warnings `lase emit` would print come back with the job.
+/// first line for the controller that runs the program (`runs_on` of the recipe's machine:
+/// `--dialect`, else the machine file's, else LinuxCNC; the REPL's link), so a recipe `lase
+/// check` passes is one `lase emit` writes (`emit::check_planned`); the warnings `lase emit`
+/// would print come back with the job.
 pub fn check(
     path: &Path,
-    dialect: Option<Dialect>,
+    runs_on: impl FnOnce(&lase_runtime::machine::Machine) -> Dialect,
 ) -> Result<(Recipe, Job, Vec<String>), (SourceMap, Failure)> {
-    let (recipe, program) = program(path)?;
-    let dialect =
-        dialect.unwrap_or_else(|| lase_runtime::link::estimate::default_dialect(&program.machine));
+    let (recipe, mut program) = program(path)?;
+    let dialect = runs_on(&program.machine);
+    program.machine.run_on(dialect.name());
     let mut facts = lase_runtime::emit::PlanFacts::new(&program, dialect);
     let job = match lase_runtime::compile::plan_in_windows(program, |p, w| facts.window(p, &w)) {
         Ok((job, _)) => job,

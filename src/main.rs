@@ -37,7 +37,7 @@ enum Command {
     Check {
         file: PathBuf,
         /// The controller's NC dialect: linuxcnc, grbl, grblhal or iso (default: the machine
-        /// file's `dialect`, else linuxcnc).
+        /// file's `dialect`, else linuxcnc); the recipe is planned and checked for it.
         #[arg(long)]
         dialect: Option<String>,
     },
@@ -48,7 +48,8 @@ enum Command {
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// NC dialect: linuxcnc, grbl (GRBL 1.1: X, Y, Z), grblhal (up to six axes) or iso
-        /// (default: the machine file's `dialect`, else linuxcnc).
+        /// (default: the machine file's `dialect`, else linuxcnc); the recipe is planned for
+        /// it.
         #[arg(long)]
         dialect: Option<String>,
         /// Where the recipe's zero is: absolute (machine coordinates) or current (the
@@ -208,7 +209,9 @@ fn io_fail(message: String) -> (SourceMap, Failure) {
 
 fn cmd_check(file: &Path, dialect: Option<&str>) -> CmdResult {
     let dialect = dialect.map(parse_dialect).transpose()?;
-    let (recipe, job, warnings) = driver::check(file, dialect)?;
+    let (recipe, job, warnings) = driver::check(file, |m| {
+        dialect.unwrap_or_else(|| lase_runtime::link::estimate::default_dialect(m))
+    })?;
     for warn in &warnings {
         eprintln!("warning: {warn}");
     }
@@ -242,6 +245,7 @@ fn cmd_emit(
     let (recipe, mut program) = driver::program(file)?;
     let dialect = given_dialect
         .unwrap_or_else(|| lase_runtime::link::estimate::default_dialect(&program.machine));
+    program.machine.run_on(dialect.name());
     let chosen = origin::chosen(origin, &program);
     program.planner.origin = chosen.into();
     if set_origin && chosen.work().is_none() {
@@ -406,8 +410,9 @@ fn cmd_plan(
     use lase_runtime::link::estimate;
     let period = parse_period(period)?;
     let given_dialect = dialect.map(parse_dialect).transpose()?;
-    let (recipe, program) = driver::program(file)?;
+    let (recipe, mut program) = driver::program(file)?;
     let dialect = given_dialect.unwrap_or_else(|| estimate::default_dialect(&program.machine));
+    program.machine.run_on(dialect.name());
     // Every controller the report times: the one that runs the program, then the others
     // this machine has posts for.
     let dialects: Vec<_> = std::iter::once(dialect)

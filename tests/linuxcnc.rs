@@ -388,6 +388,7 @@ fn machine(name: &str) -> lase_runtime::machine::Machine {
 /// those of them (to look into one example's edges without the whole suite's minutes).
 fn run_all(machine_name: &str, examples: &[&str]) -> Vec<Measured> {
     let only = std::env::var("LASE_LINUXCNC_ONLY").ok();
+    let all = examples;
     let examples: Vec<&str> = examples
         .iter()
         .copied()
@@ -397,6 +398,12 @@ fn run_all(machine_name: &str, examples: &[&str]) -> Vec<Measured> {
         })
         .collect();
     if examples.is_empty() {
+        // Each test filters its own examples: say which this one has, for a misspelt name.
+        eprintln!(
+            "LASE_LINUXCNC_ONLY={}: none of this test's examples on {machine_name} ({})",
+            only.as_deref().unwrap_or(""),
+            all.join(", ")
+        );
         return Vec::new();
     }
     let mut lcnc = Headless::start(&machine(machine_name));

@@ -938,6 +938,47 @@ fn the_arm_at_a_speed_linuxcnc_cannot_hold_is_refused_with_the_speed_it_can() {
         .unwrap_or_else(|| panic!("{err}"));
     eprintln!("arm: 10 mm/s refused, {held} mm/s offered");
     assert!((3.0..4.0).contains(&held), "{held}");
+    // That rule is LinuxCNC's planner's: a program for grblHAL is planned for grblHAL
+    // (`Machine::run_on`), not refused by LinuxCNC's rule. Before, `--dialect grblhal`
+    // refused the 10 mm/s recipe with LinuxCNC's message too.
+    let (code, _, err) = lase(&["check", "--dialect", "grblhal", fast.to_str().unwrap()]);
+    assert_eq!(code, 0, "{err}");
+    let ngc = dir.path().join("arm_grblhal.nc");
+    let (code, _, err) = lase(&[
+        "emit",
+        "--dialect",
+        "grblhal",
+        fast.to_str().unwrap(),
+        "-o",
+        ngc.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // Its lit blocks are then as short as lase's own plan makes them: under the triangle
+    // time LinuxCNC would need, which is what the LinuxCNC rule refused.
+    let share =
+        shortest_lit_block_share(&std::fs::read_to_string(&ngc).unwrap(), &machine("arm_3r"));
+    eprintln!(
+        "arm at 10 mm/s for grblHAL: shortest lit block {share:.4} of LinuxCNC's triangle time"
+    );
+    assert!(share < 0.9, "{share}");
+    // The REPL streams to a GRBL-family link, so its `:check FILE` judges as `:run FILE` runs.
+    let mut repl = std::process::Command::new(env!("CARGO_BIN_EXE_lase"))
+        .arg("repl")
+        .env("NO_COLOR", "1")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let script = format!(":check {}\n", fast.display());
+    std::io::Write::write_all(&mut repl.stdin.take().unwrap(), script.as_bytes()).unwrap();
+    let out = repl.wait_with_output().unwrap();
+    let (said, err) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(said.contains(": ok — "), "{said}\n{err}");
+    assert!(!err.contains("speed_not_held"), "{err}");
     let m = machine("arm_3r");
     for (feed, path) in [
         (held, at(&format!("{held} mm/s"))),

@@ -234,7 +234,8 @@ pub struct Machine {
     pub settle: SettlePost,
     /// The dialect of the controller that runs this machine (`dialect = "grbl"`): `lase
     /// emit`'s default `--dialect` and the controller whose cycle time `lase plan` reports
-    /// first (issue 13). `None`: LinuxCNC, emit's own default.
+    /// first (issue 13). `None`: LinuxCNC, emit's own default. A command given another
+    /// controller (`--dialect`, a link) plans for that one instead (`Machine::run_on`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dialect: Option<String>,
 }
@@ -257,6 +258,15 @@ pub struct SettlePost {
 pub const DEFAULT_SERVO_PERIOD_S: f64 = 0.001;
 
 impl Machine {
+    /// Plans for the controller that runs this job, `dialect` (`--dialect`, or the one a link
+    /// speaks), in place of the machine file's `dialect`: the plan depends on it where a
+    /// controller's own planner does (LinuxCNC's parabolic blends between G93 blocks,
+    /// `motion::parabolic`), so a program written for one controller is not planned, checked
+    /// or refused by another's rules.
+    pub fn run_on(&mut self, dialect: &str) {
+        self.dialect = Some(dialect.to_string());
+    }
+
     /// The LinuxCNC servo period of this machine (`[post.linuxcnc] servo_period`), s.
     pub fn servo_period_s(&self) -> f64 {
         self.post

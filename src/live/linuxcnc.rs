@@ -41,7 +41,7 @@ pub(super) fn run(
             "--check, --send-response and --rx-buffer are GRBL options: a LinuxCNC link runs the whole program as a file".into(),
         ));
     }
-    let (recipe, job) = driver::compile(file)?;
+    let (recipe, job) = driver::compile_for(file, Some(Dialect::LinuxCnc))?;
     let origin = crate::origin::chosen(args.origin, &job.program);
     if origin != crate::origin::JobOrigin::Absolute {
         // The travel check at machine positions needs the controller's position or offset,

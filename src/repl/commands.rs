@@ -1,8 +1,8 @@
 //! The REPL's `:commands`: one table (name, arguments, what it does) that `:help`, completion
 //! and hints read, and the handlers.
 
+use super::Session;
 use super::machine::{Ran, Stream, Trouble};
-use super::{Amount, Session};
 use crate::driver::{self, Failure};
 use lase_lang::units::{self, Dim};
 use lase_lang::{SourceMap, Span};
@@ -11,7 +11,6 @@ use lase_runtime::emit::{Dialect, NcLine};
 use lase_runtime::link::{self, LinkUrl};
 use lase_runtime::machine::AxisKind;
 use lase_runtime::motion::Job;
-use lase_runtime::program::{OpKind, ProcessProgram};
 use std::io::Write;
 use std::path::Path;
 
@@ -141,13 +140,13 @@ fn commands_help() -> String {
 
 /// A quantity typed after a command: `1.1 kW`, `1.1kW`, `-5 mm`, `80%`. A bare number is
 /// `Err` unless `bare` gives its unit's dimension and the caller accepts it.
-enum Typed {
+pub(super) enum Typed {
     Quantity(f64, Dim),
     Percent(f64),
     Bare(f64),
 }
 
-fn parse_typed(text: &str) -> Result<Typed, String> {
+pub(super) fn parse_typed(text: &str) -> Result<Typed, String> {
     let t = text.trim();
     if let Some(p) = t.strip_suffix('%') {
         return p
@@ -283,8 +282,9 @@ impl Session {
         }
     }
 
-    /// The pending program with the overrides applied, planned.
-    fn job(&self) -> Option<Job> {
+    /// The pending program with the overrides applied, planned for the controller `dialect`
+    /// (`:emit --dialect`) or, with `None`, the GRBL-family link the REPL streams to.
+    fn job(&self, dialect: Option<Dialect>) -> Option<Job> {
         let mut program = match self.pending() {
             Ok(p) => p,
             Err(f) => {
@@ -295,80 +295,14 @@ impl Session {
         if !self.apply_overrides(&self.map, &mut program) {
             return None;
         }
+        let dialect = dialect.unwrap_or_else(|| link::live_dialect(&program.machine));
+        program.machine.run_on(dialect.name());
         match compile::plan(program) {
             Ok(j) => Some(j),
             Err(f) => {
                 self.report(&f);
                 None
             }
-        }
-    }
-
-    /// Applies the overrides, then holds the program to the machine's laser again: a power
-    /// override can exceed its power, a speed override its pulse rate with pulses by distance.
-    /// Reports what fails (against `map`, the program's sources).
-    fn apply_overrides(&self, map: &SourceMap, program: &mut ProcessProgram) -> bool {
-        for op in &mut program.ops {
-            let (feed, laser) = match &mut op.kind {
-                OpKind::Line {
-                    feed_mm_s, laser, ..
-                }
-                | OpKind::Arc {
-                    feed_mm_s, laser, ..
-                } => (feed_mm_s, laser),
-                _ => continue,
-            };
-            match self.overrides.speed {
-                Some(Amount::Value(v)) => *feed = v,
-                Some(Amount::Factor(k)) => *feed *= k,
-                None => {}
-            }
-            if let (Some(l), Some(power)) = (laser, &self.overrides.power) {
-                // Ops share their laser (issue 18): this op's becomes its own.
-                let l = std::sync::Arc::make_mut(l);
-                match power {
-                    Amount::Value(v) => l.power_w = *v,
-                    Amount::Factor(k) => l.power_w *= *k,
-                }
-            }
-        }
-        match compile::validate(program) {
-            Ok(()) => true,
-            Err(f) => {
-                self.report_in(map, &f);
-                let list = self.overrides_list();
-                if !list.is_empty() {
-                    self.say_error(&format!(
-                        "with the overrides ({list}) the job asks more than the laser can give: `:set` them lower"
-                    ));
-                }
-                false
-            }
-        }
-    }
-
-    /// The overrides in force, `power 30 W, speed 50%`, or nothing.
-    fn overrides_list(&self) -> String {
-        let fmt = |a: Amount, dim: Dim| match a {
-            Amount::Value(v) => units::format_quantity(v, dim),
-            Amount::Factor(k) => format!("{}%", units::format_number(k * 100.0)),
-        };
-        let mut v = Vec::new();
-        if let Some(p) = self.overrides.power {
-            v.push(format!("power {}", fmt(p, Dim::POWER)));
-        }
-        if let Some(s) = self.overrides.speed {
-            v.push(format!("speed {}", fmt(s, Dim::SPEED)));
-        }
-        v.join(", ")
-    }
-
-    fn overrides_note(&self) -> String {
-        let list = self.overrides_list();
-        if list.is_empty() {
-            list
-        } else {
-            format!("overrides: {list}")
         }
     }
 
@@ -395,15 +329,16 @@ impl Session {
             println!("nothing to plan yet: say which machine (`machine xy_table`) and what to do");
             return;
         }
-        if let Some(job) = self.job() {
+        if let Some(job) = self.job(None) {
             println!("{}", self.summary_line(&job));
         }
     }
 
     fn check(&self, arg: Option<&str>) {
         if let Some(file) = arg {
-            // As `lase check FILE`: planned in windows, and what `lase emit` refuses checked.
-            match driver::check(Path::new(file), None) {
+            // As `lase check FILE`, for the controller `:run FILE` streams it to (the link's):
+            // planned in windows, and what `lase emit` refuses checked.
+            match driver::check(Path::new(file), link::live_dialect) {
                 Ok((recipe, job, warnings)) => {
                     for warn in &warnings {
                         println!("warning: {warn}");
@@ -418,7 +353,7 @@ impl Session {
             println!("ok — nothing to run yet");
             return;
         }
-        if let Some(job) = self.job() {
+        if let Some(job) = self.job(None) {
             let dialect = link::live_dialect(&job.program.machine);
             if let Some(nc) = self.nc_lines(&job, dialect) {
                 println!(
@@ -431,7 +366,7 @@ impl Session {
     }
 
     fn plot(&self, arg: Option<&str>) {
-        let Some(job) = self.job() else { return };
+        let Some(job) = self.job(None) else { return };
         let path = arg.unwrap_or("lase-repl.svg");
         // `.png` rasterizes, as `lase plot -o f.png` does.
         let opts = Default::default();
@@ -530,7 +465,9 @@ impl Session {
                 }
             }
         }
-        let Some(job) = self.job() else { return };
+        let Some(job) = self.job(Some(dialect)) else {
+            return;
+        };
         let Some(lines) = self.nc_lines(&job, dialect) else {
             return;
         };
@@ -692,72 +629,6 @@ impl Session {
         self.show(r);
     }
 
-    fn set(&mut self, rest: &str) {
-        let mut words = rest.splitn(2, char::is_whitespace);
-        let key = words.next().unwrap_or("").trim();
-        let value = words.next().unwrap_or("").trim();
-        if key.is_empty() {
-            let note = self.overrides_note();
-            println!(
-                "{}",
-                if note.is_empty() {
-                    "no overrides".into()
-                } else {
-                    note
-                }
-            );
-            return;
-        }
-        let (slot, dim) = match key {
-            "power" => (&mut self.overrides.power, Dim::POWER),
-            "speed" | "feed" => (&mut self.overrides.speed, Dim::SPEED),
-            other => {
-                self.say_error(&format!(
-                    "`:set {other}`: overrides are `power` and `speed`"
-                ));
-                return;
-            }
-        };
-        if matches!(value, "off" | "-" | "none" | "clear" | "100%") {
-            *slot = None;
-            println!("{key}: as programmed");
-            return;
-        }
-        let amount = match parse_typed(value) {
-            Ok(Typed::Quantity(v, d)) if d == dim && v > 0.0 => Amount::Value(v),
-            Ok(Typed::Percent(k)) if k > 0.0 => Amount::Factor(k),
-            Ok(_) => {
-                let what = if dim == Dim::POWER {
-                    "a power (W, kW)"
-                } else {
-                    "a speed (mm/s, m/min)"
-                };
-                self.say_error(&format!(
-                    "`:set {key}` takes {what} or a percentage, e.g. 80%"
-                ));
-                return;
-            }
-            Err(e) => {
-                self.say_error(&e);
-                return;
-            }
-        };
-        if let (Amount::Value(v), Some(m)) = (amount, self.eval.machine())
-            && dim == Dim::POWER
-            && v > m.laser.max_power_w
-        {
-            self.say_error(&format!(
-                "{} is above the {} the laser of `{}` can give",
-                units::format_quantity(v, Dim::POWER),
-                units::format_quantity(m.laser.max_power_w, Dim::POWER),
-                m.name
-            ));
-            return;
-        }
-        *slot = Some(amount);
-        println!("{} for the next runs", self.overrides_note());
-    }
-
     /// `:run`, `:run NAME`, `:run FILE`.
     fn run(&mut self, arg: Option<&str>) {
         match arg {
@@ -830,9 +701,12 @@ impl Session {
         if lase_runtime::kinematics::for_machine(&program.machine).oriented() {
             return self.say_error("this machine orients the beam: a frame traces a flat bed");
         }
-        let Some(frame) = program.frame(50.0, None) else {
+        let Some(mut frame) = program.frame(50.0, None) else {
             return self.say_error("nothing lit to frame: `follow` a path first, or `:frame FILE`");
         };
+        frame
+            .machine
+            .run_on(link::live_dialect(&frame.machine).name());
         let job = match compile::plan(frame) {
             Ok(j) => j,
             Err(f) => return self.report_in(&map, &f),
@@ -899,7 +773,7 @@ impl Session {
                 return Ran::NotStarted;
             }
         }
-        let Some(job) = self.job() else {
+        let Some(job) = self.job(None) else {
             return Ran::NotStarted;
         };
         let dialect = link::live_dialect(&job.program.machine);
@@ -936,6 +810,9 @@ impl Session {
         if !self.apply_overrides(&recipe.map, &mut program) {
             return;
         }
+        program
+            .machine
+            .run_on(link::live_dialect(&program.machine).name());
         let job = match compile::plan(program) {
             Ok(j) => j,
             Err(f) => return self.report_in(&recipe.map, &f),

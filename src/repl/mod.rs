@@ -14,6 +14,7 @@
 mod commands;
 mod editor;
 mod machine;
+mod overrides;
 
 use crate::driver::{self, Failure};
 use lase_lang::parser::{ReplInput, is_incomplete, parse_repl};

@@ -21,7 +21,7 @@ pub fn root() -> PathBuf {
 }
 
 /// A compiled example: its planned job and its lines for the controller, as `lase run`
-/// sends them (the grbl dialect, or grblhal for machines with rotary axes).
+/// plans and sends them (the grbl dialect, or grblhal for machines with rotary axes).
 pub struct Compiled {
     pub job: Job,
     pub lines: Vec<NcLine>,
@@ -29,12 +29,24 @@ pub struct Compiled {
 }
 
 pub fn compile(path: &Path) -> Compiled {
-    let (recipe, job) = lase_runtime::compile(&mut FsFiles, &path.to_string_lossy())
+    fn ok<T>(path: &Path, r: Result<T, lase_runtime::compile::Failure>) -> T {
+        r.unwrap_or_else(|f| panic!("{}: {f}", path.display()))
+    }
+    let mut recipe = lase_runtime::compile::load(&mut FsFiles, &path.to_string_lossy())
         .unwrap_or_else(|(_, f)| panic!("{}: {f}", path.display()));
+    ok(path, lase_runtime::compile::check(&recipe));
+    let mut program = ok(
+        path,
+        lase_runtime::compile::evaluate(&mut recipe, &mut FsFiles),
+    );
+    // Planned for the link's controller, as `lase run` does (`Machine::run_on`).
+    let dialect = lase_runtime::link::live_dialect(&program.machine);
+    program.machine.run_on(dialect.name());
+    let job = ok(path, lase_runtime::compile::plan(program));
     let locate = |s: Span| recipe.locate(s);
     let (lines, _) = lase_runtime::emit::emit_lines(
         &job,
-        lase_runtime::link::live_dialect(&job.program.machine),
+        dialect,
         &EmitOptions {
             locate: Some(&locate),
             comments: true,

@@ -33,8 +33,9 @@
 //! `held::HELD_REL`) is refused after planning, at the `follow`, with the stretch's arc
 //! lengths and the highest speed LinuxCNC holds through it with the same blocks (a slower
 //! feed lengthens every block's time in proportion and leaves `t_a` as it is). Only where the
-//! machine's controller is LinuxCNC (the machine file's `dialect`, LinuxCNC when it names
-//! none) and it has a LinuxCNC post. `G64 P`'s cap on a parabolic blend applies only where
+//! controller that runs the job is LinuxCNC (`--dialect`, a link's, else the machine file's
+//! `dialect`, LinuxCNC when it names none: `Machine::run_on`) and the machine has a LinuxCNC
+//! post: `lase emit --dialect grblhal` plans and checks for grblHAL. `G64 P`'s cap on a parabolic blend applies only where
 //! X Y Z turn between blocks, which the oriented machines' lit blocks do not (their slide
 //! stays), and is not judged here.
 
