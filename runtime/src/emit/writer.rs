@@ -543,6 +543,20 @@ pub(super) fn write(
                             lead::lead_cap(job, facts, i, &ops[i + 1..], to)
                         };
                         let (to, q_end) = shifted.unwrap_or((to, q_end));
+                        // A lead-in whose junction moved (`lead::shift`) into a lit block:
+                        // slower by the blend's mean gain, so tp's summed speeds cross the
+                        // on-edge at the plan's (`lead::blend_gain`).
+                        let cap = match (&op.kind, shifted, servo_s) {
+                            (OpKind::Line { feed_mm_s, .. }, Some(_), Some(t))
+                                if op.laser().is_none() =>
+                            {
+                                let v = cap.unwrap_or(*feed_mm_s);
+                                let len = crate::program::dist(m.pos, to);
+                                let gain = lead::blend_gain(machine, &m.q, &q_end, len, t);
+                                Some((v - gain).max(0.5 * v))
+                            }
+                            _ => cap,
+                        };
                         if split {
                             let (from, from_q) = (m.pos, m.q);
                             let sub = lead::retarget(op, to);

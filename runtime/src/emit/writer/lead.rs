@@ -213,6 +213,44 @@ pub(super) fn shift(
     })
 }
 
+/// How much faster than the finishing block's speed tp.c runs a parabolic blend into a block
+/// of the same direction, on average, mm/s: the block from axes `a` to `b`, `len` mm of the
+/// part, at servo period `servo_s`.
+///
+/// In the blend's first servo period the next block takes a whole step of its (half)
+/// acceleration `A` (`tpUpdateBlend` → `tpUpdateCycle`), while the finishing block
+/// decelerates only for the part of the period after its ramp's turning point (`tpUpdateCycle`
+/// solves for the speed that stops it at its end): the two speeds, which tp adds through the
+/// overlap, then run `A·(T − φ)` above the finishing block's, φ where in the period the turn
+/// falls, until the finishing block has stopped. The output switches in the middle of that
+/// (`tpDoParabolicBlending`: as the next block becomes the faster), so an on-edge behind a
+/// lead-in at the lit speed was crossed 1-4 % fast (rotary_engrave's rings at 115.8 of 114.6
+/// °/s, the "S" at 47.76 of 45.73). Where the turn falls within the period depends on the
+/// servo clock since the chain left rest, which the writer does not follow: its mean,
+/// `A·T/2`, is what the lead-in gives up. `A` is half the path acceleration canon gives a
+/// straight block (`getStraightAcceleration`: each axis within its own), the same for the
+/// lead-in and the lit block it runs into in line.
+pub(super) fn blend_gain(
+    machine: &crate::machine::Machine,
+    a: &Axes,
+    b: &Axes,
+    len: f64,
+    servo_s: f64,
+) -> f64 {
+    let a_path = machine
+        .axes
+        .iter()
+        .enumerate()
+        .filter(|(k, x)| x.a_max > 0.0 && (b[*k] - a[*k]).abs() > 1e-12)
+        .map(|(k, x)| x.a_max * len / (b[k] - a[k]).abs())
+        .fold(f64::INFINITY, f64::min);
+    if a_path.is_finite() {
+        0.5 * a_path * servo_s / 2.0
+    } else {
+        0.0
+    }
+}
+
 /// Whether unlit Line op `i`, which follows a lit move, is written as two blocks: where it
 /// meets that lit move in a parabolic blend (`turned`: the lit block turned a rotary axis, or
 /// this one does from `from_q`) and a stop follows it (a rapid next, or nothing: tp.c's
