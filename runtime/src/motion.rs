@@ -448,14 +448,14 @@ impl Rest {
 }
 
 /// LinuxCNC's parabolic blends at the lit edges (`leadin::ParabolicLeads`): on a machine
-/// whose programs run on LinuxCNC in inverse time with a rotary attachment (its lit blocks
-/// turn A). Machines that orient the beam keep their leads along the lit chord's axis-space
-/// continuation (`leadin`'s oriented leads), not measured with this rule yet.
+/// whose programs run on LinuxCNC in inverse time, with a rotary attachment (its lit blocks
+/// turn A) or orienting the beam (its leads run on the lit chord's axis-space continuation,
+/// `leadin`'s oriented leads, and every block turns a rotary joint).
 fn parabolic_leads(
     machine: &crate::machine::Machine,
     kin: &dyn Kinematics,
 ) -> Option<leadin::ParabolicLeads> {
-    if !(kin.inverse_time() && !kin.oriented() && parabolic::runs_on_linuxcnc(machine)) {
+    if !(kin.inverse_time() && parabolic::runs_on_linuxcnc(machine)) {
         return None;
     }
     let (mut a_max, mut rotary) = ([0.0; MAX_AXES], [false; MAX_AXES]);

@@ -318,7 +318,10 @@ pub(super) fn write(
     // On a rotary attachment's G93 programs too: their X-only blocks meet tangentially, and
     // where a block turns A the junction is moved instead (`lead::shift`).
     let parabolic = dialect == Dialect::LinuxCnc && inverse_time && !job.kin.oriented();
-    let servo_s = (dialect == Dialect::LinuxCnc && (!inverse_time || parabolic))
+    // An oriented machine's G93 blocks all turn a rotary axis: where a lead continues the lit
+    // chord it meets in the axes, that junction moves as on a rotary attachment.
+    let shifts = dialect == Dialect::LinuxCnc && inverse_time;
+    let servo_s = (dialect == Dialect::LinuxCnc && (!inverse_time || shifts))
         .then(|| machine.servo_period_s());
     // Image-row power steps and pulse triggers are carried on programs in units per minute
     // only: a cut G93 block that turns A would need the parabolic rules `lead::shift` follows.
@@ -451,17 +454,17 @@ pub(super) fn write(
                 let n_pieces = pieces.len();
                 // A flying switch at this op's end on a parabolic junction: where the block
                 // ends instead (`lead::shift`).
-                let shifted = if parabolic && n_pieces == 1 {
+                let shifted = if shifts && n_pieces == 1 {
                     lead::shift(job, i, (m.pos, &m.q), edge_lead_at)
                 } else {
                     None
                 };
                 // A lead-out after a lit move, before a stop: in two blocks (`lead::split`).
-                let split = parabolic
+                let split = shifts
                     && n_pieces == 1
                     && last_move_lit
                     && op.laser().is_none()
-                    && lead::split(job, i, &m.q, m.turned);
+                    && lead::split(job, i, (m.pos, &m.q), m.turned);
                 last_move_lit = op.laser().is_some();
                 for (k, piece) in pieces.into_iter().enumerate() {
                     let (op, q_end, blocks) = (&*piece.op, piece.q, piece.blocks);
@@ -560,8 +563,14 @@ pub(super) fn write(
                         if split {
                             let (from, from_q) = (m.pos, m.q);
                             let sub = lead::retarget(op, to);
-                            let (mid, mid_q) =
-                                part_way(&sub, (from, &from_q), &q_end, 0.5, arc_axes);
+                            let f = match (&op.kind, servo_s) {
+                                (OpKind::Line { feed_mm_s, .. }, Some(t)) => {
+                                    let len = sub.length_from(from);
+                                    lead::split_at(machine, (&from_q, &q_end), len, *feed_mm_s, t)
+                                }
+                                _ => 0.5,
+                            };
+                            let (mid, mid_q) = part_way(&sub, (from, &from_q), &q_end, f, arc_axes);
                             write_block(
                                 &mut out,
                                 &mut m,

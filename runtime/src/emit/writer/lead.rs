@@ -31,8 +31,9 @@
 //! (each part's F is its own length over the feed, `motion_line`) where neither block turns
 //! A. Where one does, tp.c joins them by a parabolic blend and switches in its middle: the
 //! junction moves instead ([`shift`]), and a lead-out before a stop is written in two
-//! ([`split`]). Oriented machines' G93 programs are not carried yet (their edges on the real
-//! LinuxCNC are within the cam examples' pins without it).
+//! ([`split`]). An oriented machine's G93 blocks all turn a rotary joint: where its lead runs
+//! on the lit chord's line in the axes (a cam's C and B together) the junction moves alike;
+//! its edges on the real LinuxCNC went from 1.7 periods early to within ±0.25.
 
 use crate::axes::Axes;
 use crate::machine::AxisKind;
@@ -205,9 +206,26 @@ pub(super) fn shift(
     let len = crate::program::dist(to, end);
     let machine = &job.program.machine;
     let (qa, qb) = (job.op_axes.get(i), job.op_axes.get(j));
-    let straight = (0..3).map(|k| u[k] * w[k]).sum::<f64>() > 1.0 - 1e-9;
+    // What tp.c blends is the joints' straight lines: on an oriented machine the two blocks
+    // continue each other in the axes (a cam's lead-in turns C and B in the ratio of the
+    // first lit chord), whatever the spot does in the part's frame.
+    let straight = if job.kin.oriented() {
+        in_line(from_q, &qa, &qb)
+    } else {
+        (0..3).map(|k| u[k] * w[k]).sum::<f64>() > 1.0 - 1e-9
+    };
     let parabolic = turns(machine, from_q, &qa) || turns(machine, &qa, &qb);
-    (d > 0.0 && straight && parabolic && d < 0.5 * len).then(|| {
+    // Both blocks must carry the edge speed into the blend, as the leads `motion::leadin`
+    // makes do: else tp blends below it and switches elsewhere (an arm's lit chords of a
+    // few ms, whose chains `motion::parabolic` judges instead).
+    let feed = |o: &Op| match o.kind {
+        OpKind::Line { feed_mm_s, .. } => feed_mm_s,
+        _ => f64::INFINITY,
+    };
+    let v = if lit { feed(op) } else { feed(next) };
+    let carried = carries(machine, (from_q, &qa), crate::program::dist(from, to), v)
+        && carries(machine, (&qa, &qb), len, v);
+    (d > 0.0 && straight && parabolic && carried && d < 0.5 * len).then(|| {
         let p = std::array::from_fn(|k| to[k] + w[k] * d);
         (p, qa.lerp(&qb, d / len))
     })
@@ -251,6 +269,63 @@ pub(super) fn blend_gain(
     }
 }
 
+/// Where a lead-out [`split`] in two ends its first block: the fraction of its `len` mm
+/// (axes `a` to `b`, at `v` mm/s the lit block's speed, servo period `servo_s`) as long as a
+/// block whose triangle speed is `v` less the blend's mean gain ([`blend_gain`]), at most half.
+///
+/// tp.c caps the speed at which the lit block starts blending into the lead-out by the
+/// lead-out's first block (`tpComputeBlendVelocity`: its triangle speed `sqrt(A·L)` and the
+/// time to reach it): so the blend starts as the lit block has slowed by that gain, and its
+/// speed and the lead-out's, which tp adds, cross the off-edge at the plan's speed where a
+/// block long enough to carry the full speed crossed it up to `A·T` fast (rotary_engrave's
+/// ring went dark at 115.67 of 114.59 °/s, cam_hardening's at 15.88 of 15.28).
+pub(super) fn split_at(
+    machine: &crate::machine::Machine,
+    (a, b): (&Axes, &Axes),
+    len: f64,
+    v: f64,
+    servo_s: f64,
+) -> f64 {
+    let gain = blend_gain(machine, a, b, len, servo_s);
+    // `blend_gain` is A·T/2 with A half the path acceleration: A from it.
+    let half_acc = 2.0 * gain / servo_s;
+    if !(gain > 0.0 && len > 0.0 && v > gain) {
+        return 0.5;
+    }
+    ((v - gain).powi(2) / half_acc / len).min(0.5)
+}
+
+/// Whether the block from axes `a` to `b`, `len` mm, reaches `v` mm/s in a chain of parabolic
+/// blends: its triangle speed `sqrt(A·len)`, `A` half its path acceleration
+/// ([`blend_gain`]), is at least `v`; and whether a blend at `v` lasts [`MIN_BLEND_PERIODS`]
+/// servo periods or more, as the mean gain and the switch in its middle assume (an arm's
+/// joints ramp 3.5 mm/s of spot speed in 2 ms, where tp switches in the blend's first period
+/// or second and the gain would be a quarter of the speed: not measured, left as it was).
+fn carries(machine: &crate::machine::Machine, (a, b): (&Axes, &Axes), len: f64, v: f64) -> bool {
+    // blend_gain(…, T) = A·T/2.
+    let half_acc = 2.0 * blend_gain(machine, a, b, len, 1.0);
+    half_acc > 0.0
+        && (half_acc * len).sqrt() >= v * (1.0 - 1e-9)
+        && v / half_acc >= MIN_BLEND_PERIODS * machine.servo_period_s()
+}
+
+/// Servo periods a parabolic blend at the edge speed must last for the writer to move its
+/// junction and trim its lead ([`carries`]).
+const MIN_BLEND_PERIODS: f64 = 5.0;
+
+/// Whether the joint-space lines `a → b` and `b → c` run on in the same direction (to 1e-9 of
+/// the cosine, axes in their own units).
+fn in_line(a: &Axes, b: &Axes, c: &Axes) -> bool {
+    let (mut uu, mut ww, mut uw) = (0.0, 0.0, 0.0);
+    for k in 0..crate::axes::MAX_AXES {
+        let (u, w) = (b[k] - a[k], c[k] - b[k]);
+        uu += u * u;
+        ww += w * w;
+        uw += u * w;
+    }
+    uu > 0.0 && ww > 0.0 && uw / (uu * ww).sqrt() > 1.0 - 1e-9
+}
+
 /// Whether unlit Line op `i`, which follows a lit move, is written as two blocks: where it
 /// meets that lit move in a parabolic blend (`turned`: the lit block turned a rotary axis, or
 /// this one does from `from_q`) and a stop follows it (a rapid next, or nothing: tp.c's
@@ -262,18 +337,31 @@ pub(super) fn blend_gain(
 /// carry the speed, 1.07° early at 151.7). The first of the two blocks blends on into the
 /// second (PARABOLIC: half), as the lit block does, and `motion::leadin` makes such a lead
 /// out long enough for both.
-pub(super) fn split(job: &Job, i: usize, from_q: &Axes, turned: bool) -> bool {
+pub(super) fn split(job: &Job, i: usize, (from, from_q): (P3, &Axes), turned: bool) -> bool {
     let ops = &job.program.ops;
     let OpKind::Line { to, .. } = ops[i].kind else {
         return false;
     };
     let machine = &job.program.machine;
-    let parabolic = turned || turns(machine, from_q, &job.op_axes.get(i));
+    let q = job.op_axes.get(i);
+    let parabolic = turned || turns(machine, from_q, &q);
+    // Each of the two blocks must carry the lit speed (`motion::leadin` makes the leads so
+    // long where they meet the lit path in line; an arm's short lead-out is left whole).
+    let OpKind::Line { feed_mm_s, .. } = ops[i].kind else {
+        return false;
+    };
+    let mid = from_q.lerp(&q, 0.5);
+    let long = carries(
+        machine,
+        (from_q, &mid),
+        0.5 * crate::program::dist(from, to),
+        feed_mm_s,
+    );
     let stop_next = ops[i + 1..]
         .iter()
         .find(|o| o.moves_from(to) || !matches!(o.kind, OpKind::Line { .. }))
         .is_none_or(|o| !matches!(o.kind, OpKind::Line { .. } | OpKind::Arc { .. }));
-    parabolic && stop_next
+    parabolic && long && stop_next
 }
 
 /// The end a motion op's block runs to.
