@@ -204,17 +204,23 @@ fn surface_speed_from_the_nc_is_the_programmed_one_within_a_tenth_of_a_percent()
             let held = segs.iter().map(|s| s.length).sum::<f64>()
                 / segs.iter().map(|s| s.motion_duration()).sum::<f64>();
             let lead = segs.last().map_or(feed_mm_s, |s| s.v_exit);
-            // On LinuxCNC a lead-in whose junction with the lit block moved into it gives up
-            // the mean gain of tp's parabolic blend, A·T/2 with A half the path acceleration
-            // canon gives the block (`emit::writer::lead::blend_gain`): X at 2000 mm/s², A at
-            // 3600 °/s² (r 30 mm), T 1 ms.
+            // On LinuxCNC a lead-in whose junction with the lit block moved into it runs up to
+            // three times the mean gain of tp's parabolic blend slower, A·T/2 with A half the
+            // path acceleration canon gives the block (`emit::writer::lead::lead_in_speed`,
+            // `blend_gain`): X at 2000 mm/s², A at 3600 °/s² (r 30 mm), T 1 ms.
             let (dx, da) = ((b.x - from.x).abs(), (b.a - from.a).abs().to_radians() * R);
             let a_path = [(dx, 2000.0), (da, 3600f64.to_radians() * R)]
                 .iter()
                 .filter(|(d, _)| *d > 1e-12)
                 .map(|(d, a)| a * len / d)
                 .fold(f64::INFINITY, f64::min);
-            let trimmed = feed_mm_s - a_path * 1e-3 / 4.0;
+            let gain = a_path * 1e-3 / 4.0;
+            let lead_in = op.laser().is_none();
+            let trimmed = if lead_in && v <= feed_mm_s && v >= feed_mm_s - 3.0 * gain - 1e-6 {
+                v
+            } else {
+                feed_mm_s
+            };
             let wants: &[f64] = if dialect.is_grbl_family() {
                 &[feed_mm_s]
             } else {

@@ -556,7 +556,10 @@ pub(super) fn write(
                                 let v = cap.unwrap_or(*feed_mm_s);
                                 let len = crate::program::dist(m.pos, to);
                                 let gain = lead::blend_gain(machine, &m.q, &q_end, len, t);
-                                Some((v - gain).max(0.5 * v))
+                                // From rest, tp's own arithmetic; else the mean gain.
+                                let at = ((m.pos, &m.q), (to, &q_end));
+                                lead::lead_in_speed(job, i, at.0, at.1, v, t)
+                                    .or(Some((v - gain).max(0.5 * v)))
                             }
                             _ => cap,
                         };

@@ -39,6 +39,8 @@
 //! X Y Z turn between blocks, which the oriented machines' lit blocks do not (their slide
 //! stays), and is not judged here.
 
+pub mod chain;
+
 use super::held::{HELD_REL, floor3};
 use super::{Job, LitSection, MotionError};
 use crate::axes::Axes;

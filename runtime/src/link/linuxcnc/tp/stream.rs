@@ -20,7 +20,7 @@
 //! example and on random programs.
 
 use super::read::{Queue, Reader};
-use super::servo::{ChainSeg, run_chain};
+use super::servo::{ChainSeg, chain_seg, replayable, run_chain};
 use super::{
     ACC_RATIO_TANGENTIAL, DRAIN_CYCLES, Joint, Kind, OPTIMIZATION_DEPTH, Piece, TpLimits, TpTime,
     junction, piece_time, quantised, seg_pieces,
@@ -194,8 +194,8 @@ impl<'a> TpStream<'a> {
         }
         let line = s.line;
         if let Some(c) = &mut self.chain {
-            c.ok &= ChainSeg::replayable(&s);
-            c.segs.push(ChainSeg::of(&s, tolerance));
+            c.ok &= replayable(&s);
+            c.segs.push(chain_seg(&s, tolerance));
         }
         let mut made = Vec::with_capacity(2);
         self.trim_start = seg_pieces(i, &s, (kind, joint), a, self.trim_start, cycle, &mut made);

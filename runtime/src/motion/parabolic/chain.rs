@@ -1,0 +1,262 @@
+//! LinuxCNC 2.9's trajectory planner servo period by servo period (`tpRunCycle`) for a chain
+//! of lines joined by parabolic blends (see `link::linuxcnc::tp::servo`, which times programs
+//! with it). Here, before the emitter, so that the writer can ask what tp does at a beam
+//! switch in such a chain (`emit::writer::lead`): the summed speed when the next segment's
+//! synchronized outputs switch.
+
+/// `TP_VEL_EPSILON`.
+const VEL_EPSILON: f64 = 1e-8;
+/// `TP_POS_EPSILON`.
+const POS_EPSILON: f64 = 1e-12;
+/// `TP_TIME_EPSILON`.
+const TIME_EPSILON: f64 = 1e-12;
+/// `TP_MIN_ARC_ANGLE`.
+const MIN_ARC_ANGLE: f64 = 1e-3;
+
+/// One line of the chain as the planner queued it (its own length unit: X Y Z length, or the
+/// rotary length when X Y Z stay).
+#[derive(Debug, Clone)]
+pub struct ChainSeg {
+    pub len: f64,
+    /// `tpGetRealTargetVel`: the requested speed within the segment's own limits.
+    pub v: f64,
+    /// `maxaccel` before blends scale it.
+    pub acc: f64,
+    /// X Y Z unit direction (`uVec`; (1, 0, 0) when X Y Z stay, as `pmCartLineInit` sets it).
+    pub u: [f64; 3],
+    /// `G64 P` in force for it.
+    pub tolerance: f64,
+}
+
+/// What the chain does: when each segment's synced outputs switch, and when motion ends.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChainRun {
+    /// Per segment, s from the chain's first servo period.
+    pub switch_s: Vec<f64>,
+    /// From the first servo period to the end of the last that moves, s.
+    pub total_s: f64,
+    /// Per segment, tp's speed in the period its outputs switch: the finishing segment's and
+    /// the next one's added where the switch falls in a parabolic blend (each in its own
+    /// length unit, so the sum is a speed where both measure alike), else its own.
+    pub switch_speed: Vec<f64>,
+}
+
+#[derive(Debug, Clone)]
+struct Tc {
+    progress: f64,
+    vel: f64,
+    blending_next: bool,
+    on_final_decel: bool,
+    blend_vel: f64,
+    splitting: bool,
+    cycle_time: f64,
+    remove: bool,
+    /// Term condition PARABOLIC (else STOP: the chain's end when the planner stops there).
+    parabolic: bool,
+    blend_prev: bool,
+    switched: bool,
+}
+
+/// `tcGetTangentialMaxAccel` for a line.
+fn tangential_acc(s: &ChainSeg, tc: &Tc) -> f64 {
+    if tc.blend_prev || tc.parabolic {
+        s.acc * 0.5
+    } else {
+        s.acc
+    }
+}
+
+/// `tpComputeBlendVelocity`: the blend speeds of `a` and of `b` (both segments finalized).
+fn blend_velocity(a: &ChainSeg, ta: &Tc, b: &ChainSeg, tb: &Tc) -> (f64, f64) {
+    let (acc_a, acc_b) = (tangential_acc(a, ta), tangential_acc(b, tb));
+    let reach_a = (acc_a * a.len).sqrt().min(a.v);
+    let reach_b = (acc_b * b.len).sqrt().min(b.v);
+    let t_reachable = (a.len / reach_a).min(b.len / reach_b);
+    let t_blend = t_reachable.min((reach_a / acc_a).max(reach_b / acc_b));
+    let mut va = reach_a.min(t_blend * acc_a);
+    let mut vb = reach_b.min(t_blend * acc_b);
+    let dot: f64 = (0..3).map(|k| a.u[k] * b.u[k]).sum();
+    let theta = (-dot).clamp(-1.0, 1.0).acos() / 2.0;
+    let cos_theta = theta.cos();
+    if a.tolerance > 0.0 && cos_theta > (std::f64::consts::FRAC_PI_2 - MIN_ARC_ANGLE).cos() {
+        let cap = 2.0 * (acc_a * a.tolerance / cos_theta).sqrt();
+        va = va.min(cap);
+        vb = vb.min(cap);
+    }
+    (va, vb)
+}
+
+/// `tpUpdateCycle` without its ramp mode (parabolic segments never ramp): one servo period of
+/// trapezoidal motion toward a stop at the segment's end, then `tpCheckEndCondition`.
+fn update(s: &ChainSeg, tc: &mut Tc, period: f64) {
+    let dt = tc.cycle_time;
+    let dx = s.len - tc.progress;
+    let a = tangential_acc(s, tc);
+    let v = tc.vel;
+    let half_step = a * dt * 0.5;
+    let discr = a * (2.0 * dx - v * dt) + half_step * half_step;
+    let mut max_new = -half_step;
+    if discr > half_step * half_step {
+        max_new += discr.sqrt();
+    }
+    let new_vel = max_new.clamp(-s.v, s.v);
+    let acc = ((new_vel - v) / dt.max(TIME_EPSILON)).clamp(-a, a);
+    // tcUpdateDistFromAccel: trapezoidal integration, never past the end.
+    let mut next = v + acc * dt;
+    if next < 0.0 {
+        next = 0.0;
+        if dx < v * dt {
+            tc.progress = s.len;
+        }
+    } else {
+        tc.progress = (tc.progress + (next + v) * 0.5 * dt).min(s.len);
+    }
+    tc.vel = next;
+    tc.on_final_decel = (max_new - next).abs() < VEL_EPSILON && acc < 0.0;
+    end_condition(s, tc, period);
+}
+
+/// `tpCheckEndCondition` for a segment whose final speed is zero (parabolic or stop): flags
+/// the period in which it will reach its end.
+fn end_condition(s: &ChainSeg, tc: &mut Tc, period: f64) {
+    tc.cycle_time = period;
+    let dx = s.len - tc.progress;
+    if dx <= POS_EPSILON {
+        tc.progress = s.len;
+        tc.splitting = true;
+        tc.cycle_time = 0.0;
+        tc.remove |= !tc.parabolic;
+        return;
+    }
+    if !tc.parabolic {
+        return;
+    }
+    let v_avg = tc.vel / 2.0;
+    let mut dt = TIME_EPSILON / 2.0;
+    if v_avg > VEL_EPSILON {
+        dt = dt.max(dx / v_avg);
+    } else if dx > v_avg * period && dx > POS_EPSILON {
+        return;
+    }
+    let a_f = -tc.vel / dt;
+    let a_max = tangential_acc(s, tc);
+    if a_f < -a_max {
+        let a = -a_max;
+        let disc = (tc.vel / a).powi(2) + 2.0 / a * dx;
+        if disc < 0.0 {
+            return;
+        }
+        dt = if disc < TIME_EPSILON * TIME_EPSILON {
+            -tc.vel / a
+        } else {
+            -tc.vel / a - disc.sqrt()
+        };
+    }
+    if dt < TIME_EPSILON {
+        tc.progress = s.len;
+        tc.splitting = true;
+        tc.cycle_time = 0.0;
+    } else if dt < period {
+        tc.splitting = true;
+        tc.cycle_time = dt;
+    }
+}
+
+/// Runs `segs` from rest to rest, every junction a parabolic blend; `parabolic_end`: the last
+/// segment keeps the PARABOLIC term condition (the queue ends there), else STOP.
+pub fn run_chain(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> ChainRun {
+    let n = segs.len();
+    let mut tcs: Vec<Tc> = (0..n)
+        .map(|i| Tc {
+            progress: 0.0,
+            vel: 0.0,
+            blending_next: false,
+            on_final_decel: false,
+            blend_vel: 0.0,
+            splitting: false,
+            cycle_time: period,
+            remove: false,
+            parabolic: i + 1 < n || parabolic_end,
+            blend_prev: i > 0,
+            switched: false,
+        })
+        .collect();
+    let mut switch_s = vec![0.0; n];
+    let mut switch_speed = vec![0.0; n];
+    let mut head = 0;
+    let mut cycles: u64 = 0;
+    let mut last_moving: u64 = 0;
+    let mut switch = |tcs: &mut [Tc], i: usize, cycle: u64, speed: f64| {
+        if !tcs[i].switched {
+            tcs[i].switched = true;
+            switch_s[i] = cycle as f64 * period;
+            switch_speed[i] = speed;
+        }
+    };
+    // Each segment ends within its cruise time plus its ramps, and a period or two; the bound
+    // (ten times that) only guards the loop against arithmetic that would not end.
+    let limit = segs
+        .iter()
+        .map(|s| (((s.len / s.v + 2.0 * s.v / s.acc) / period) as u64).saturating_add(4))
+        .fold(0u64, u64::saturating_add)
+        .saturating_mul(10);
+    while head < n && cycles < limit {
+        let before: Vec<f64> = (head..n.min(head + 2)).map(|i| tcs[i].progress).collect();
+        let next = (head + 1 < n).then_some(head + 1);
+        if tcs[head].splitting {
+            // tpHandleSplitCycle: the segment lands on its end; the next one gets the period.
+            tcs[head].progress = segs[head].len;
+            tcs[head].remove = true;
+            if let Some(j) = next {
+                update(&segs[j], &mut tcs[j], period);
+                let v = tcs[j].vel;
+                switch(&mut tcs, j, cycles, v);
+            }
+        } else {
+            tcs[head].cycle_time = period;
+            update(&segs[head], &mut tcs[head], period);
+            if let Some(j) = next {
+                let (va, vb) = blend_velocity(&segs[head], &tcs[head], &segs[j], &tcs[j]);
+                tcs[head].blend_vel = va;
+                tcs[j].blend_vel = vb;
+                let t = &mut tcs[head];
+                t.blending_next |= t.parabolic && t.on_final_decel && t.vel < t.blend_vel;
+            } else {
+                tcs[head].blend_vel = 0.0;
+            }
+            match next {
+                Some(j) if tcs[head].blending_next => {
+                    // tpUpdateBlend: the next segment accelerates on its own (its target
+                    // speed is its requested one; the blend's scaling touches only
+                    // synchronized motion), with no segment after it.
+                    update(&segs[j], &mut tcs[j], period);
+                    let faster = if tcs[head].vel > tcs[j].vel { head } else { j };
+                    let v = tcs[head].vel + tcs[j].vel;
+                    switch(&mut tcs, faster, cycles, v);
+                }
+                _ => {
+                    let v = tcs[head].vel;
+                    switch(&mut tcs, head, cycles, v)
+                }
+            }
+        }
+        cycles += 1;
+        // Moving, as a sampled position shows it: a step above a millionth of the segment
+        // (a split period's landing on the end is below).
+        let moved = before
+            .iter()
+            .enumerate()
+            .any(|(k, p)| tcs[head + k].progress - p > 1e-6 * segs[head + k].len);
+        if moved {
+            last_moving = cycles;
+        }
+        if tcs[head].remove {
+            head += 1;
+        }
+    }
+    ChainRun {
+        switch_s,
+        total_s: last_moving as f64 * period,
+        switch_speed,
+    }
+}
