@@ -260,3 +260,46 @@ pub fn run_chain(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> ChainRu
         switch_speed,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The real LinuxCNC 2.9 (Debian's linuxcnc-uspace, headless, 1 ms servo period, the
+    /// xy_rotary INI lase generates: A at 3600 °/s²) ran rotary_engrave's first ring with its
+    /// lit block 0, ¼, ½, ¾ and 1 ms longer (hand-edited F words; lead-in and lead-out as
+    /// lase writes them). Through the parabolic blend into the lead-out the summed A speed,
+    /// recomputed from the sampled joint positions, sat at 113.8655, 112.5055, 112.9455,
+    /// 113.3885 and 113.8295 °/s: a sawtooth over the phase in which the lit block's final
+    /// deceleration turns, one servo period wide and `A·T` = 1.8 °/s high. The replay gives the
+    /// same speed at the lead-out's switch.
+    #[test]
+    fn the_replay_matches_the_real_linuxcncs_off_edge_blend_over_the_servo_phase() {
+        let seg = |len: f64, f_per_min: f64| ChainSeg {
+            len,
+            v: len * f_per_min / 60.0,
+            acc: 3600.0,
+            u: [1.0, 0.0, 0.0],
+            tolerance: 0.01,
+        };
+        let measured = [113.8655, 112.5055, 112.9455, 113.3885, 113.8295];
+        for (k, real) in measured.into_iter().enumerate() {
+            let lit_s = 60.0 / 19.09859 + k as f64 * 0.00025;
+            let f = (60.0 / lit_s * 1e6).round() / 1e6;
+            let chain = [
+                seg(7.868083, 857.3745),
+                seg(360.0, f),
+                seg(6.980599, 984.9432),
+                seg(8.068018, 852.1912),
+            ];
+            let run = run_chain(&chain, false, 0.001);
+            // The on-edge as the real machine crossed it too (114.20 of 114.59 °/s).
+            assert!((run.switch_speed[1] - 114.20).abs() < 0.005, "{run:?}");
+            let model = run.switch_speed[2];
+            assert!(
+                (model - real).abs() < 0.002,
+                "{k}/4 ms longer: replay {model:.4}, LinuxCNC {real:.4} °/s"
+            );
+        }
+    }
+}
