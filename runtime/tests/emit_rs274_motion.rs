@@ -325,8 +325,9 @@ fn every_planned_feed_move_is_a_feed_at_its_feed_and_every_rapid_a_traverse_in_e
             // an image row held at its feed runs its last pixel run on into the lead-out
             // (`emit::writer::lead::row`), and on a parabolic (G93 rotary) junction the
             // lead-in's block ends past the edge (`lead::shift`), each by the switch's lead of
-            // 1.5 servo periods at the lit move's feed: a lead-out is fed that much less, a
-            // lead-in that much more, and anything else is a lead the program lost.
+            // 1.5 servo periods at the lit move's feed: a lead-out is fed that much less (1 to
+            // 2 periods where the off-edge is timed by tp.c's replay), a lead-in that much
+            // more, and anything else is a lead the program lost.
             let servo_s = job.program.machine.servo_period_s();
             let ops = &job.program.ops;
             for lead in &job.leads {
@@ -345,12 +346,16 @@ fn every_planned_feed_move_is_a_feed_at_its_feed_and_every_rapid_a_traverse_in_e
                     }
                     _ => None,
                 });
+                // A lead-out's junction with the lit move before a stop is timed by tp.c's
+                // replay (`emit::writer::block::off_edge_timing`): half a period either way.
                 if let (Dialect::LinuxCnc, Some(feed)) = (dialect, lit_feed) {
-                    let moved = match lead.kind {
-                        LeadKind::Out => 1.5 * servo_s * feed,
-                        LeadKind::In => -1.5 * servo_s * feed,
+                    let step = servo_s * feed;
+                    let moved = lead.length_mm - got;
+                    let fits = match lead.kind {
+                        LeadKind::Out => moved >= step - 1e-3 && moved <= 2.0 * step + 1e-3,
+                        LeadKind::In => (moved + 1.5 * step).abs() <= 1e-3,
                     };
-                    if (got + moved - lead.length_mm).abs() <= 1e-3 {
+                    if fits {
                         got += moved;
                     }
                 }

@@ -140,9 +140,11 @@ fn every_block_lands_on_the_programmed_surface_point() {
             // X is written to 1 µm, A to 1e-6° (0.5 nm of surface at r = 30 mm). On LinuxCNC
             // a block that ends at a flying beam switch runs on past it along the next op by
             // 1.5 servo periods of the edge speed (at most 60 mm/s here: 0.09 mm), where tp
-            // switches (`emit::writer::lead::shift`): on the programmed path still.
+            // switches (`emit::writer::lead::shift`), ±½ period where the off-edge is timed by
+            // tp.c's replay (`emit::writer::block::off_edge_timing`): on the programmed path
+            // still.
             let on_path = dialect == Dialect::LinuxCnc
-                && err <= 1.5e-3 * 60.0 + 1e-3
+                && err <= 2.0e-3 * 60.0 + 1e-3
                 && next_target(&job, b.op.unwrap() as usize)
                     .is_some_and(|n| off_line(p, [to[0], to[1]], n) < 1e-3);
             assert!(
@@ -153,15 +155,18 @@ fn every_block_lands_on_the_programmed_surface_point() {
         }
         assert!(checked > 50, "{dialect}: {checked} blocks checked");
         // The rings: the tube turned once, a lit line of pi * 60 mm ending at A360 (its
-        // lead-out runs on past it); on LinuxCNC its block runs 1.5 ms of 114.6 °/s on.
-        let end = if dialect == Dialect::LinuxCnc {
-            360.0 + 1.5e-3 * (60.0 / R).to_degrees()
+        // lead-out runs on past it); on LinuxCNC its block runs 1.5 ms of 114.6 °/s on, ±½ ms
+        // (`emit::writer::block::off_edge_timing`).
+        let (lo, hi) = if dialect == Dialect::LinuxCnc {
+            let ms = (60.0 / R).to_degrees() * 1e-3;
+            (360.0 + ms, 360.0 + 2.0 * ms)
         } else {
-            360.0
+            (360.0, 360.0)
         };
         assert!(
-            bs.iter().any(|b| (b.a - end).abs() < 1e-4 && b.g == 1),
-            "{dialect}: no block ends at A{end}"
+            bs.iter()
+                .any(|b| b.a > lo - 1e-4 && b.a < hi + 1e-4 && b.g == 1),
+            "{dialect}: no block ends at A{lo}..A{hi}"
         );
     }
 }
@@ -433,13 +438,14 @@ fn linuxcnc_switches_sit_in_parabolic_blends_that_carry_the_speed() {
                 );
             } else {
                 // A lead-out's first block is as long as a block whose triangle speed is the
-                // lit speed less the blend's mean gain A·T/2 (`lead::split_at`), so tp starts
-                // blending as the lit block has slowed by it: with A = L / tri² and its speed
-                // L / t, that is t · (1 + T / (2 · tri)) = tri.
-                let rel = t * (1.0 + period / (2.0 * tri)) / tri - 1.0;
+                // lit speed less k of the blend's mean gain A·T/2: k = 1 (`lead::split_at`),
+                // or, where tp.c's replay times the off-edge, 0 to 3
+                // (`emit::writer::block::off_edge_timing`). With A = L / tri² and its speed
+                // L / t, that is t · (1 + k · T / (2 · tri)) = tri.
+                let gains = (tri / t - 1.0) * 2.0 * tri / period;
                 assert!(
-                    rel.abs() < 1e-4,
-                    "lead-out at switch after block {k}: {t} s, {tri} s ({rel:e})"
+                    (-1e-3..=3.001).contains(&gains),
+                    "lead-out at switch after block {k}: {t} s, {tri} s ({gains} gains)"
                 );
             }
         }
@@ -459,10 +465,18 @@ fn linuxcnc_switches_sit_in_parabolic_blends_that_carry_the_speed() {
     // tangentially.
     assert_eq!(parabolic, 15);
     eprintln!("{parabolic} switches on parabolic blends, least lead slack {worst:.4} s");
-    // The rings: on at A0 and off at A360, carried 1.5 ms of 114.59 °/s (60 mm/s at r 30).
-    let carry = 1.5 * period * (60.0 / R).to_degrees();
+    // The rings: on at A0 and off at A360, carried 1.5 ms of 114.59 °/s (60 mm/s at r 30);
+    // the off-edge's junction timed by tp.c's replay within ±½ ms of that
+    // (`emit::writer::block::off_edge_timing`).
+    let ms = period * (60.0 / R).to_degrees();
     let ring: Vec<f64> = switches.iter().take(4).map(|&(_, k)| bs[k - 1].a).collect();
-    for (a, want) in ring.iter().zip([0.0, 360.0, 0.0, 360.0]) {
-        assert!((a - want - carry).abs() < 1e-6, "{ring:?}");
+    for (k, (a, want)) in ring.iter().zip([0.0, 360.0, 0.0, 360.0]).enumerate() {
+        let carried = (a - want) / ms;
+        let ok = if k % 2 == 0 {
+            (carried - 1.5).abs() < 1e-4
+        } else {
+            (1.0 - 1e-4..=2.0 + 1e-4).contains(&carried)
+        };
+        assert!(ok, "{ring:?}: switch {k} carried {carried} ms");
     }
 }

@@ -29,6 +29,7 @@ pub(super) use lead::at_cruise;
 use std::io;
 
 mod block;
+mod chain;
 mod lead;
 mod pulse;
 mod row;
@@ -60,6 +61,12 @@ struct Out<'s> {
     /// A beam switch carried along the path on LinuxCNC (`lead`): [`write_block`] writes it
     /// where the path reaches it, any other line first writes it where it stands.
     pending: Option<lead::Pending>,
+    /// LinuxCNC: the G93 blocks since tp last stopped (`chain`), and the `G64 P` in force.
+    chain: chain::Chain,
+    tolerance: f64,
+    /// Where the lead-out op (its index) is split, as `block::off_edge_timing` chose: the
+    /// length of its first block, mm.
+    split_len: Option<(usize, f64)>,
 }
 
 impl Out<'_> {
@@ -80,6 +87,7 @@ impl Out<'_> {
             let _ = write!(self.line.text, "N{} ", self.block);
         }
         self.line.text.push_str(text);
+        self.chain.after_line(text);
         self.send(op)
     }
 
@@ -97,6 +105,8 @@ impl Out<'_> {
             let _ = write!(self.line.text, "N{} ", self.block);
         }
         write(&mut self.line.text);
+        // A motion block: `write_block` keeps the chain where it knows what it wrote.
+        self.chain.forget();
         self.send(op)
     }
 
@@ -206,6 +216,8 @@ struct Modal {
     /// The last block written turned a rotary axis: LinuxCNC joins it to the next one by a
     /// parabolic blend (`lead::shift`), never by cutting the next block.
     turned: bool,
+    /// The time of the last block written where it is a G93 feed, s (`chain`).
+    block_s: Option<f64>,
 }
 
 pub(super) fn write(
@@ -231,6 +243,9 @@ pub(super) fn write(
             op: None,
         },
         pending: None,
+        chain: chain::Chain::default(),
+        tolerance: 0.0,
+        split_len: None,
     };
     let words = |power_w: f64| LaserWords {
         power_w,
@@ -265,6 +280,7 @@ pub(super) fn write(
         // that junction and switches after the blend (serial_number's edges 0.7 mm late).
         let p = format::number(program.planner.junction_deviation_mm);
         out.put(&format!("G64 P{p} Q0"), None)?;
+        out.tolerance = program.planner.junction_deviation_mm;
         if let (Some(inputs), false) = (machine.settle.linuxcnc_inputs, program.settles.is_empty())
         {
             for l in settle::linuxcnc_sub(inputs) {
@@ -311,6 +327,7 @@ pub(super) fn write(
         fine: job.kin.inverse_time(),
         dir: None,
         turned: false,
+        block_s: None,
     };
     let inverse_time = job.kin.inverse_time();
     // LinuxCNC's synchronized outputs lead its joints (`lead`): the beam switches are carried
@@ -563,10 +580,25 @@ pub(super) fn write(
                             }
                             _ => cap,
                         };
+                        // A lit block before a split lead-out: timed by tp.c's arithmetic.
+                        let (to, q_end, cap) = match (servo_s, shifted) {
+                            (Some(t), Some(_)) if op.laser().is_some() => {
+                                let at = ((m.pos, &m.q), (to, &q_end));
+                                let held = cap.unwrap_or(f64::INFINITY);
+                                block::off_edge_timing(&mut out, job, i, at, held, t)
+                                    .map_or((to, q_end, cap), |(p, q, c)| (p, q, Some(c)))
+                            }
+                            _ => (to, q_end, cap),
+                        };
                         if split {
                             let (from, from_q) = (m.pos, m.q);
                             let sub = lead::retarget(op, to);
                             let f = match (&op.kind, servo_s) {
+                                _ if out.split_len.is_some_and(|(j, _)| j == i) => {
+                                    let len = sub.length_from(from);
+                                    out.split_len
+                                        .map_or(0.5, |(_, l)| (l / len).clamp(0.0, 0.9))
+                                }
                                 (OpKind::Line { feed_mm_s, .. }, Some(t)) => {
                                     let len = sub.length_from(from);
                                     lead::split_at(machine, (&from_q, &q_end), len, *feed_mm_s, t)
@@ -697,6 +729,14 @@ pub(super) fn write(
                             let cap = match off_edge {
                                 Some(v) if k + 1 == blocks.len() => b.v_cap.max(v),
                                 _ => b.v_cap,
+                            };
+                            let (to, q, cap) = match (servo_s, shifted) {
+                                (Some(t), Some(_)) if k + 1 == blocks.len() => {
+                                    let at = ((m.pos, &m.q), (to, &q));
+                                    block::off_edge_timing(&mut out, job, i, at, cap, t)
+                                        .unwrap_or((to, q, cap))
+                                }
+                                _ => (to, q, cap),
                             };
                             write_block(
                                 &mut out,
@@ -930,20 +970,10 @@ fn motion_line(
     match feed {
         Some(f) if m.inverse_time => {
             // G93: F is the inverse of the block's time in minutes, written on every block.
-            let len = crate::program::dist(m.pos, to);
-            let minutes = if len > 1e-9 {
-                len / f / 60.0
-            } else {
-                // The beam turns in place: as fast as the slowest axis allows.
-                machine
-                    .axes
-                    .iter()
-                    .enumerate()
-                    .map(|(k, a)| (q[k] - m.q[k]).abs() / a.v_max / 60.0)
-                    .fold(1e-9, f64::max)
-            };
-            word(line, "F", &format::inverse_time(1.0 / minutes));
+            let seconds = chain::g93_seconds(machine, (m.pos, &m.q), (to, &q), f);
+            word(line, "F", &format::inverse_time(60.0 / seconds));
             m.feed.unset();
+            m.block_s = Some(seconds);
         }
         Some(f) if m.feed.is_number(f) => {}
         Some(f) => {
@@ -955,6 +985,9 @@ fn motion_line(
             m.feed.set(&v, f);
         }
         None => m.feed.unset(),
+    }
+    if !(m.inverse_time && feed.is_some()) {
+        m.block_s = None;
     }
     m.scratch = v;
     m.dir = lead::direction(op, m.pos, to, true);

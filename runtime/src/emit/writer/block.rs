@@ -74,11 +74,7 @@ pub(super) fn write_block(
         if let Some(at) = lead::cut_at(&sub, m, len, &p, cap, machine).filter(|_| !parabolic) {
             let (cut, cut_q) = part_way(&sub, (m.pos, &m.q), &q, at / len, arc_axes);
             let first = edge_cap.or(cap);
-            out.put_with(
-                |line| motion_line(line, op, cut, cut_q, first, m, machine, arc_axes),
-                tag,
-            )?;
-            out.stats.motion_blocks += 1;
+            put_motion(out, m, (op, cut, cut_q, first), machine, arc_axes, tag)?;
         } else if let Some(v) = edge_cap.filter(|_| !parabolic) {
             // Not cut: the switch goes before the block, which starts at the edge. A lead-out
             // no faster than the edge, a lit block no slower.
@@ -93,10 +89,194 @@ pub(super) fn write_block(
         out.pending = Some(p);
         out.flush_pending()?;
     }
+    put_motion(out, m, (op, to, q, cap), machine, arc_axes, tag)
+}
+
+/// Writes the motion block `(op, to, q, cap)` ([`motion_line`]) and, on LinuxCNC, keeps the
+/// chain of G93 blocks tp runs since it last stopped (`chain`).
+fn put_motion(
+    out: &mut Out<'_>,
+    m: &mut Modal,
+    (op, to, q, cap): (&Op, P3, Axes, Option<f64>),
+    machine: &crate::machine::Machine,
+    arc_axes: Option<(usize, usize, Option<usize>)>,
+    tag: Option<u32>,
+) -> io::Result<()> {
+    // A carried switch goes first, and the chain hears of it.
+    out.flush_pending()?;
+    let from_q = m.q;
+    let mut chain = std::mem::take(&mut out.chain);
     out.put_with(
         |line| motion_line(line, op, to, q, cap, m, machine, arc_axes),
         tag,
     )?;
     out.stats.motion_blocks += 1;
+    if out.dialect == crate::emit::Dialect::LinuxCnc {
+        chain.after_block(machine, &op.kind, (&from_q, &q), m.block_s, out.tolerance);
+        out.chain = chain;
+    }
     Ok(())
 }
+
+/// Where lit Line op `i`'s last block ends and the feed it is written at, mm/s, where a
+/// lead-out written in two before a stop follows it (`lead::split`) on a LinuxCNC program in
+/// inverse time and the chain of blocks before it is known from rest: the block runs from
+/// spot `from` at axes `from_q` to its moved junction `to` at `q` (`lead::shift`), held to
+/// `cap`. The junction moves by up to half a servo period of travel either way, the block's
+/// time grows by up to a period and at most [`TRIM_REL`] of it, and the lead-out's first block's length
+/// (kept in `out.split_len`) is chosen, so that tp.c's replay (`chain::Chain::replay_off`)
+/// crosses the off-edge nearest the lit speed with the beam within half a period of travel
+/// of its planned place ([`MAX_PLACE_PERIODS`]). `None` (written as it was, the lead-out split by the mean
+/// gain, `lead::split_at`) where the replay does not model the chain or finds nothing better
+/// than that.
+///
+/// The place: the joints follow tp's point two servo periods late (control.c's cubic
+/// interpolator, `lead::LEAD_PERIODS`), so the beam goes off where the joints are then:
+/// `d + past − 2·v·T` past the planned edge, `d` how far the junction moved, `past` how far
+/// past it tp's point is at the switch. On the real LinuxCNC the ring's off-edge with the
+/// mean split (past 0.37 periods in the replay) measured −0.12 periods; this gives −0.13.
+#[allow(clippy::too_many_arguments)] // the op, its block, and the lead-out's
+pub(super) fn off_edge_timing(
+    out: &mut Out<'_>,
+    job: &crate::motion::Job,
+    i: usize,
+    ((from, from_q), (to, q)): ((P3, &Axes), (P3, &Axes)),
+    cap: f64,
+    servo_s: f64,
+) -> Option<(P3, Axes, f64)> {
+    use super::chain::{Link, g93_seconds};
+    let machine = &job.program.machine;
+    let ops = &job.program.ops;
+    let OpKind::Line { feed_mm_s, .. } = ops[i].kind else {
+        return None;
+    };
+    let feed = feed_mm_s.min(cap).max(super::MIN_CAP_MM_S);
+    let end = ops[i].target()?;
+    let j = i + 1 + ops[i + 1..].iter().position(|o| o.moves_from(end))?;
+    let (
+        OpKind::Line {
+            to: out_end,
+            feed_mm_s: out_feed,
+            ..
+        },
+        None,
+    ) = (&ops[j].kind, ops[j].laser())
+    else {
+        return None;
+    };
+    let (out_end, out_feed) = (*out_end, *out_feed);
+    let (q_end, q_out) = (job.op_axes.get(i), job.op_axes.get(j));
+    let out_len = crate::program::dist(end, out_end);
+    let w = lead::direction(&ops[j], end, out_end, false)?;
+    let d0 = crate::program::dist(end, to);
+    let turned = lead::turns(machine, from_q, q);
+    let long = out_len > 0.0 && crate::program::dist(from, to) > 1e-9;
+    if !(long && lead::split(job, j, (to, q), turned)) {
+        return None;
+    }
+    // The junction `d` mm along the lead-out, as `lead::shift` moves it.
+    let at = |d: f64| -> (P3, Axes) {
+        let p = std::array::from_fn(|k| end[k] + w[k] * d);
+        (p, q_end.lerp(&q_out, d / out_len))
+    };
+    let tol = out.tolerance;
+    let lit_link = |(p, qp): (P3, &Axes), trim: f64| {
+        let t = crate::program::dist(from, p) / feed + trim;
+        Link::of(machine, (from_q, qp), t, tol)
+    };
+    let link = |(a, qa): (P3, &Axes), (b, qb): (P3, &Axes)| {
+        let t = g93_seconds(machine, (a, qa), (b, qb), out_feed);
+        Link::of(machine, (qa, qb), t, tol)
+    };
+    let parts = |(p, qp): (P3, &Axes), len1: f64| {
+        let rest = crate::program::dist(p, out_end);
+        let (mid, mid_q) = part_way(&ops[j], (p, qp), &q_out, len1 / rest, None);
+        Some((
+            link((p, qp), (mid, &mid_q))?,
+            link((mid, &mid_q), (out_end, &q_out))?,
+        ))
+    };
+    let base = lit_link((to, q), 0.0)?;
+    if !out.chain.replayable(machine, &base) {
+        return None;
+    }
+    let time = crate::program::dist(from, to) / feed;
+    let period = servo_s;
+    let step = feed * period;
+    let max_trim = period.min(TRIM_REL * time);
+    let rest0 = crate::program::dist(to, out_end);
+    let lens: Vec<f64> = lead::split_candidates(machine, (q, &q_out), rest0, out_feed, period, 5)
+        .into_iter()
+        .map(|f| f * rest0)
+        .collect();
+    let mean_len = lead::split_at(machine, (q, &q_out), rest0, out_feed, period) * rest0;
+    // The chain once, then each candidate's lit block and lead-out.
+    let tail = (time + out_len / out_feed) / period;
+    let scans = (1 + D_STEPS) * (1 + TRIM_STEPS) * lens.len();
+    let budget = out.chain.seconds() / period + tail * scans as f64;
+    if budget > MAX_SCAN_PERIODS {
+        return None;
+    }
+    let prefix = out.chain.prefix(period)?;
+    let judge = |d: f64, trim: f64, len1: f64| -> Option<(f64, f64)> {
+        let (p, qp) = at(d);
+        let lit = lit_link((p, &qp), 0.0)?;
+        let want = lit.seg_v();
+        let lit = lit_link((p, &qp), trim)?;
+        let (a, b) = parts((p, &qp), len1)?;
+        let (v, past) = out.chain.replay_off(&prefix, (&lit, &a, &b))?;
+        // tp's units to mm along the path: the lit block's own ratio.
+        let mm = crate::program::dist(from, p) / lit.tp_len();
+        let place = (d + past * mm - 2.0 * step) / step;
+        Some(((v / want - 1.0).abs(), place))
+    };
+    let (base_err, base_place) = judge(d0, 0.0, mean_len)?;
+    let mut best: Option<(f64, f64, f64, f64, f64)> = None;
+    for kd in 0..=D_STEPS {
+        let d = d0 + step * (kd as f64 / D_STEPS as f64 - 0.5);
+        if !(d > 0.0 && d < 0.5 * out_len) {
+            continue;
+        }
+        // Only longer: a cap above the feed is not written (`motion_line`).
+        for kt in 0..=TRIM_STEPS {
+            let trim = max_trim * kt as f64 / TRIM_STEPS as f64;
+            for &len1 in &lens {
+                let Some((err, place)) = judge(d, trim, len1) else {
+                    continue;
+                };
+                if place.abs() > MAX_PLACE_PERIODS.max(base_place.abs()) {
+                    continue;
+                }
+                if best.is_none_or(|(e, ..)| err < e - 1e-12) {
+                    best = Some((err, place, d, trim, len1));
+                }
+            }
+        }
+    }
+    let (err, _, d, trim, len1) = best?;
+    if err >= base_err {
+        return None;
+    }
+    let (p, qp) = at(d);
+    out.split_len = Some((j, len1));
+    let len = crate::program::dist(from, p);
+    Some((p, qp, len / (len / feed + trim)))
+}
+
+/// The most a lit block's speed is changed to time its off-edge (`off_edge_timing`): a
+/// twentieth of the plan's 0.1 % on the lit surface speed.
+const TRIM_REL: f64 = 5e-4;
+
+/// Steps over the period of travel the junction is moved by, and over the lit block's time
+/// (`off_edge_timing`).
+const D_STEPS: usize = 8;
+const TRIM_STEPS: usize = 8;
+
+/// The most servo periods of travel the beam goes off from its planned place where the
+/// off-edge is timed (`off_edge_timing`), unless it went off farther before: half a period,
+/// the spread tp's switching once a period leaves any edge (`lead::LEAD_PERIODS`).
+const MAX_PLACE_PERIODS: f64 = 0.5;
+
+/// The most servo periods an off-edge's scan replays, all replays summed: some 10⁷ steps of
+/// tp's arithmetic, a tenth of a second.
+const MAX_SCAN_PERIODS: f64 = 1.0e7;

@@ -346,7 +346,7 @@ pub(super) fn lead_in_speed(
 
 /// The X Y Z unit direction of the block `a → b` as canon gives it (`uVec`; (1, 0, 0) where X
 /// Y Z stay).
-fn unit_xyz(machine: &crate::machine::Machine, a: &Axes, b: &Axes) -> [f64; 3] {
+pub(super) fn unit_xyz(machine: &crate::machine::Machine, a: &Axes, b: &Axes) -> [f64; 3] {
     let mut u = [0.0; 3];
     for (k, x) in machine.axes.iter().enumerate() {
         if x.kind == AxisKind::Rotary {
@@ -386,12 +386,46 @@ pub(super) fn split_at(
     servo_s: f64,
 ) -> f64 {
     let gain = blend_gain(machine, a, b, len, servo_s);
+    split_for(machine, (a, b), len, v - gain, servo_s)
+}
+
+/// The fractions of a lead-out's `len` mm (axes `a` to `b`) at which its first block's
+/// triangle speed is `v` less 0 to 3 blend gains ([`blend_gain`]), in `steps` steps: where
+/// the chain before it is known from rest, `writer::chain::Chain::off_edge_replay` picks
+/// among them by tp.c's arithmetic.
+pub(super) fn split_candidates(
+    machine: &crate::machine::Machine,
+    (a, b): (&Axes, &Axes),
+    len: f64,
+    v: f64,
+    servo_s: f64,
+    steps: usize,
+) -> Vec<f64> {
+    let gain = blend_gain(machine, a, b, len, servo_s);
+    (0..=steps)
+        .map(|k| {
+            let u = v - 3.0 * gain * k as f64 / steps.max(1) as f64;
+            split_for(machine, (a, b), len, u, servo_s)
+        })
+        .collect()
+}
+
+/// The fraction of `len` mm (axes `a` to `b`) a block must span for its triangle speed
+/// `sqrt(A·L)` (`A` half its path acceleration) to be `u`, at most half.
+fn split_for(
+    machine: &crate::machine::Machine,
+    (a, b): (&Axes, &Axes),
+    len: f64,
+    u: f64,
+    servo_s: f64,
+) -> f64 {
+    let gain = blend_gain(machine, a, b, len, servo_s);
     // `blend_gain` is A·T/2 with A half the path acceleration: A from it.
     let half_acc = 2.0 * gain / servo_s;
-    if !(gain > 0.0 && len > 0.0 && v > gain) {
+    if !(gain > 0.0 && len > 0.0 && u > 0.0) {
         return 0.5;
     }
-    ((v - gain).powi(2) / half_acc / len).min(0.5)
+    (u.powi(2) / half_acc / len).min(0.5)
 }
 
 /// Whether the block from axes `a` to `b`, `len` mm, reaches `v` mm/s in a chain of parabolic

@@ -39,6 +39,10 @@ pub struct ChainRun {
     /// the next one's added where the switch falls in a parabolic blend (each in its own
     /// length unit, so the sum is a speed where both measure alike), else its own.
     pub switch_speed: Vec<f64>,
+    /// Per segment, how far past its start tp's point is as its outputs switch: the next
+    /// segment's progress less what the finishing one has left where the switch falls in a
+    /// blend (in line, the point summed along the path), else its own progress.
+    pub switch_past: Vec<f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -165,54 +169,145 @@ fn end_condition(s: &ChainSeg, tc: &mut Tc, period: f64) {
 /// Runs `segs` from rest to rest, every junction a parabolic blend; `parabolic_end`: the last
 /// segment keeps the PARABOLIC term condition (the queue ends there), else STOP.
 pub fn run_chain(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> ChainRun {
-    let n = segs.len();
-    let mut tcs: Vec<Tc> = (0..n)
-        .map(|i| Tc {
-            progress: 0.0,
-            vel: 0.0,
-            blending_next: false,
-            on_final_decel: false,
-            blend_vel: 0.0,
-            splitting: false,
-            cycle_time: period,
-            remove: false,
-            parabolic: i + 1 < n || parabolic_end,
-            blend_prev: i > 0,
-            switched: false,
-        })
-        .collect();
-    let mut switch_s = vec![0.0; n];
-    let mut switch_speed = vec![0.0; n];
-    let mut head = 0;
-    let mut cycles: u64 = 0;
-    let mut last_moving: u64 = 0;
-    let mut switch = |tcs: &mut [Tc], i: usize, cycle: u64, speed: f64| {
-        if !tcs[i].switched {
-            tcs[i].switched = true;
-            switch_s[i] = cycle as f64 * period;
-            switch_speed[i] = speed;
+    let mut r = Replay::start(segs, parabolic_end, period);
+    r.run(usize::MAX);
+    r.finish()
+}
+
+/// A chain run part way: [`Replay::prefix`] runs the segments a chain starts with up to where
+/// tp first looks past them, so that several endings can each be run on from there
+/// ([`Replay::then`]) without replaying the start again.
+#[derive(Debug, Clone)]
+pub struct Replay {
+    segs: Vec<ChainSeg>,
+    tcs: Vec<Tc>,
+    period: f64,
+    head: usize,
+    cycles: u64,
+    last_moving: u64,
+    switch_s: Vec<f64>,
+    switch_speed: Vec<f64>,
+    switch_past: Vec<f64>,
+}
+
+impl Replay {
+    fn start(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> Replay {
+        let n = segs.len();
+        let mut r = Replay {
+            segs: Vec::with_capacity(n + 3),
+            tcs: Vec::with_capacity(n + 3),
+            period,
+            head: 0,
+            cycles: 0,
+            last_moving: 0,
+            switch_s: Vec::new(),
+            switch_speed: Vec::new(),
+            switch_past: Vec::new(),
+        };
+        r.push(segs, parabolic_end);
+        r
+    }
+
+    /// Appends `segs` to the chain (the one before them now blends into them).
+    fn push(&mut self, segs: &[ChainSeg], parabolic_end: bool) {
+        if let Some(last) = self.tcs.last_mut() {
+            last.parabolic = true;
         }
-    };
-    // Each segment ends within its cruise time plus its ramps, and a period or two; the bound
-    // (ten times that) only guards the loop against arithmetic that would not end.
-    let limit = segs
-        .iter()
-        .map(|s| (((s.len / s.v + 2.0 * s.v / s.acc) / period) as u64).saturating_add(4))
-        .fold(0u64, u64::saturating_add)
-        .saturating_mul(10);
-    while head < n && cycles < limit {
-        let before: Vec<f64> = (head..n.min(head + 2)).map(|i| tcs[i].progress).collect();
+        let n = segs.len();
+        for (i, s) in segs.iter().enumerate() {
+            let first = self.tcs.is_empty();
+            self.tcs.push(Tc {
+                progress: 0.0,
+                vel: 0.0,
+                blending_next: false,
+                on_final_decel: false,
+                blend_vel: 0.0,
+                splitting: false,
+                cycle_time: self.period,
+                remove: false,
+                parabolic: i + 1 < n || parabolic_end,
+                blend_prev: !first,
+                switched: false,
+            });
+            self.segs.push(s.clone());
+        }
+        let m = self.segs.len();
+        self.switch_s.resize(m, 0.0);
+        self.switch_speed.resize(m, 0.0);
+        self.switch_past.resize(m, 0.0);
+    }
+
+    /// `segs` run from rest up to the first servo period in which tp would look at a segment
+    /// after them (their last is the head, or the chain has ended).
+    pub fn prefix(segs: &[ChainSeg], period: f64) -> Replay {
+        let mut r = Replay::start(segs, true, period);
+        r.run(segs.len().saturating_sub(1));
+        r
+    }
+
+    /// The prefix run on into `tail` (its last segment ending in STOP): the whole chain's run.
+    pub fn then(&self, tail: &[ChainSeg]) -> ChainRun {
+        let mut r = self.clone();
+        r.push(tail, false);
+        r.run(usize::MAX);
+        r.finish()
+    }
+
+    fn finish(self) -> ChainRun {
+        ChainRun {
+            switch_s: self.switch_s,
+            total_s: self.last_moving as f64 * self.period,
+            switch_speed: self.switch_speed,
+            switch_past: self.switch_past,
+        }
+    }
+
+    fn switch(&mut self, i: usize, (speed, past): (f64, f64)) {
+        if !self.tcs[i].switched {
+            self.tcs[i].switched = true;
+            self.switch_s[i] = self.cycles as f64 * self.period;
+            self.switch_speed[i] = speed;
+            self.switch_past[i] = past;
+        }
+    }
+
+    /// Runs servo periods while the head is before `stop_at` (and the chain has not ended).
+    fn run(&mut self, stop_at: usize) {
+        let n = self.segs.len();
+        let period = self.period;
+        // Each segment ends within its cruise time plus its ramps, and a period or two; the
+        // bound (ten times that) only guards the loop against arithmetic that would not end.
+        let limit = self
+            .segs
+            .iter()
+            .map(|s| (((s.len / s.v + 2.0 * s.v / s.acc) / period) as u64).saturating_add(4))
+            .fold(0u64, u64::saturating_add)
+            .saturating_mul(10);
+        while self.head < n && self.head < stop_at && self.cycles < limit {
+            self.cycle();
+        }
+    }
+
+    /// One servo period of `tpRunCycle`.
+    fn cycle(&mut self) {
+        let (n, period, head) = (self.segs.len(), self.period, self.head);
+        let segs = &self.segs;
+        let mut before = [0.0; 2];
+        for (k, b) in before.iter_mut().enumerate().take(n - head) {
+            *b = self.tcs[head + k].progress;
+        }
         let next = (head + 1 < n).then_some(head + 1);
-        if tcs[head].splitting {
+        if self.tcs[head].splitting {
             // tpHandleSplitCycle: the segment lands on its end; the next one gets the period.
-            tcs[head].progress = segs[head].len;
-            tcs[head].remove = true;
+            self.tcs[head].progress = segs[head].len;
+            self.tcs[head].remove = true;
             if let Some(j) = next {
-                update(&segs[j], &mut tcs[j], period);
-                let v = tcs[j].vel;
-                switch(&mut tcs, j, cycles, v);
+                update(&segs[j], &mut self.tcs[j], period);
+                let at = (self.tcs[j].vel, self.tcs[j].progress);
+                self.switch(j, at);
             }
         } else {
+            let tcs = &mut self.tcs;
             tcs[head].cycle_time = period;
             update(&segs[head], &mut tcs[head], period);
             if let Some(j) = next {
@@ -232,32 +327,30 @@ pub fn run_chain(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> ChainRu
                     update(&segs[j], &mut tcs[j], period);
                     let faster = if tcs[head].vel > tcs[j].vel { head } else { j };
                     let v = tcs[head].vel + tcs[j].vel;
-                    switch(&mut tcs, faster, cycles, v);
+                    let past = if faster == j {
+                        tcs[j].progress - (segs[head].len - tcs[head].progress)
+                    } else {
+                        tcs[head].progress
+                    };
+                    self.switch(faster, (v, past));
                 }
                 _ => {
-                    let v = tcs[head].vel;
-                    switch(&mut tcs, head, cycles, v)
+                    let at = (tcs[head].vel, tcs[head].progress);
+                    self.switch(head, at)
                 }
             }
         }
-        cycles += 1;
+        self.cycles += 1;
         // Moving, as a sampled position shows it: a step above a millionth of the segment
         // (a split period's landing on the end is below).
-        let moved = before
-            .iter()
-            .enumerate()
-            .any(|(k, p)| tcs[head + k].progress - p > 1e-6 * segs[head + k].len);
+        let moved = (0..2.min(n - head))
+            .any(|k| self.tcs[head + k].progress - before[k] > 1e-6 * self.segs[head + k].len);
         if moved {
-            last_moving = cycles;
+            self.last_moving = self.cycles;
         }
-        if tcs[head].remove {
-            head += 1;
+        if self.tcs[head].remove {
+            self.head += 1;
         }
-    }
-    ChainRun {
-        switch_s,
-        total_s: last_moving as f64 * period,
-        switch_speed,
     }
 }
 
@@ -301,5 +394,28 @@ mod tests {
                 "{k}/4 ms longer: replay {model:.4}, LinuxCNC {real:.4} °/s"
             );
         }
+    }
+
+    #[test]
+    fn a_prefix_run_on_into_its_ending_is_the_whole_chains_run() {
+        let seg = |len: f64, v: f64, u: [f64; 3]| ChainSeg {
+            len,
+            v,
+            acc: 2000.0,
+            u,
+            tolerance: 0.01,
+        };
+        let x = [1.0, 0.0, 0.0];
+        let head = [
+            seg(3.0, 40.0, x),
+            seg(0.8, 55.0, x),
+            seg(0.05, 30.0, [0.6, 0.8, 0.0]),
+        ];
+        let tail = [seg(2.0, 50.0, x), seg(0.4, 50.0, x), seg(1.2, 50.0, x)];
+        let all: Vec<ChainSeg> = head.iter().chain(&tail).cloned().collect();
+        let whole = run_chain(&all, false, 0.001);
+        let parts = Replay::prefix(&head, 0.001).then(&tail);
+        assert_eq!(whole, parts);
+        assert!(whole.total_s > 0.0 && whole.switch_s.windows(2).all(|w| w[0] <= w[1]));
     }
 }

@@ -1,0 +1,242 @@
+//! The inverse-time blocks a LinuxCNC program has queued since tp last stopped, as the writer
+//! wrote them, so that a beam switch further on can be timed by tp.c's own arithmetic
+//! (`motion::parabolic::chain::run_chain`) from the rest the chain started at.
+//!
+//! tp.c runs a chain of G93 blocks that turn a rotary axis as parabolic blends, servo period
+//! by servo period from the rest it started at (a rapid meeting a feed is a stop,
+//! `tpCheckCanonType`). Where in its period each block's deceleration turns, and so how fast
+//! the summed speeds of a blend run when a synchronized output switches, follows from that
+//! clock. [`Chain`] keeps the blocks since the last rapid; any other line but a comment,
+//! `G93` or a synchronized output (`M62`/`M63`/`M67`, which tp queues with the next block
+//! without a stop) forgets them, as does an arc, a block in units per minute or a chain too
+//! long to replay ([`MAX_LINKS`]). `block::off_edge_timing` times a lit block and the
+//! lead-out after it with it ([`Chain::replay_off`]).
+
+use crate::axes::Axes;
+use crate::machine::{AxisKind, Machine};
+use crate::motion::parabolic::{Block, chain as tp};
+use crate::program::{OpKind, P3};
+
+/// Longest chain kept: a lit run longer than this is left to the mean gain
+/// (`lead::split_at`), and the chain's memory stays bounded on any job.
+const MAX_LINKS: usize = 4096;
+
+/// Servo periods of motion a replay may run: 5 minutes at 1 ms.
+pub(super) const MAX_REPLAY_PERIODS: f64 = 3.0e5;
+
+/// One block of the chain.
+#[derive(Debug, Clone)]
+pub(super) struct Link {
+    seg: tp::ChainSeg,
+    /// Its length is X Y Z's (else the rotary axes', where X Y Z stay): two blocks' speeds
+    /// add only where both measure alike.
+    xyz: bool,
+    /// It turns a rotary axis: tp.c joins it to its neighbours by parabolic blends.
+    turns: bool,
+}
+
+impl Link {
+    /// Its requested speed in tp's unit.
+    pub(super) fn seg_v(&self) -> f64 {
+        self.seg.v
+    }
+
+    /// Its length in tp's unit (`Block::len`).
+    pub(super) fn tp_len(&self) -> f64 {
+        self.seg.len
+    }
+
+    /// The G93 block from axes `from` to `to` that lasts `time_s`, under `G64 P` `tolerance`;
+    /// `None` where it does not move.
+    pub(super) fn of(
+        machine: &Machine,
+        (from, to): (&Axes, &Axes),
+        time_s: f64,
+        tolerance: f64,
+    ) -> Option<Link> {
+        let b = Block::of(machine, from, to, time_s)?;
+        let xyz = machine
+            .axes
+            .iter()
+            .enumerate()
+            .any(|(k, x)| x.kind != AxisKind::Rotary && (to[k] - from[k]).abs() > 1e-9);
+        Some(Link {
+            seg: tp::ChainSeg {
+                len: b.len,
+                v: b.req,
+                acc: b.acc,
+                u: super::lead::unit_xyz(machine, from, to),
+                tolerance,
+            },
+            xyz,
+            turns: super::lead::turns(machine, from, to),
+        })
+    }
+}
+
+/// The G93 blocks since tp last stopped (`None`: not known to start at rest, or not a chain
+/// of parabolic blends the replay models).
+#[derive(Debug, Default)]
+pub(super) struct Chain(Option<Vec<Link>>);
+
+impl Chain {
+    /// A line other than a motion block was written.
+    pub(super) fn after_line(&mut self, text: &str) {
+        if self.0.is_some() && !keeps_moving(text) {
+            self.0 = None;
+        }
+    }
+
+    /// A motion block was written that is not tracked.
+    pub(super) fn forget(&mut self) {
+        self.0 = None;
+    }
+
+    /// A motion block `kind` was written from axes `from` to `to`; `time_s` its time where
+    /// it is a G93 feed (`Modal::block_s`).
+    pub(super) fn after_block(
+        &mut self,
+        machine: &Machine,
+        kind: &OpKind,
+        (from, to): (&Axes, &Axes),
+        time_s: Option<f64>,
+        tolerance: f64,
+    ) {
+        self.0 = match (kind, time_s) {
+            // The next feed starts at rest.
+            (OpKind::Rapid { .. }, _) => Some(Vec::new()),
+            (OpKind::Line { .. }, Some(t)) => self.0.take().and_then(|mut links| {
+                let link = Link::of(machine, (from, to), t, tolerance)?;
+                (links.len() < MAX_LINKS).then(|| {
+                    links.push(link);
+                    links
+                })
+            }),
+            _ => None,
+        };
+    }
+
+    /// The time the chain runs at its requested speeds, s.
+    pub(super) fn seconds(&self) -> f64 {
+        self.0.as_ref().map_or(0.0, |links| {
+            links.iter().map(|l| l.seg.len / l.seg.v).sum::<f64>()
+        })
+    }
+
+    /// The chain replayed up to where tp first looks past it (`replay_off` runs each ending
+    /// on from there).
+    pub(super) fn prefix(&self, period: f64) -> Option<tp::Replay> {
+        let links = self.0.as_ref()?;
+        let segs: Vec<tp::ChainSeg> = links.iter().map(|l| l.seg.clone()).collect();
+        Some(tp::Replay::prefix(&segs, period))
+    }
+
+    /// Whether the chain, followed by block `lit`, is one the replay models: known from rest,
+    /// every junction a parabolic blend (one of its two blocks turns a rotary axis), short
+    /// enough to replay.
+    pub(super) fn replayable(&self, machine: &Machine, lit: &Link) -> bool {
+        let Some(links) = self.0.as_ref() else {
+            return false;
+        };
+        let all = || links.iter().chain(std::iter::once(lit));
+        let period = machine.servo_period_s();
+        let periods: f64 = all().map(|l| l.seg.len / l.seg.v / period).sum();
+        all().zip(all().skip(1)).all(|(a, b)| a.turns || b.turns)
+            && period > 0.0
+            && periods <= MAX_REPLAY_PERIODS
+    }
+
+    /// tp.c's speed and point as it switches the synchronized outputs written before block
+    /// `a`, in the chain followed by `lit`, `a` and `b` (`b` ending in a stop): the summed
+    /// speed, and how far past the junction of `lit` and `a` tp's point is (both in tp's
+    /// length unit, `Block::len`); `None` where `lit` and `a` measure unalike or a junction
+    /// is not a parabolic blend.
+    ///
+    /// Through the blend of a lit block into its lead-out the summed speed is the lit speed
+    /// less `A·(T − φ)`, `φ` where in its servo period the lit block's final deceleration
+    /// turns, or, where the lead-out's first block is short enough to hold the blend speed
+    /// below the lit one (`tpComputeBlendVelocity`), a period later, `A·φ` above it. The real
+    /// LinuxCNC ran rotary_engrave's ring with its lit block 0, ¼, ½, ¾ and 1 ms longer at
+    /// 0.727, 2.078, 1.629, 1.177 and 0.727 °/s below the lit speed through the blend, which
+    /// this replay gives to 0.001 °/s (`motion::parabolic::chain`'s test).
+    pub(super) fn replay_off(
+        &self,
+        prefix: &tp::Replay,
+        (lit, a, b): (&Link, &Link, &Link),
+    ) -> Option<(f64, f64)> {
+        let links = self.0.as_ref()?;
+        if a.xyz != lit.xyz || !(lit.turns || a.turns) || !(a.turns || b.turns) {
+            return None;
+        }
+        let run = prefix.then(&[lit.seg.clone(), a.seg.clone(), b.seg.clone()]);
+        let n = links.len() + 1;
+        Some((run.switch_speed[n], run.switch_past[n]))
+    }
+}
+
+/// Whether tp runs on through `text`, a line that is not a motion block: a comment, `G93`,
+/// or a synchronized output with its words (`M62`/`M63 P…`, `M67 E… Q…`).
+fn keeps_moving(text: &str) -> bool {
+    let mut bare = String::with_capacity(text.len());
+    let mut depth = 0usize;
+    for c in text.chars() {
+        match c {
+            '(' => depth += 1,
+            ')' => depth = depth.saturating_sub(1),
+            _ if depth == 0 => bare.push(c),
+            _ => {}
+        }
+    }
+    bare.split_whitespace().all(|w| {
+        let w = w.to_ascii_uppercase();
+        matches!(w.as_str(), "M62" | "M63" | "M67" | "G93")
+            || (w.len() > 1
+                && matches!(w.as_bytes()[0], b'P' | b'E' | b'Q')
+                && w[1..].parse::<f64>().is_ok())
+    })
+}
+
+/// The time of a G93 feed block at `feed` mm/s from spot `from` (axes `from_q`) to `to`
+/// (axes `q`), s: its length over the feed, or where the spot stays (the beam turns in
+/// place) as fast as the slowest axis allows. `motion_line` writes F as its inverse.
+pub(super) fn g93_seconds(
+    machine: &Machine,
+    (from, from_q): (P3, &Axes),
+    (to, q): (P3, &Axes),
+    feed: f64,
+) -> f64 {
+    let len = crate::program::dist(from, to);
+    if len > 1e-9 {
+        len / feed
+    } else {
+        machine
+            .axes
+            .iter()
+            .enumerate()
+            .map(|(k, a)| (q[k] - from_q[k]).abs() / a.v_max)
+            .fold(60.0 * 1e-9, f64::max)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::keeps_moving;
+
+    #[test]
+    fn only_comments_g93_and_synchronized_outputs_keep_the_chain() {
+        for l in ["(lit)", "G93", "M62 P0", "m63 p0 (off)", "M67 E0 Q42.5", ""] {
+            assert!(keeps_moving(l), "{l}");
+        }
+        for l in [
+            "M64 P0",
+            "M68 E0 Q1",
+            "G4 P0.5",
+            "M5",
+            "G94",
+            "M62 P0 G4 P1",
+            "G0 X1",
+        ] {
+            assert!(!keeps_moving(l), "{l}");
+        }
+    }
+}
