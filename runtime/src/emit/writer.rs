@@ -593,14 +593,12 @@ pub(super) fn write(
                         if split {
                             let (from, from_q) = (m.pos, m.q);
                             let sub = lead::retarget(op, to);
-                            let f = match (&op.kind, servo_s) {
-                                _ if out.split_len.is_some_and(|(j, _)| j == i) => {
-                                    let len = sub.length_from(from);
-                                    out.split_len
-                                        .map_or(0.5, |(_, l)| (l / len).clamp(0.0, 0.9))
-                                }
-                                (OpKind::Line { feed_mm_s, .. }, Some(t)) => {
-                                    let len = sub.length_from(from);
+                            // Where `block::off_edge_timing` chose, else the mean gain's.
+                            let len = sub.length_from(from);
+                            let chosen = out.split_len.take().filter(|&(j, _)| j == i);
+                            let f = match (chosen, &op.kind, servo_s) {
+                                (Some((_, l)), ..) => (l / len).clamp(0.0, 0.9),
+                                (None, OpKind::Line { feed_mm_s, .. }, Some(t)) => {
                                     lead::split_at(machine, (&from_q, &q_end), len, *feed_mm_s, t)
                                 }
                                 _ => 0.5,

@@ -218,38 +218,52 @@ pub(super) fn off_edge_timing(
         return None;
     }
     let prefix = out.chain.prefix(period)?;
-    let judge = |d: f64, trim: f64, len1: f64| -> Option<(f64, f64)> {
+    // Each (speed error, place in periods, trim, first block's length) for the junction at
+    // `d`: where it is, the lit speed and mm per tp unit depend on `d` only, the lead-out's
+    // two blocks on `d` and the length, the lit block on `d` and the trim.
+    let scan = |d: f64, trims: &[f64], lens: &[f64]| -> Vec<(f64, f64, f64, f64)> {
         let (p, qp) = at(d);
-        let lit = lit_link((p, &qp), 0.0)?;
-        let want = lit.seg_v();
-        let lit = lit_link((p, &qp), trim)?;
-        let (a, b) = parts((p, &qp), len1)?;
-        let (v, past) = out.chain.replay_off(&prefix, (&lit, &a, &b))?;
+        let Some(untrimmed) = lit_link((p, &qp), 0.0) else {
+            return Vec::new();
+        };
+        let want = untrimmed.seg().v;
         // tp's units to mm along the path: the lit block's own ratio.
-        let mm = crate::program::dist(from, p) / lit.tp_len();
-        let place = (d + past * mm - 2.0 * step) / step;
-        Some(((v / want - 1.0).abs(), place))
+        let mm = crate::program::dist(from, p) / untrimmed.seg().len;
+        let endings: Vec<(f64, (Link, Link))> = lens
+            .iter()
+            .filter_map(|&len1| Some((len1, parts((p, &qp), len1)?)))
+            .collect();
+        let mut found = Vec::new();
+        for &trim in trims {
+            let Some(lit) = lit_link((p, &qp), trim) else {
+                continue;
+            };
+            for (len1, (a, b)) in &endings {
+                if let Some((v, past)) = out.chain.replay_off(&prefix, (&lit, a, b)) {
+                    let place = (d + past * mm - 2.0 * step) / step;
+                    found.push(((v / want - 1.0).abs(), place, trim, *len1));
+                }
+            }
+        }
+        found
     };
-    let (base_err, base_place) = judge(d0, 0.0, mean_len)?;
+    let &(base_err, base_place, ..) = scan(d0, &[0.0], &[mean_len]).first()?;
+    // Only longer: a cap above the feed is not written (`motion_line`).
+    let trims: Vec<f64> = (0..=TRIM_STEPS)
+        .map(|kt| max_trim * kt as f64 / TRIM_STEPS as f64)
+        .collect();
     let mut best: Option<(f64, f64, f64, f64, f64)> = None;
     for kd in 0..=D_STEPS {
         let d = d0 + step * (kd as f64 / D_STEPS as f64 - 0.5);
         if !(d > 0.0 && d < 0.5 * out_len) {
             continue;
         }
-        // Only longer: a cap above the feed is not written (`motion_line`).
-        for kt in 0..=TRIM_STEPS {
-            let trim = max_trim * kt as f64 / TRIM_STEPS as f64;
-            for &len1 in &lens {
-                let Some((err, place)) = judge(d, trim, len1) else {
-                    continue;
-                };
-                if place.abs() > MAX_PLACE_PERIODS.max(base_place.abs()) {
-                    continue;
-                }
-                if best.is_none_or(|(e, ..)| err < e - 1e-12) {
-                    best = Some((err, place, d, trim, len1));
-                }
+        for (err, place, trim, len1) in scan(d, &trims, &lens) {
+            if place.abs() > MAX_PLACE_PERIODS.max(base_place.abs()) {
+                continue;
+            }
+            if best.is_none_or(|(e, ..)| err < e - 1e-12) {
+                best = Some((err, place, d, trim, len1));
             }
         }
     }

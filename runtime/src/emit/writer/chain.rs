@@ -36,14 +36,14 @@ pub(super) struct Link {
 }
 
 impl Link {
-    /// Its requested speed in tp's unit.
-    pub(super) fn seg_v(&self) -> f64 {
-        self.seg.v
+    /// The segment tp queues for it.
+    pub(super) fn seg(&self) -> &tp::ChainSeg {
+        &self.seg
     }
 
-    /// Its length in tp's unit (`Block::len`).
-    pub(super) fn tp_len(&self) -> f64 {
-        self.seg.len
+    /// Its length is X Y Z's (else the rotary axes').
+    pub(super) fn xyz(&self) -> bool {
+        self.xyz
     }
 
     /// The G93 block from axes `from` to `to` that lasts `time_s`, under `G64 P` `tolerance`;
@@ -65,7 +65,7 @@ impl Link {
                 len: b.len,
                 v: b.req,
                 acc: b.acc,
-                u: super::lead::unit_xyz(machine, from, to),
+                u: unit_xyz(machine, from, to),
                 tolerance,
             },
             xyz,
@@ -215,6 +215,30 @@ pub(super) fn g93_seconds(
             .enumerate()
             .map(|(k, a)| (q[k] - from_q[k]).abs() / a.v_max)
             .fold(60.0 * 1e-9, f64::max)
+    }
+}
+
+/// The X Y Z unit direction of the block `a → b` as canon gives it (`uVec`; (1, 0, 0) where X
+/// Y Z stay).
+fn unit_xyz(machine: &Machine, a: &Axes, b: &Axes) -> [f64; 3] {
+    let mut u = [0.0; 3];
+    for (k, x) in machine.axes.iter().enumerate() {
+        if x.kind == AxisKind::Rotary {
+            continue;
+        }
+        let slot = match x.name.chars().next() {
+            Some('X') => 0,
+            Some('Y') => 1,
+            Some('Z') => 2,
+            _ => continue,
+        };
+        u[slot] = b[k] - a[k];
+    }
+    let n = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
+    if n > 1e-12 {
+        [u[0] / n, u[1] / n, u[2] / n]
+    } else {
+        [1.0, 0.0, 0.0]
     }
 }
 

@@ -289,7 +289,7 @@ pub(super) fn lead_in_speed(
     v: f64,
     servo_s: f64,
 ) -> Option<f64> {
-    use crate::motion::parabolic::{Block, chain};
+    use crate::motion::parabolic::chain;
     let ops = &job.program.ops;
     let machine = &job.program.machine;
     let at_rest = ops[..i]
@@ -308,64 +308,27 @@ pub(super) fn lead_in_speed(
         crate::program::dist(to, end),
     );
     let gain = blend_gain(machine, from_q, q_to, lead_len, servo_s);
+    let link =
+        |a: &Axes, b: &Axes, time_s: f64| super::chain::Link::of(machine, (a, b), time_s, 0.0);
+    let lit = link(q_to, &q_end, lit_len / v)?;
     // Both lengths in one unit (X Y Z's, or the rotary axes' where X Y Z stay), so the two
     // blocks' speeds add.
-    let xyz = |a: &Axes, b: &Axes| {
-        machine
-            .axes
-            .iter()
-            .enumerate()
-            .any(|(k, x)| x.kind != AxisKind::Rotary && (b[k] - a[k]).abs() > 1e-9)
-    };
-    let alike = xyz(from_q, q_to) == xyz(q_to, &q_end);
+    let alike = link(from_q, q_to, lead_len / v).is_some_and(|l| l.xyz() == lit.xyz());
     if !(at_rest && alike && lead_len > 0.0 && lit_len > 0.0 && gain > 0.0 && v > 3.0 * gain) {
         return None;
     }
-    let lit = Block::of(machine, q_to, &q_end, lit_len / v)?;
-    let seg = |b: &Block, a: &Axes, c: &Axes| chain::ChainSeg {
-        len: b.len,
-        v: b.req,
-        acc: b.acc,
-        u: unit_xyz(machine, a, c),
-        tolerance: 0.0,
-    };
-    let lit_seg = seg(&lit, q_to, &q_end);
     const STEPS: usize = 60;
     let mut best: Option<(f64, f64)> = None;
     for k in 0..=STEPS {
         let speed = v - 3.0 * gain * k as f64 / STEPS as f64;
-        let lead = Block::of(machine, from_q, q_to, lead_len / speed)?;
-        let run = chain::run_chain(&[seg(&lead, from_q, q_to), lit_seg.clone()], false, servo_s);
-        let err = (run.switch_speed[1] / lit.req - 1.0).abs();
+        let lead = link(from_q, q_to, lead_len / speed)?;
+        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
+        let err = (run.switch_speed[1] / lit.seg().v - 1.0).abs();
         if best.is_none_or(|(e, _)| err < e) {
             best = Some((err, speed));
         }
     }
     best.map(|(_, speed)| speed)
-}
-
-/// The X Y Z unit direction of the block `a → b` as canon gives it (`uVec`; (1, 0, 0) where X
-/// Y Z stay).
-pub(super) fn unit_xyz(machine: &crate::machine::Machine, a: &Axes, b: &Axes) -> [f64; 3] {
-    let mut u = [0.0; 3];
-    for (k, x) in machine.axes.iter().enumerate() {
-        if x.kind == AxisKind::Rotary {
-            continue;
-        }
-        let slot = match x.name.chars().next() {
-            Some('X') => 0,
-            Some('Y') => 1,
-            Some('Z') => 2,
-            _ => continue,
-        };
-        u[slot] = b[k] - a[k];
-    }
-    let n = (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt();
-    if n > 1e-12 {
-        [u[0] / n, u[1] / n, u[2] / n]
-    } else {
-        [1.0, 0.0, 0.0]
-    }
 }
 
 /// Where a lead-out [`split`] in two ends its first block: the fraction of its `len` mm
@@ -386,13 +349,13 @@ pub(super) fn split_at(
     servo_s: f64,
 ) -> f64 {
     let gain = blend_gain(machine, a, b, len, servo_s);
-    split_for(machine, (a, b), len, v - gain, servo_s)
+    split_for(gain, len, v - gain, servo_s)
 }
 
 /// The fractions of a lead-out's `len` mm (axes `a` to `b`) at which its first block's
 /// triangle speed is `v` less 0 to 3 blend gains ([`blend_gain`]), in `steps` steps: where
-/// the chain before it is known from rest, `writer::chain::Chain::off_edge_replay` picks
-/// among them by tp.c's arithmetic.
+/// the chain before it is known from rest, `writer::block::off_edge_timing` picks among them
+/// by tp.c's arithmetic.
 pub(super) fn split_candidates(
     machine: &crate::machine::Machine,
     (a, b): (&Axes, &Axes),
@@ -405,22 +368,15 @@ pub(super) fn split_candidates(
     (0..=steps)
         .map(|k| {
             let u = v - 3.0 * gain * k as f64 / steps.max(1) as f64;
-            split_for(machine, (a, b), len, u, servo_s)
+            split_for(gain, len, u, servo_s)
         })
         .collect()
 }
 
-/// The fraction of `len` mm (axes `a` to `b`) a block must span for its triangle speed
-/// `sqrt(A·L)` (`A` half its path acceleration) to be `u`, at most half.
-fn split_for(
-    machine: &crate::machine::Machine,
-    (a, b): (&Axes, &Axes),
-    len: f64,
-    u: f64,
-    servo_s: f64,
-) -> f64 {
-    let gain = blend_gain(machine, a, b, len, servo_s);
-    // `blend_gain` is A·T/2 with A half the path acceleration: A from it.
+/// The fraction of `len` mm a block must span for its triangle speed `sqrt(A·L)` to be `u`,
+/// at most half; `gain` its blend gain `A·T/2` ([`blend_gain`], `A` half its path
+/// acceleration).
+fn split_for(gain: f64, len: f64, u: f64, servo_s: f64) -> f64 {
     let half_acc = 2.0 * gain / servo_s;
     if !(gain > 0.0 && len > 0.0 && u > 0.0) {
         return 0.5;
