@@ -20,11 +20,10 @@
 use super::format::{self, LaserWords};
 use super::validate::{self, Checked, GRBL_MAX_LINE};
 use super::{Dialect, EmitError, EmitOptions, EmitStats, NcLine};
-use crate::axes::{self, Axes};
-use crate::machine::AxisKind;
+use crate::axes::Axes;
 use crate::motion::{Job, beam, power};
 use crate::program::{Coupling, Op, OpKind, P3};
-use block::{part_way, write_block};
+use block::{motion_line, part_way, write_block};
 pub(super) use lead::at_cruise;
 use std::io;
 
@@ -881,115 +880,4 @@ fn next_move_lit(rest: &[Op], pos: P3) -> bool {
     rest.iter()
         .find(|o| o.moves_from(pos))
         .is_some_and(|o| o.laser().is_some())
-}
-
-/// The block that moves the spot to `to` at axes `q` (planned: see [`part_way`]) as `op`
-/// says (its motion mode, feed and arc centre; `to` is the op's target or a point part way
-/// along it), its words appended to `line` (after the ISO block number or a trigger word a
-/// caller put there), each separated by one space. `cap` is the plan's mean speed over a
-/// lit sub-block (`power::PowerBlock::v_cap`): where it is below the op's feed, the block's
-/// feed is that speed (in G93 its planned time), so the controller runs it no faster than
-/// lase planned (and coupled the power to).
-#[allow(clippy::too_many_arguments)] // the block, where it ends, and the modal state
-fn motion_line(
-    line: &mut String,
-    op: &Op,
-    to: P3,
-    q: Axes,
-    cap: Option<f64>,
-    m: &mut Modal,
-    machine: &crate::machine::Machine,
-    arc_axes: Option<(usize, usize, Option<usize>)>,
-) {
-    let (g, feed) = match &op.kind {
-        OpKind::Rapid { .. } => ("G0", None),
-        OpKind::Line { feed_mm_s, .. } => ("G1", Some(*feed_mm_s)),
-        OpKind::Arc { ccw, feed_mm_s, .. } => (if *ccw { "G3" } else { "G2" }, Some(*feed_mm_s)),
-        _ => unreachable!("motion_line is called for motion ops only"),
-    };
-    let feed = feed.map(|f| match cap {
-        Some(c) if c < f => c.max(MIN_CAP_MM_S),
-        _ => f,
-    });
-    // Words go straight into the line handed to the sink: this runs once per NC block, and a
-    // million-spot raster writes millions of them.
-    let start = line.len();
-    let word = |line: &mut String, letter: &str, value: &str| {
-        if line.len() > start {
-            line.push(' ');
-        }
-        line.push_str(letter);
-        line.push_str(value);
-    };
-    if m.motion != Some(g) {
-        word(line, g, "");
-        m.motion = Some(g);
-    }
-    // An arc always names its plane's axes: a full circle ends where it starts, and G2/G3
-    // without axis words is an error.
-    let arc_plane = match (&op.kind, arc_axes) {
-        (OpKind::Arc { .. }, Some((x, y, _))) => Some((x, y)),
-        _ => None,
-    };
-    let mut v = std::mem::take(&mut m.scratch);
-    for (k, axis) in machine.axes.iter().enumerate() {
-        let forced = arc_plane.is_some_and(|(x, y)| k == x || k == y);
-        if !forced && m.words[k].is_number(q[k]) {
-            continue;
-        }
-        // To 1 nm, but an axis moves only where it moves by the old 0.1 µm resolution: below
-        // that, what changes is the kinematics' rounding noise (a few nm), and a block that
-        // carried it would turn a rotary-only move into an X Y Z one, which controllers time
-        // by its X Y Z length. The axis stays within 0.05 µm of its planned position.
-        if m.fine
-            && !forced
-            && axis.kind == AxisKind::Linear
-            && m.words[k].written
-            && (q[k] - f64::from_bits(m.words[k].value)).abs() < FINE_MIN_MOVE_MM
-        {
-            continue;
-        }
-        v.clear();
-        match axis.kind {
-            AxisKind::Linear if m.fine => v.push_str(&format::fine_number(q[k])),
-            AxisKind::Linear => format::number_into(&mut v, q[k]),
-            AxisKind::Rotary => v.push_str(&format::degrees(axes::to_external(axis.kind, q[k]))),
-        }
-        if forced || !m.words[k].is(&v) {
-            word(line, &axis.name, &v);
-        }
-        m.words[k].set(&v, q[k]);
-    }
-    if let OpKind::Arc { center, .. } = &op.kind {
-        // Center relative to the start, in part x/y (= machine X/Y, validated).
-        word(line, "I", &format::number(center[0] - m.pos[0]));
-        word(line, "J", &format::number(center[1] - m.pos[1]));
-    }
-    match feed {
-        Some(f) if m.inverse_time => {
-            // G93: F is the inverse of the block's time in minutes, written on every block.
-            let seconds = chain::g93_seconds(machine, (m.pos, &m.q), (to, &q), f);
-            word(line, "F", &format::inverse_time(60.0 / seconds));
-            m.feed.unset();
-            m.block_s = Some(seconds);
-        }
-        Some(f) if m.feed.is_number(f) => {}
-        Some(f) => {
-            v.clear();
-            format::number_into(&mut v, f * 60.0);
-            if !m.feed.is(&v) {
-                word(line, "F", &v);
-            }
-            m.feed.set(&v, f);
-        }
-        None => m.feed.unset(),
-    }
-    if !(m.inverse_time && feed.is_some()) {
-        m.block_s = None;
-    }
-    m.scratch = v;
-    m.dir = lead::direction(op, m.pos, to, true);
-    m.turned = lead::turns(machine, &m.q, &q);
-    m.pos = to;
-    m.q = q;
 }
