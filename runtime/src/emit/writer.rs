@@ -33,6 +33,7 @@ mod lead;
 mod pulse;
 mod row;
 mod settle;
+mod timing;
 
 /// Lowest feed a lit sub-block is held to, mm/s: the plan's mean speed over a block is
 /// positive, but one written as `F0` would be an error on every controller.
@@ -63,7 +64,7 @@ struct Out<'s> {
     /// LinuxCNC: the G93 blocks since tp last stopped (`chain`), and the `G64 P` in force.
     chain: chain::Chain,
     tolerance: f64,
-    /// Where the lead-out op (its index) is split, as `block::off_edge_timing` chose: the
+    /// Where the lead-out op (its index) is split, as `timing::off_edge_timing` chose: the
     /// length of its first block, mm.
     split_len: Option<(usize, f64)>,
 }
@@ -574,7 +575,7 @@ pub(super) fn write(
                                 let gain = lead::blend_gain(machine, &m.q, &q_end, len, t);
                                 // From rest, tp's own arithmetic; else the mean gain.
                                 let at = ((m.pos, &m.q), (to, &q_end));
-                                lead::lead_in_speed(job, i, at.0, at.1, v, t)
+                                timing::lead_in_speed(job, i, at.0, at.1, v, t)
                                     .or(Some((v - gain).max(0.5 * v)))
                             }
                             _ => cap,
@@ -584,7 +585,7 @@ pub(super) fn write(
                             (Some(t), Some(_)) if op.laser().is_some() => {
                                 let at = ((m.pos, &m.q), (to, &q_end));
                                 let held = cap.unwrap_or(f64::INFINITY);
-                                block::off_edge_timing(&mut out, job, i, at, held, t)
+                                timing::off_edge_timing(&mut out, job, i, at, held, t)
                                     .map_or((to, q_end, cap), |(p, q, c)| (p, q, Some(c)))
                             }
                             _ => (to, q_end, cap),
@@ -592,7 +593,7 @@ pub(super) fn write(
                         if split {
                             let (from, from_q) = (m.pos, m.q);
                             let sub = lead::retarget(op, to);
-                            // Where `block::off_edge_timing` chose, else the mean gain's.
+                            // Where `timing::off_edge_timing` chose, else the mean gain's.
                             let len = sub.length_from(from);
                             let chosen = out.split_len.take().filter(|&(j, _)| j == i);
                             let f = match (chosen, &op.kind, servo_s) {
@@ -730,7 +731,7 @@ pub(super) fn write(
                             let (to, q, cap) = match (servo_s, shifted) {
                                 (Some(t), Some(_)) if k + 1 == blocks.len() => {
                                     let at = ((m.pos, &m.q), (to, &q));
-                                    block::off_edge_timing(&mut out, job, i, at, cap, t)
+                                    timing::off_edge_timing(&mut out, job, i, at, cap, t)
                                         .unwrap_or((to, q, cap))
                                 }
                                 _ => (to, q, cap),

@@ -9,7 +9,7 @@
 //! clock. [`Chain`] keeps the blocks since the last rapid; any other line but a comment,
 //! `G93` or a synchronized output (`M62`/`M63`/`M67`, which tp queues with the next block
 //! without a stop) forgets them, as does an arc, a block in units per minute or a chain too
-//! long to replay ([`MAX_LINKS`]). `block::off_edge_timing` times a lit block and the
+//! long to replay ([`MAX_LINKS`]). `timing::off_edge_timing` times a lit block and the
 //! lead-out after it with it ([`Chain::replay_off`]).
 
 use crate::axes::Axes;

@@ -244,7 +244,7 @@ pub(super) fn shift(
 /// (`tpDoParabolicBlending`: as the next block becomes the faster), so an on-edge behind a
 /// lead-in at the lit speed was crossed 1-4 % fast (rotary_engrave's rings at 115.8 of 114.6
 /// °/s, the "S" at 47.76 of 45.73). Where the turn falls within the period depends on the
-/// servo clock since the chain left rest: where the lead-in starts at rest [`lead_in_speed`]
+/// servo clock since the chain left rest: where the lead-in starts at rest `timing::lead_in_speed`
 /// follows it; elsewhere its mean, `A·T/2`, is what the lead-in gives up (and what a lead-out
 /// [`split_at`] gives up). `A` is half the path acceleration canon gives a
 /// straight block (`getStraightAcceleration`: each axis within its own), the same for the
@@ -270,67 +270,6 @@ pub(super) fn blend_gain(
     }
 }
 
-/// The speed, mm/s, at which lead-in op `i` (from spot `from` at axes `from_q` to its moved
-/// junction `to` at `q_to`, [`shift`]) makes tp's summed speed cross the on-edge at the lit
-/// op's `v`, where the lead-in starts at rest (after a rapid: tp stops where a rapid meets a
-/// feed, and starts the next segment on a servo period); `None` elsewhere, where the writer
-/// falls back on the blend's mean gain ([`blend_gain`]).
-///
-/// From rest, the servo clock the lead-in runs on is known, and with it where in its period
-/// the lead-in's deceleration turns and how far its first blend period lifts the sum: tp.c's
-/// arithmetic replays the lead-in and the lit block (`motion::parabolic::chain::run_chain`)
-/// for lead-in speeds over the gain's range, 0 to 3·A·T/2 below `v`, and the one whose summed
-/// speed at the lit block's switch is nearest `v` is kept.
-pub(super) fn lead_in_speed(
-    job: &Job,
-    i: usize,
-    (from, from_q): (P3, &Axes),
-    (to, q_to): (P3, &Axes),
-    v: f64,
-    servo_s: f64,
-) -> Option<f64> {
-    use crate::motion::parabolic::chain;
-    let ops = &job.program.ops;
-    let machine = &job.program.machine;
-    let at_rest = ops[..i]
-        .iter()
-        .rev()
-        .find(|o| o.target().is_some())
-        .is_none_or(|o| matches!(o.kind, OpKind::Rapid { .. }));
-    let j = (i + 1..ops.len()).find(|&j| ops[j].target().is_some())?;
-    let (OpKind::Line { to: end, .. }, Some(_)) = (&ops[j].kind, ops[j].laser()) else {
-        return None;
-    };
-    let end = *end;
-    let q_end = job.op_axes.get(j);
-    let (lead_len, lit_len) = (
-        crate::program::dist(from, to),
-        crate::program::dist(to, end),
-    );
-    let gain = blend_gain(machine, from_q, q_to, lead_len, servo_s);
-    let link =
-        |a: &Axes, b: &Axes, time_s: f64| super::chain::Link::of(machine, (a, b), time_s, 0.0);
-    let lit = link(q_to, &q_end, lit_len / v)?;
-    // Both lengths in one unit (X Y Z's, or the rotary axes' where X Y Z stay), so the two
-    // blocks' speeds add.
-    let alike = link(from_q, q_to, lead_len / v).is_some_and(|l| l.xyz() == lit.xyz());
-    if !(at_rest && alike && lead_len > 0.0 && lit_len > 0.0 && gain > 0.0 && v > 3.0 * gain) {
-        return None;
-    }
-    const STEPS: usize = 60;
-    let mut best: Option<(f64, f64)> = None;
-    for k in 0..=STEPS {
-        let speed = v - 3.0 * gain * k as f64 / STEPS as f64;
-        let lead = link(from_q, q_to, lead_len / speed)?;
-        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
-        let err = (run.switch_speed[1] / lit.seg().v - 1.0).abs();
-        if best.is_none_or(|(e, _)| err < e) {
-            best = Some((err, speed));
-        }
-    }
-    best.map(|(_, speed)| speed)
-}
-
 /// Where a lead-out [`split`] in two ends its first block: the fraction of its `len` mm
 /// (axes `a` to `b`, at `v` mm/s the lit block's speed, servo period `servo_s`) as long as a
 /// block whose triangle speed is `v` less the blend's mean gain ([`blend_gain`]), at most half.
@@ -354,7 +293,7 @@ pub(super) fn split_at(
 
 /// The fractions of a lead-out's `len` mm (axes `a` to `b`) at which its first block's
 /// triangle speed is `v` less 0 to 3 blend gains ([`blend_gain`]), in `steps` steps: where
-/// the chain before it is known from rest, `writer::block::off_edge_timing` picks among them
+/// the chain before it is known from rest, `timing::off_edge_timing` picks among them
 /// by tp.c's arithmetic.
 pub(super) fn split_candidates(
     machine: &crate::machine::Machine,

@@ -1,0 +1,254 @@
+//! Beam edges on LinuxCNC timed by tp.c's own arithmetic, where the servo clock is known:
+//! the chain of G93 blocks since tp last stopped (`chain`) replayed servo period by servo
+//! period (`motion::parabolic::chain`) with each candidate lead-in or lit block and lead-out,
+//! and the one kept whose summed speed at the switch is nearest the plan's, with the beam
+//! within half a servo period of travel of its planned place.
+//!
+//! The joints follow tp's point two servo periods late (control.c's cubic interpolator,
+//! `lead::LEAD_PERIODS`), so a beam switches where the joints are then: `d + past − 2·v·T`
+//! past its planned edge, `d` how far the junction moved, `past` how far past it tp's point
+//! is at the switch (`ChainRun::switch_past`).
+
+use super::block::part_way;
+use super::{Out, lead};
+use crate::axes::Axes;
+use crate::motion::Job;
+use crate::program::{OpKind, P3};
+
+/// The speed, mm/s, at which lead-in op `i` (from spot `from` at axes `from_q` to its moved
+/// junction `to` at `q_to`, [`shift`]) makes tp's summed speed cross the on-edge at the lit
+/// op's `v`, where the lead-in starts at rest (after a rapid: tp stops where a rapid meets a
+/// feed, and starts the next segment on a servo period); `None` elsewhere, where the writer
+/// falls back on the blend's mean gain ([`blend_gain`]).
+///
+/// From rest, the servo clock the lead-in runs on is known, and with it where in its period
+/// the lead-in's deceleration turns and how far its first blend period lifts the sum: tp.c's
+/// arithmetic replays the lead-in and the lit block (`motion::parabolic::chain::run_chain`)
+/// for lead-in speeds over the gain's range, 0 to 3·A·T/2 below `v`, and the one whose summed
+/// speed at the lit block's switch is nearest `v` is kept.
+pub(super) fn lead_in_speed(
+    job: &Job,
+    i: usize,
+    (from, from_q): (P3, &Axes),
+    (to, q_to): (P3, &Axes),
+    v: f64,
+    servo_s: f64,
+) -> Option<f64> {
+    use crate::motion::parabolic::chain;
+    let ops = &job.program.ops;
+    let machine = &job.program.machine;
+    let at_rest = ops[..i]
+        .iter()
+        .rev()
+        .find(|o| o.target().is_some())
+        .is_none_or(|o| matches!(o.kind, OpKind::Rapid { .. }));
+    let j = (i + 1..ops.len()).find(|&j| ops[j].target().is_some())?;
+    let (OpKind::Line { to: end, .. }, Some(_)) = (&ops[j].kind, ops[j].laser()) else {
+        return None;
+    };
+    let end = *end;
+    let q_end = job.op_axes.get(j);
+    let (lead_len, lit_len) = (
+        crate::program::dist(from, to),
+        crate::program::dist(to, end),
+    );
+    let gain = lead::blend_gain(machine, from_q, q_to, lead_len, servo_s);
+    let link =
+        |a: &Axes, b: &Axes, time_s: f64| super::chain::Link::of(machine, (a, b), time_s, 0.0);
+    let lit = link(q_to, &q_end, lit_len / v)?;
+    // Both lengths in one unit (X Y Z's, or the rotary axes' where X Y Z stay), so the two
+    // blocks' speeds add.
+    let alike = link(from_q, q_to, lead_len / v).is_some_and(|l| l.xyz() == lit.xyz());
+    if !(at_rest && alike && lead_len > 0.0 && lit_len > 0.0 && gain > 0.0 && v > 3.0 * gain) {
+        return None;
+    }
+    const STEPS: usize = 60;
+    let mut best: Option<(f64, f64)> = None;
+    for k in 0..=STEPS {
+        let speed = v - 3.0 * gain * k as f64 / STEPS as f64;
+        let lead = link(from_q, q_to, lead_len / speed)?;
+        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
+        let err = (run.switch_speed[1] / lit.seg().v - 1.0).abs();
+        if best.is_none_or(|(e, _)| err < e) {
+            best = Some((err, speed));
+        }
+    }
+    best.map(|(_, speed)| speed)
+}
+
+/// Where lit Line op `i`'s last block ends and the feed it is written at, mm/s, where a
+/// lead-out written in two before a stop follows it (`lead::split`) on a LinuxCNC program in
+/// inverse time and the chain of blocks before it is known from rest: the block runs from
+/// spot `from` at axes `from_q` to its moved junction `to` at `q` (`lead::shift`), held to
+/// `cap`. The junction moves by up to half a servo period of travel either way, the block's
+/// time grows by up to a period and at most [`TRIM_REL`] of it, and the lead-out's first block's length
+/// (kept in `out.split_len`) is chosen, so that tp.c's replay (`chain::Chain::replay_off`)
+/// crosses the off-edge nearest the lit speed with the beam within half a period of travel
+/// of its planned place ([`MAX_PLACE_PERIODS`]). `None` (written as it was, the lead-out split by the mean
+/// gain, `lead::split_at`) where the replay does not model the chain or finds nothing better
+/// than that.
+///
+/// The place: the joints follow tp's point two servo periods late (control.c's cubic
+/// interpolator, `lead::LEAD_PERIODS`), so the beam goes off where the joints are then:
+/// `d + past − 2·v·T` past the planned edge, `d` how far the junction moved, `past` how far
+/// past it tp's point is at the switch. On the real LinuxCNC the ring's off-edge with the
+/// mean split (past 0.37 periods in the replay) measured −0.12 periods; this gives −0.13.
+#[allow(clippy::too_many_arguments)] // the op, its block, and the lead-out's
+pub(super) fn off_edge_timing(
+    out: &mut Out<'_>,
+    job: &crate::motion::Job,
+    i: usize,
+    ((from, from_q), (to, q)): ((P3, &Axes), (P3, &Axes)),
+    cap: f64,
+    servo_s: f64,
+) -> Option<(P3, Axes, f64)> {
+    use super::chain::{Link, g93_seconds};
+    let machine = &job.program.machine;
+    let ops = &job.program.ops;
+    let OpKind::Line { feed_mm_s, .. } = ops[i].kind else {
+        return None;
+    };
+    let feed = feed_mm_s.min(cap).max(super::MIN_CAP_MM_S);
+    let end = ops[i].target()?;
+    let j = i + 1 + ops[i + 1..].iter().position(|o| o.moves_from(end))?;
+    let (
+        OpKind::Line {
+            to: out_end,
+            feed_mm_s: out_feed,
+            ..
+        },
+        None,
+    ) = (&ops[j].kind, ops[j].laser())
+    else {
+        return None;
+    };
+    let (out_end, out_feed) = (*out_end, *out_feed);
+    let (q_end, q_out) = (job.op_axes.get(i), job.op_axes.get(j));
+    let out_len = crate::program::dist(end, out_end);
+    let w = lead::direction(&ops[j], end, out_end, false)?;
+    let d0 = crate::program::dist(end, to);
+    let turned = lead::turns(machine, from_q, q);
+    let long = out_len > 0.0 && crate::program::dist(from, to) > 1e-9;
+    if !(long && lead::split(job, j, (to, q), turned)) {
+        return None;
+    }
+    // The junction `d` mm along the lead-out, as `lead::shift` moves it.
+    let at = |d: f64| -> (P3, Axes) {
+        let p = std::array::from_fn(|k| end[k] + w[k] * d);
+        (p, q_end.lerp(&q_out, d / out_len))
+    };
+    let tol = out.tolerance;
+    let lit_link = |(p, qp): (P3, &Axes), trim: f64| {
+        let t = crate::program::dist(from, p) / feed + trim;
+        Link::of(machine, (from_q, qp), t, tol)
+    };
+    let link = |(a, qa): (P3, &Axes), (b, qb): (P3, &Axes)| {
+        let t = g93_seconds(machine, (a, qa), (b, qb), out_feed);
+        Link::of(machine, (qa, qb), t, tol)
+    };
+    let parts = |(p, qp): (P3, &Axes), len1: f64| {
+        let rest = crate::program::dist(p, out_end);
+        let (mid, mid_q) = part_way(&ops[j], (p, qp), &q_out, len1 / rest, None);
+        Some((
+            link((p, qp), (mid, &mid_q))?,
+            link((mid, &mid_q), (out_end, &q_out))?,
+        ))
+    };
+    let base = lit_link((to, q), 0.0)?;
+    if !out.chain.replayable(machine, &base) {
+        return None;
+    }
+    let time = crate::program::dist(from, to) / feed;
+    let period = servo_s;
+    let step = feed * period;
+    let max_trim = period.min(TRIM_REL * time);
+    let rest0 = crate::program::dist(to, out_end);
+    let lens: Vec<f64> = lead::split_candidates(machine, (q, &q_out), rest0, out_feed, period, 5)
+        .into_iter()
+        .map(|f| f * rest0)
+        .collect();
+    let mean_len = lead::split_at(machine, (q, &q_out), rest0, out_feed, period) * rest0;
+    // The chain once, then each candidate's lit block and lead-out.
+    let tail = (time + out_len / out_feed) / period;
+    let scans = (1 + D_STEPS) * (1 + TRIM_STEPS) * lens.len();
+    let budget = out.chain.seconds() / period + tail * scans as f64;
+    if budget > MAX_SCAN_PERIODS {
+        return None;
+    }
+    let prefix = out.chain.prefix(period)?;
+    // Each (speed error, place in periods, trim, first block's length) for the junction at
+    // `d`: where it is, the lit speed and mm per tp unit depend on `d` only, the lead-out's
+    // two blocks on `d` and the length, the lit block on `d` and the trim.
+    let scan = |d: f64, trims: &[f64], lens: &[f64]| -> Vec<(f64, f64, f64, f64)> {
+        let (p, qp) = at(d);
+        let Some(untrimmed) = lit_link((p, &qp), 0.0) else {
+            return Vec::new();
+        };
+        let want = untrimmed.seg().v;
+        // tp's units to mm along the path: the lit block's own ratio.
+        let mm = crate::program::dist(from, p) / untrimmed.seg().len;
+        let endings: Vec<(f64, (Link, Link))> = lens
+            .iter()
+            .filter_map(|&len1| Some((len1, parts((p, &qp), len1)?)))
+            .collect();
+        let mut found = Vec::new();
+        for &trim in trims {
+            let Some(lit) = lit_link((p, &qp), trim) else {
+                continue;
+            };
+            for (len1, (a, b)) in &endings {
+                if let Some((v, past)) = out.chain.replay_off(&prefix, (&lit, a, b)) {
+                    let place = (d + past * mm - 2.0 * step) / step;
+                    found.push(((v / want - 1.0).abs(), place, trim, *len1));
+                }
+            }
+        }
+        found
+    };
+    let &(base_err, base_place, ..) = scan(d0, &[0.0], &[mean_len]).first()?;
+    // Only longer: a cap above the feed is not written (`motion_line`).
+    let trims: Vec<f64> = (0..=TRIM_STEPS)
+        .map(|kt| max_trim * kt as f64 / TRIM_STEPS as f64)
+        .collect();
+    let mut best: Option<(f64, f64, f64, f64, f64)> = None;
+    for kd in 0..=D_STEPS {
+        let d = d0 + step * (kd as f64 / D_STEPS as f64 - 0.5);
+        if !(d > 0.0 && d < 0.5 * out_len) {
+            continue;
+        }
+        for (err, place, trim, len1) in scan(d, &trims, &lens) {
+            if place.abs() > MAX_PLACE_PERIODS.max(base_place.abs()) {
+                continue;
+            }
+            if best.is_none_or(|(e, ..)| err < e - 1e-12) {
+                best = Some((err, place, d, trim, len1));
+            }
+        }
+    }
+    let (err, _, d, trim, len1) = best?;
+    if err >= base_err {
+        return None;
+    }
+    let (p, qp) = at(d);
+    out.split_len = Some((j, len1));
+    let len = crate::program::dist(from, p);
+    Some((p, qp, len / (len / feed + trim)))
+}
+
+/// The most a lit block's speed is changed to time its off-edge (`off_edge_timing`): a
+/// twentieth of the plan's 0.1 % on the lit surface speed.
+const TRIM_REL: f64 = 5e-4;
+
+/// Steps over the period of travel the junction is moved by, and over the lit block's time
+/// (`off_edge_timing`).
+const D_STEPS: usize = 8;
+const TRIM_STEPS: usize = 8;
+
+/// The most servo periods of travel the beam goes off from its planned place where the
+/// off-edge is timed (`off_edge_timing`), unless it went off farther before: half a period,
+/// the spread tp's switching once a period leaves any edge (`lead::LEAD_PERIODS`).
+const MAX_PLACE_PERIODS: f64 = 0.5;
+
+/// The most servo periods an off-edge's scan replays, all replays summed: some 10⁷ steps of
+/// tp's arithmetic, a tenth of a second.
+const MAX_SCAN_PERIODS: f64 = 1.0e7;
