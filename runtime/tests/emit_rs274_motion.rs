@@ -327,7 +327,8 @@ fn every_planned_feed_move_is_a_feed_at_its_feed_and_every_rapid_a_traverse_in_e
             // lead-in's block ends past the edge (`lead::shift`), each by the switch's lead of
             // 1.5 servo periods at the lit move's feed: a lead-out is fed that much less (1 to
             // 2 periods where the off-edge is timed by tp.c's replay), a lead-in that much
-            // more, and anything else is a lead the program lost.
+            // more (0 to 4 periods either where the blend is short), and anything else is a
+            // lead the program lost.
             let servo_s = job.program.machine.servo_period_s();
             let ops = &job.program.ops;
             for lead in &job.leads {
@@ -347,13 +348,19 @@ fn every_planned_feed_move_is_a_feed_at_its_feed_and_every_rapid_a_traverse_in_e
                     _ => None,
                 });
                 // A lead-out's junction with the lit move before a stop is timed by tp.c's
-                // replay (`emit::writer::block::off_edge_timing`): half a period either way.
+                // replay (`emit::writer::timing::off_edge_timing`): half a period either way.
+                // Where the blend is too short for the 1.5 periods (the arm's), the replay
+                // moves a junction 0 to 4 periods on (`timing::timed_lead_in`, and the
+                // off-edge's short case).
                 if let (Dialect::LinuxCnc, Some(feed)) = (dialect, lit_feed) {
                     let step = servo_s * feed;
                     let moved = lead.length_mm - got;
+                    let short = |m: f64| m >= -1e-3 && m <= 4.0 * step + 1e-3;
                     let fits = match lead.kind {
-                        LeadKind::Out => moved >= step - 1e-3 && moved <= 2.0 * step + 1e-3,
-                        LeadKind::In => (moved + 1.5 * step).abs() <= 1e-3,
+                        LeadKind::Out => {
+                            (moved >= step - 1e-3 && moved <= 2.0 * step + 1e-3) || short(moved)
+                        }
+                        LeadKind::In => (moved + 1.5 * step).abs() <= 1e-3 || short(-moved),
                     };
                     if fits {
                         got += moved;

@@ -472,9 +472,25 @@ pub(super) fn write(
                 // A flying switch at this op's end on a parabolic junction: where the block
                 // ends instead (`lead::shift`).
                 let shifted = if shifts && n_pieces == 1 {
-                    lead::shift(job, i, (m.pos, &m.q), edge_lead_at)
+                    lead::shift(job, i, (m.pos, &m.q), edge_lead_at, false)
                 } else {
                     None
+                };
+                // Or, where the blend is too short for that rule, by tp.c's replay.
+                let timed = match (shifted, servo_s) {
+                    (None, Some(t)) if shifts && n_pieces == 1 => {
+                        timing::timed_lead_in(job, i, (m.pos, &m.q), t)
+                    }
+                    _ => None,
+                };
+                let shifted = shifted.or(timed.map(|(p, q, _)| (p, q)));
+                // A lit op's junction with its lead-out, where the blend is too short for
+                // that rule: its last block is timed about it (`timing::off_edge_timing`).
+                let short_off = match (shifted, servo_s) {
+                    (None, Some(_)) if shifts && n_pieces == 1 && op.laser().is_some() => {
+                        lead::shift(job, i, (m.pos, &m.q), edge_lead_at, true)
+                    }
+                    _ => None,
                 };
                 // A lead-out after a lit move, before a stop: in two blocks (`lead::split`).
                 let split = shifts
@@ -567,6 +583,7 @@ pub(super) fn write(
                         // slower by the blend's mean gain, so tp's summed speeds cross the
                         // on-edge at the plan's (`lead::blend_gain`).
                         let cap = match (&op.kind, shifted, servo_s) {
+                            _ if timed.is_some() => timed.map(|(.., speed)| speed),
                             (OpKind::Line { feed_mm_s, .. }, Some(_), Some(t))
                                 if op.laser().is_none() =>
                             {
@@ -581,11 +598,15 @@ pub(super) fn write(
                             _ => cap,
                         };
                         // A lit block before a split lead-out: timed by tp.c's arithmetic.
-                        let (to, q_end, cap) = match (servo_s, shifted) {
-                            (Some(t), Some(_)) if op.laser().is_some() => {
-                                let at = ((m.pos, &m.q), (to, &q_end));
+                        let (to, q_end, cap) = match (servo_s, shifted, short_off) {
+                            (Some(t), Some(_), _) | (Some(t), None, Some(_))
+                                if op.laser().is_some() =>
+                            {
+                                let (p, qp) = shifted.or(short_off).unwrap_or((to, q_end));
+                                let at = ((m.pos, &m.q), (p, &qp));
                                 let held = cap.unwrap_or(f64::INFINITY);
-                                timing::off_edge_timing(&mut out, job, i, at, held, t)
+                                let short = shifted.is_none();
+                                timing::off_edge_timing(&mut out, job, i, at, held, t, short)
                                     .map_or((to, q_end, cap), |(p, q, c)| (p, q, Some(c)))
                             }
                             _ => (to, q_end, cap),
@@ -728,10 +749,14 @@ pub(super) fn write(
                                 Some(v) if k + 1 == blocks.len() => b.v_cap.max(v),
                                 _ => b.v_cap,
                             };
-                            let (to, q, cap) = match (servo_s, shifted) {
-                                (Some(t), Some(_)) if k + 1 == blocks.len() => {
-                                    let at = ((m.pos, &m.q), (to, &q));
-                                    timing::off_edge_timing(&mut out, job, i, at, cap, t)
+                            let (to, q, cap) = match (servo_s, shifted, short_off) {
+                                (Some(t), Some(_), _) | (Some(t), None, Some(_))
+                                    if k + 1 == blocks.len() =>
+                                {
+                                    let (p, qp) = shifted.or(short_off).unwrap_or((to, q));
+                                    let at = ((m.pos, &m.q), (p, &qp));
+                                    let short = shifted.is_none();
+                                    timing::off_edge_timing(&mut out, job, i, at, cap, t, short)
                                         .unwrap_or((to, q, cap))
                                 }
                                 _ => (to, q, cap),

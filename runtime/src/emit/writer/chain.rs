@@ -76,6 +76,16 @@ impl Link {
 
 /// The G93 blocks since tp last stopped (`None`: not known to start at rest, or not a chain
 /// of parabolic blends the replay models).
+/// Where and how fast tp.c switches a block's synchronized outputs, in tp's length unit
+/// (`Block::len`): `motion::parabolic::chain::ChainRun`'s `switch_speed`, `switch_past` and
+/// `switch_joint_speed` for that block.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Switch {
+    pub speed: f64,
+    pub past: f64,
+    pub joint_speed: f64,
+}
+
 #[derive(Debug, Default)]
 pub(super) struct Chain(Option<Vec<Link>>);
 
@@ -146,11 +156,10 @@ impl Chain {
             && periods <= MAX_REPLAY_PERIODS
     }
 
-    /// tp.c's speed and point as it switches the synchronized outputs written before block
-    /// `a`, in the chain followed by `lit`, `a` and `b` (`b` ending in a stop): the summed
-    /// speed, and how far past the junction of `lit` and `a` tp's point is (both in tp's
-    /// length unit, `Block::len`); `None` where `lit` and `a` measure unalike or a junction
-    /// is not a parabolic blend.
+    /// tp.c's speeds and point as it switches the synchronized outputs written before the
+    /// lead-out `out` (its one or two blocks, the last ending in a stop), in the chain
+    /// followed by `lit` and `out` ([`Switch`]); `None` where `lit` and the lead-out measure
+    /// unalike or a junction is not a parabolic blend.
     ///
     /// Through the blend of a lit block into its lead-out the summed speed is the lit speed
     /// less `A·(T − φ)`, `φ` where in its servo period the lit block's final deceleration
@@ -162,15 +171,23 @@ impl Chain {
     pub(super) fn replay_off(
         &self,
         prefix: &tp::Replay,
-        (lit, a, b): (&Link, &Link, &Link),
-    ) -> Option<(f64, f64)> {
+        (lit, out): (&Link, &[Link]),
+    ) -> Option<Switch> {
         let links = self.0.as_ref()?;
-        if a.xyz != lit.xyz || !(lit.turns || a.turns) || !(a.turns || b.turns) {
+        let a = out.first()?;
+        let blends = out.windows(2).all(|w| w[0].turns || w[1].turns);
+        if a.xyz != lit.xyz || !(lit.turns || a.turns) || !blends {
             return None;
         }
-        let run = prefix.then(&[lit.seg.clone(), a.seg.clone(), b.seg.clone()]);
+        let mut tail = vec![lit.seg.clone()];
+        tail.extend(out.iter().map(|l| l.seg.clone()));
+        let run = prefix.then(&tail);
         let n = links.len() + 1;
-        Some((run.switch_speed[n], run.switch_past[n]))
+        Some(Switch {
+            speed: run.switch_speed[n],
+            past: run.switch_past[n],
+            joint_speed: run.switch_joint_speed[n],
+        })
     }
 }
 

@@ -171,11 +171,16 @@ pub(super) fn triangle_s(machine: &crate::machine::Machine, a: &Axes, b: &Axes, 
 /// `LEAD_PERIODS` of travel, `carry((op, end))` of the lit op whose edge it is) along the
 /// next op, which it must continue in a straight line, and the next op starts there. Both
 /// keep their speeds: in G93 each block's F is its own length over its feed.
+///
+/// Where the blend is too short to carry the edge speed through it (an arm's, [`carries`]),
+/// `short` asks for that place instead: `timing::off_edge_timing` times such an off-edge
+/// about it, by tp.c's replay.
 pub(super) fn shift(
     job: &Job,
     i: usize,
     (from, from_q): (P3, &Axes),
     carry: impl Fn((usize, usize)) -> f64,
+    short: bool,
 ) -> Option<(P3, Axes)> {
     let ops = &job.program.ops;
     let op = &ops[i];
@@ -225,7 +230,7 @@ pub(super) fn shift(
     let v = if lit { feed(op) } else { feed(next) };
     let carried = carries(machine, (from_q, &qa), crate::program::dist(from, to), v)
         && carries(machine, (&qa, &qb), len, v);
-    (d > 0.0 && straight && parabolic && carried && d < 0.5 * len).then(|| {
+    (d > 0.0 && straight && parabolic && carried != short && d < 0.5 * len).then(|| {
         let p = std::array::from_fn(|k| to[k] + w[k] * d);
         (p, qa.lerp(&qb, d / len))
     })
@@ -343,7 +348,7 @@ const MIN_BLEND_PERIODS: f64 = 5.0;
 
 /// Whether the joint-space lines `a → b` and `b → c` run on in the same direction (to 1e-9 of
 /// the cosine, axes in their own units).
-fn in_line(a: &Axes, b: &Axes, c: &Axes) -> bool {
+pub(super) fn in_line(a: &Axes, b: &Axes, c: &Axes) -> bool {
     let (mut uu, mut ww, mut uw) = (0.0, 0.0, 0.0);
     for k in 0..crate::axes::MAX_AXES {
         let (u, w) = (b[k] - a[k], c[k] - b[k]);
@@ -367,29 +372,36 @@ fn in_line(a: &Axes, b: &Axes, c: &Axes) -> bool {
 /// out long enough for both.
 pub(super) fn split(job: &Job, i: usize, (from, from_q): (P3, &Axes), turned: bool) -> bool {
     let ops = &job.program.ops;
-    let OpKind::Line { to, .. } = ops[i].kind else {
+    let OpKind::Line { to, feed_mm_s, .. } = ops[i].kind else {
         return false;
     };
-    let machine = &job.program.machine;
     let q = job.op_axes.get(i);
-    let parabolic = turned || turns(machine, from_q, &q);
     // Each of the two blocks must carry the lit speed (`motion::leadin` makes the leads so
     // long where they meet the lit path in line; an arm's short lead-out is left whole).
-    let OpKind::Line { feed_mm_s, .. } = ops[i].kind else {
-        return false;
-    };
     let mid = from_q.lerp(&q, 0.5);
     let long = carries(
-        machine,
+        &job.program.machine,
         (from_q, &mid),
         0.5 * crate::program::dist(from, to),
         feed_mm_s,
     );
+    long && stops_after(job, i, (from, from_q), turned)
+}
+
+/// Whether unlit Line op `i` (from `from` at axes `from_q`) meets the lit move before it in
+/// a parabolic blend (`turned`: the lit block turned a rotary axis, or this one does) and
+/// tp stops at its end (a rapid next, or nothing: tp.c's `tcSetTermCond` … STOP).
+pub(super) fn stops_after(job: &Job, i: usize, (_, from_q): (P3, &Axes), turned: bool) -> bool {
+    let ops = &job.program.ops;
+    let OpKind::Line { to, .. } = ops[i].kind else {
+        return false;
+    };
+    let parabolic = turned || turns(&job.program.machine, from_q, &job.op_axes.get(i));
     let stop_next = ops[i + 1..]
         .iter()
         .find(|o| o.moves_from(to) || !matches!(o.kind, OpKind::Line { .. }))
         .is_none_or(|o| !matches!(o.kind, OpKind::Line { .. } | OpKind::Arc { .. }));
-    parabolic && long && stop_next
+    parabolic && stop_next
 }
 
 /// The end a motion op's block runs to.

@@ -16,10 +16,10 @@ use crate::motion::Job;
 use crate::program::{OpKind, P3};
 
 /// The speed, mm/s, at which lead-in op `i` (from spot `from` at axes `from_q` to its moved
-/// junction `to` at `q_to`, [`shift`]) makes tp's summed speed cross the on-edge at the lit
+/// junction `to` at `q_to`, `lead::shift`) makes tp's summed speed cross the on-edge at the lit
 /// op's `v`, where the lead-in starts at rest (after a rapid: tp stops where a rapid meets a
 /// feed, and starts the next segment on a servo period); `None` elsewhere, where the writer
-/// falls back on the blend's mean gain ([`blend_gain`]).
+/// falls back on the blend's mean gain (`lead::blend_gain`).
 ///
 /// From rest, the servo clock the lead-in runs on is known, and with it where in its period
 /// the lead-in's deceleration turns and how far its first blend period lifts the sum: tp.c's
@@ -37,16 +37,10 @@ pub(super) fn lead_in_speed(
     use crate::motion::parabolic::chain;
     let ops = &job.program.ops;
     let machine = &job.program.machine;
-    let at_rest = ops[..i]
-        .iter()
-        .rev()
-        .find(|o| o.target().is_some())
-        .is_none_or(|o| matches!(o.kind, OpKind::Rapid { .. }));
-    let j = (i + 1..ops.len()).find(|&j| ops[j].target().is_some())?;
-    let (OpKind::Line { to: end, .. }, Some(_)) = (&ops[j].kind, ops[j].laser()) else {
+    let j = lit_after_rest(ops, i)?;
+    let OpKind::Line { to: end, .. } = ops[j].kind else {
         return None;
     };
-    let end = *end;
     let q_end = job.op_axes.get(j);
     let (lead_len, lit_len) = (
         crate::program::dist(from, to),
@@ -59,7 +53,7 @@ pub(super) fn lead_in_speed(
     // Both lengths in one unit (X Y Z's, or the rotary axes' where X Y Z stay), so the two
     // blocks' speeds add.
     let alike = link(from_q, q_to, lead_len / v).is_some_and(|l| l.xyz() == lit.xyz());
-    if !(at_rest && alike && lead_len > 0.0 && lit_len > 0.0 && gain > 0.0 && v > 3.0 * gain) {
+    if !(alike && lead_len > 0.0 && lit_len > 0.0 && gain > 0.0 && v > 3.0 * gain) {
         return None;
     }
     const STEPS: usize = 60;
@@ -74,6 +68,133 @@ pub(super) fn lead_in_speed(
         }
     }
     best.map(|(_, speed)| speed)
+}
+
+/// Where lead-in op `i` (unlit, from spot `from` at axes `from_q`) ends and the speed it is
+/// written at, mm/s, where the lit op after it starts a chain from rest (after a rapid) on a
+/// junction tp.c blends parabolically in line in the axes, but the blend is too short for
+/// `lead::shift`'s rule (its mean gain and a switch in its middle need 5 servo periods:
+/// an arm's joints reach 3.5 mm/s of spot speed in 2, `lead::carries`). `None` elsewhere, and
+/// where nothing beats the block as it is.
+///
+/// From rest the servo clock is known, so tp.c's arithmetic replays the lead-in and the lit
+/// block (`motion::parabolic::chain::run_chain`) with the junction moved 0 to
+/// [`MAX_ON_SHIFT_PERIODS`] periods of travel into the lit block and the lead-in 0 to 3
+/// blend gains slower, and keeps the one whose summed speed at the switch is nearest the
+/// lit block's with the beam within [`MAX_PLACE_PERIODS`] of its planned place. Unmoved,
+/// the arm's beam came on 1.4-2.2 periods early on the real LinuxCNC, at up to 16 % over its
+/// joint speed.
+pub(super) fn timed_lead_in(
+    job: &Job,
+    i: usize,
+    (from, from_q): (P3, &Axes),
+    servo_s: f64,
+) -> Option<(P3, Axes, f64)> {
+    use crate::motion::parabolic::chain;
+    let ops = &job.program.ops;
+    let machine = &job.program.machine;
+    let (OpKind::Line { to, .. }, None) = (&ops[i].kind, ops[i].laser()) else {
+        return None;
+    };
+    let to = *to;
+    let j = lit_after_rest(ops, i)?;
+    let OpKind::Line {
+        to: end,
+        feed_mm_s: v,
+        ..
+    } = ops[j].kind
+    else {
+        return None;
+    };
+    let (q_to, q_end) = (job.op_axes.get(i), job.op_axes.get(j));
+    let (lead_len, lit_len) = (
+        crate::program::dist(from, to),
+        crate::program::dist(to, end),
+    );
+    let w = lead::direction(&ops[j], to, end, false)?;
+    let parabolic = lead::turns(machine, from_q, &q_to) || lead::turns(machine, &q_to, &q_end);
+    let gain = lead::blend_gain(machine, from_q, &q_to, lead_len, servo_s);
+    if !(parabolic
+        && ops[j].moves_from(to)
+        && lead::in_line(from_q, &q_to, &q_end)
+        && lead_len > 0.0
+        && lit_len > 0.0
+        && gain > 0.0
+        && v > 0.0)
+    {
+        return None;
+    }
+    let link =
+        |a: &Axes, b: &Axes, time_s: f64| super::chain::Link::of(machine, (a, b), time_s, 0.0);
+    let step = v * servo_s;
+    let periods = (lead_len / v + lit_len / v) / servo_s;
+    let runs = (1 + ON_D_STEPS) * (1 + ON_SPEED_STEPS);
+    if periods * runs as f64 > MAX_SCAN_PERIODS {
+        return None;
+    }
+    // (speed error, place in periods, d, lead-in speed) for the junction `d` mm into the lit
+    // block and the lead-in at `speed`.
+    let try_one = |d: f64, speed: f64| -> Option<(f64, f64, f64, f64)> {
+        let qd = q_to.lerp(&q_end, d / lit_len);
+        let lit = link(&qd, &q_end, (lit_len - d) / v)?;
+        let lead = link(from_q, &qd, (lead_len + d) / speed)?;
+        if lead.xyz() != lit.xyz() {
+            return None;
+        }
+        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
+        let mm = (lit_len - d) / lit.seg().len;
+        let place = (d + run.switch_past[1] * mm - 2.0 * step) / step;
+        let v_at = run.switch_joint_speed[1];
+        Some(((v_at / lit.seg().v - 1.0).abs(), place, d, speed))
+    };
+    let (base_err, base_place, ..) = try_one(0.0, v)?;
+    let mut best: Option<(f64, f64, f64, f64)> = None;
+    for kd in 0..=ON_D_STEPS {
+        let d = step * MAX_ON_SHIFT_PERIODS * kd as f64 / ON_D_STEPS as f64;
+        if d >= 0.5 * lit_len {
+            break;
+        }
+        for ks in 0..=ON_SPEED_STEPS {
+            let speed = v - 3.0 * gain * ks as f64 / ON_SPEED_STEPS as f64;
+            if speed < 0.25 * v {
+                break;
+            }
+            let Some(c) = try_one(d, speed) else {
+                continue;
+            };
+            if c.1.abs() <= MAX_PLACE_PERIODS && best.is_none_or(|b| c.0 < b.0 - 1e-12) {
+                best = Some(c);
+            }
+        }
+    }
+    let (err, _, d, speed) = best?;
+    if base_place.abs() <= MAX_PLACE_PERIODS && err >= base_err {
+        return None;
+    }
+    let p = std::array::from_fn(|k| to[k] + w[k] * d);
+    Some((p, q_to.lerp(&q_end, d / lit_len), speed))
+}
+
+/// The farthest a lead-in's junction is moved into the lit block (`timed_lead_in`), in servo
+/// periods of travel: past the joints' two periods of lag and a period of tp's switching.
+const MAX_ON_SHIFT_PERIODS: f64 = 4.0;
+
+/// Steps over the junction's move and the lead-in's speed (`timed_lead_in`).
+const ON_D_STEPS: usize = 32;
+const ON_SPEED_STEPS: usize = 60;
+
+/// The lit Line op that lead-in op `i` runs into, where the lead-in starts at rest: after a
+/// rapid (tp stops where a rapid meets a feed, and starts the next segment on a servo period)
+/// or at the program's first move, so the servo clock it runs on is known.
+fn lit_after_rest(ops: &[crate::program::Op], i: usize) -> Option<usize> {
+    let at_rest = ops[..i]
+        .iter()
+        .rev()
+        .find(|o| o.target().is_some())
+        .is_none_or(|o| matches!(o.kind, OpKind::Rapid { .. }));
+    let j = (i + 1..ops.len()).find(|&j| ops[j].target().is_some())?;
+    let lit_line = matches!(ops[j].kind, OpKind::Line { .. }) && ops[j].laser().is_some();
+    (at_rest && lit_line).then_some(j)
 }
 
 /// Where lit Line op `i`'s last block ends and the feed it is written at, mm/s, where a
@@ -101,6 +222,7 @@ pub(super) fn off_edge_timing(
     ((from, from_q), (to, q)): ((P3, &Axes), (P3, &Axes)),
     cap: f64,
     servo_s: f64,
+    short: bool,
 ) -> Option<(P3, Axes, f64)> {
     use super::chain::{Link, g93_seconds};
     let machine = &job.program.machine;
@@ -129,7 +251,9 @@ pub(super) fn off_edge_timing(
     let d0 = crate::program::dist(end, to);
     let turned = lead::turns(machine, from_q, q);
     let long = out_len > 0.0 && crate::program::dist(from, to) > 1e-9;
-    if !(long && lead::split(job, j, (to, q), turned)) {
+    // In two where `lead::split` writes it so; an arm's short lead-out whole.
+    let split = !short && long && lead::split(job, j, (to, q), turned);
+    if !(split || (short && long && lead::stops_after(job, j, (to, q), turned))) {
         return None;
     }
     // The junction `d` mm along the lead-out, as `lead::shift` moves it.
@@ -146,13 +270,17 @@ pub(super) fn off_edge_timing(
         let t = g93_seconds(machine, (a, qa), (b, qb), out_feed);
         Link::of(machine, (qa, qb), t, tol)
     };
+    // The lead-out's blocks, its first `len1` mm long (whole where not split).
     let parts = |(p, qp): (P3, &Axes), len1: f64| {
+        if !split {
+            return Some(vec![link((p, qp), (out_end, &q_out))?]);
+        }
         let rest = crate::program::dist(p, out_end);
         let (mid, mid_q) = part_way(&ops[j], (p, qp), &q_out, len1 / rest, None);
-        Some((
+        Some(vec![
             link((p, qp), (mid, &mid_q))?,
             link((mid, &mid_q), (out_end, &q_out))?,
-        ))
+        ])
     };
     let base = lit_link((to, q), 0.0)?;
     if !out.chain.replayable(machine, &base) {
@@ -163,14 +291,25 @@ pub(super) fn off_edge_timing(
     let step = feed * period;
     let max_trim = period.min(TRIM_REL * time);
     let rest0 = crate::program::dist(to, out_end);
-    let lens: Vec<f64> = lead::split_candidates(machine, (q, &q_out), rest0, out_feed, period, 5)
-        .into_iter()
-        .map(|f| f * rest0)
-        .collect();
+    let lens: Vec<f64> = if split {
+        lead::split_candidates(machine, (q, &q_out), rest0, out_feed, period, 5)
+            .into_iter()
+            .map(|f| f * rest0)
+            .collect()
+    } else {
+        vec![rest0]
+    };
     let mean_len = lead::split_at(machine, (q, &q_out), rest0, out_feed, period) * rest0;
+    // The junction moves ±½ period about `lead::shift`'s place, or, where its blend is too
+    // short for that rule, from the edge to [`MAX_SHORT_SHIFT_PERIODS`] past it.
+    let (d_lo, d_span, d_steps) = if short {
+        (0.0, MAX_SHORT_SHIFT_PERIODS * step, SHORT_D_STEPS)
+    } else {
+        (d0 - 0.5 * step, step, D_STEPS)
+    };
     // The chain once, then each candidate's lit block and lead-out.
     let tail = (time + out_len / out_feed) / period;
-    let scans = (1 + D_STEPS) * (1 + TRIM_STEPS) * lens.len();
+    let scans = (1 + d_steps) * (1 + TRIM_STEPS) * lens.len();
     let budget = out.chain.seconds() / period + tail * scans as f64;
     if budget > MAX_SCAN_PERIODS {
         return None;
@@ -187,7 +326,7 @@ pub(super) fn off_edge_timing(
         let want = untrimmed.seg().v;
         // tp's units to mm along the path: the lit block's own ratio.
         let mm = crate::program::dist(from, p) / untrimmed.seg().len;
-        let endings: Vec<(f64, (Link, Link))> = lens
+        let endings: Vec<(f64, Vec<Link>)> = lens
             .iter()
             .filter_map(|&len1| Some((len1, parts((p, &qp), len1)?)))
             .collect();
@@ -196,28 +335,42 @@ pub(super) fn off_edge_timing(
             let Some(lit) = lit_link((p, &qp), trim) else {
                 continue;
             };
-            for (len1, (a, b)) in &endings {
-                if let Some((v, past)) = out.chain.replay_off(&prefix, (&lit, a, b)) {
-                    let place = (d + past * mm - 2.0 * step) / step;
+            for (len1, blocks) in &endings {
+                if let Some(s) = out.chain.replay_off(&prefix, (&lit, blocks)) {
+                    let place = (d + s.past * mm - 2.0 * step) / step;
+                    // A blend of a few periods: the joints' speed, still the lit block's as
+                    // tp switches (`ChainRun::switch_joint_speed`).
+                    let v = if short { s.joint_speed } else { s.speed };
                     found.push(((v / want - 1.0).abs(), place, trim, *len1));
                 }
             }
         }
         found
     };
-    let &(base_err, base_place, ..) = scan(d0, &[0.0], &[mean_len]).first()?;
+    // As it would be written: at `lead::shift`'s place split by the mean gain, or unmoved.
+    let base = if short {
+        scan(0.0, &[0.0], &lens)
+    } else {
+        scan(d0, &[0.0], &[mean_len])
+    };
+    let &(base_err, base_place, ..) = base.first()?;
     // Only longer: a cap above the feed is not written (`motion_line`).
     let trims: Vec<f64> = (0..=TRIM_STEPS)
         .map(|kt| max_trim * kt as f64 / TRIM_STEPS as f64)
         .collect();
     let mut best: Option<(f64, f64, f64, f64, f64)> = None;
-    for kd in 0..=D_STEPS {
-        let d = d0 + step * (kd as f64 / D_STEPS as f64 - 0.5);
+    for kd in 0..=d_steps {
+        let d = d_lo + d_span * kd as f64 / d_steps as f64;
         if !(d > 0.0 && d < 0.5 * out_len) {
             continue;
         }
         for (err, place, trim, len1) in scan(d, &trims, &lens) {
-            if place.abs() > MAX_PLACE_PERIODS.max(base_place.abs()) {
+            let bound = if short {
+                MAX_PLACE_PERIODS
+            } else {
+                MAX_PLACE_PERIODS.max(base_place.abs())
+            };
+            if place.abs() > bound {
                 continue;
             }
             if best.is_none_or(|(e, ..)| err < e - 1e-12) {
@@ -226,11 +379,15 @@ pub(super) fn off_edge_timing(
         }
     }
     let (err, _, d, trim, len1) = best?;
-    if err >= base_err {
+    // Where the beam went off out of place, a place within bounds beats any speed.
+    let placed = short && base_place.abs() > MAX_PLACE_PERIODS;
+    if err >= base_err && !placed {
         return None;
     }
     let (p, qp) = at(d);
-    out.split_len = Some((j, len1));
+    if split {
+        out.split_len = Some((j, len1));
+    }
     let len = crate::program::dist(from, p);
     Some((p, qp, len / (len / feed + trim)))
 }
@@ -242,6 +399,11 @@ const TRIM_REL: f64 = 5e-4;
 /// Steps over the period of travel the junction is moved by, and over the lit block's time
 /// (`off_edge_timing`).
 const D_STEPS: usize = 8;
+
+/// The farthest an off-edge's junction is moved into the lead-out where the blend is too
+/// short for `lead::shift`'s rule, in servo periods of travel, and the steps over it.
+const MAX_SHORT_SHIFT_PERIODS: f64 = 4.0;
+const SHORT_D_STEPS: usize = 32;
 const TRIM_STEPS: usize = 8;
 
 /// The most servo periods of travel the beam goes off from its planned place where the

@@ -43,6 +43,14 @@ pub struct ChainRun {
     /// segment's progress less what the finishing one has left where the switch falls in a
     /// blend (in line, the point summed along the path), else its own progress.
     pub switch_past: Vec<f64>,
+    /// Per segment, the joints' speed as its outputs switch, as sampled positions show it
+    /// (the central difference over the switching period's sample): control.c's cubic
+    /// interpolator puts the joints at the way point `(p[n−3] + 4·p[n−2] + p[n−1]) / 6` of
+    /// tp's points, so that difference is `(s[n−3] + 5·s[n−2] + 5·s[n−1] + s[n]) / 12T`,
+    /// `s` tp's travel in each period (summed where a blend runs two segments), `n` the
+    /// switching one. Where a blend lasts a few periods (an arm's), the joints still run at
+    /// the finishing segment's speed as tp switches.
+    pub switch_joint_speed: Vec<f64>,
 }
 
 #[derive(Debug, Clone)]
@@ -188,6 +196,11 @@ pub struct Replay {
     switch_s: Vec<f64>,
     switch_speed: Vec<f64>,
     switch_past: Vec<f64>,
+    switch_joint_speed: Vec<f64>,
+    /// tp's travel in each of the last four periods, the latest last.
+    travel: [f64; 4],
+    /// The segment whose outputs switched in this period.
+    switched_now: Option<usize>,
 }
 
 impl Replay {
@@ -203,6 +216,9 @@ impl Replay {
             switch_s: Vec::new(),
             switch_speed: Vec::new(),
             switch_past: Vec::new(),
+            switch_joint_speed: Vec::new(),
+            travel: [0.0; 4],
+            switched_now: None,
         };
         r.push(segs, parabolic_end);
         r
@@ -235,6 +251,7 @@ impl Replay {
         self.switch_s.resize(m, 0.0);
         self.switch_speed.resize(m, 0.0);
         self.switch_past.resize(m, 0.0);
+        self.switch_joint_speed.resize(m, 0.0);
     }
 
     /// `segs` run from rest up to the first servo period in which tp would look at a segment
@@ -259,6 +276,7 @@ impl Replay {
             total_s: self.last_moving as f64 * self.period,
             switch_speed: self.switch_speed,
             switch_past: self.switch_past,
+            switch_joint_speed: self.switch_joint_speed,
         }
     }
 
@@ -268,6 +286,7 @@ impl Replay {
             self.switch_s[i] = self.cycles as f64 * self.period;
             self.switch_speed[i] = speed;
             self.switch_past[i] = past;
+            self.switched_now = Some(i);
         }
     }
 
@@ -341,6 +360,15 @@ impl Replay {
             }
         }
         self.cycles += 1;
+        let step: f64 = (0..2.min(n - head))
+            .map(|k| self.tcs[head + k].progress - before[k])
+            .sum();
+        self.travel.rotate_left(1);
+        self.travel[3] = step;
+        if let Some(i) = self.switched_now.take() {
+            let s = self.travel;
+            self.switch_joint_speed[i] = (s[0] + 5.0 * s[1] + 5.0 * s[2] + s[3]) / (12.0 * period);
+        }
         // Moving, as a sampled position shows it: a step above a millionth of the segment
         // (a split period's landing on the end is below).
         let moved = (0..2.min(n - head))
@@ -394,6 +422,46 @@ mod tests {
                 "{k}/4 ms longer: replay {model:.4}, LinuxCNC {real:.4} °/s"
             );
         }
+    }
+
+    /// The real LinuxCNC 2.9 (the arm_3r INI lase generates: A and B at 900 °/s², C at
+    /// 1800) ran a lead-in from rest at F1190.8894 into a lit block at F426.1399 in line in
+    /// the joints (tests/linuxcnc/arm_short.lase as written while its timing was tuned on
+    /// tp's summed speed). The blend lasts about two servo periods: tp switched the beam as
+    /// its summed speed reached the lit speed (1.18 °/s), while the sampled joints, two
+    /// periods behind, still ran at the lead-in's 0.80: their central difference over the
+    /// switching sample was 0.8179 °/s, which `switch_joint_speed` gives.
+    #[test]
+    fn the_joints_speed_at_a_short_blends_switch_is_the_real_linuxcncs() {
+        let p0 = [-133.087689, 99.466378, -61.135992];
+        let p1 = [-133.060975, 99.463241, -61.166172];
+        let p2 = [-132.951481, 99.450385, -61.289873];
+        let seg = |a: [f64; 3], b: [f64; 3], f_per_min: f64| {
+            let d: Vec<f64> = (0..3).map(|k| (b[k] - a[k]).abs()).collect();
+            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            let acc = [900.0, 900.0, 1800.0]
+                .iter()
+                .zip(&d)
+                .map(|(a, d)| a * len / d)
+                .fold(f64::INFINITY, f64::min);
+            ChainSeg {
+                len,
+                v: len * f_per_min / 60.0,
+                acc,
+                u: [1.0, 0.0, 0.0],
+                tolerance: 0.01,
+            }
+        };
+        let chain = [seg(p0, p1, 1190.8894), seg(p1, p2, 426.1399)];
+        let run = run_chain(&chain, false, 0.001);
+        let lit = chain[1].v;
+        assert!((lit - 1.18).abs() < 0.005, "{lit}");
+        assert!((run.switch_speed[1] / lit - 1.0).abs() < 0.02, "{run:?}");
+        let joints = run.switch_joint_speed[1];
+        assert!(
+            (joints - 0.8179).abs() < 0.002,
+            "replay {joints:.4}, LinuxCNC 0.8179 °/s"
+        );
     }
 
     #[test]
