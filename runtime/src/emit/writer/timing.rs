@@ -127,7 +127,12 @@ pub(super) fn timed_lead_in(
     let link =
         |a: &Axes, b: &Axes, time_s: f64| super::chain::Link::of(machine, (a, b), time_s, 0.0);
     let step = v * servo_s;
-    let periods = (lead_len / v + lit_len / v) / servo_s;
+    // Only the lit block's start takes part before the switch: the replay runs no more of it
+    // than reaching its speed at half its acceleration `A` takes four times over, and 20
+    // periods (the blend's speeds, `tpComputeBlendVelocity`, are the same for any longer
+    // block, `sqrt(A·L)` and `L / v` then never binding), so a long first block costs no more.
+    let clip = 4.0 * v * v / (2.0 * gain / servo_s) + 20.0 * step;
+    let periods = (lead_len + MAX_ON_SHIFT_PERIODS * step + clip) / v / servo_s;
     let runs = (1 + ON_D_STEPS) * (1 + ON_SPEED_STEPS);
     if periods * runs as f64 > MAX_SCAN_PERIODS {
         return None;
@@ -136,13 +141,15 @@ pub(super) fn timed_lead_in(
     // block and the lead-in at `speed`.
     let try_one = |d: f64, speed: f64| -> Option<(f64, f64, f64, f64)> {
         let qd = q_to.lerp(&q_end, d / lit_len);
-        let lit = link(&qd, &q_end, (lit_len - d) / v)?;
+        let run_len = (lit_len - d).min(clip);
+        let q_run = qd.lerp(&q_end, run_len / (lit_len - d));
+        let lit = link(&qd, &q_run, run_len / v)?;
         let lead = link(from_q, &qd, (lead_len + d) / speed)?;
         if lead.xyz() != lit.xyz() {
             return None;
         }
         let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
-        let mm = (lit_len - d) / lit.seg().len;
+        let mm = run_len / lit.seg().len;
         let place = (d + run.switch_past[1] * mm - 2.0 * step) / step;
         let v_at = run.switch_joint_speed[1];
         Some(((v_at / lit.seg().v - 1.0).abs(), place, d, speed))
