@@ -44,6 +44,11 @@ struct Measured {
     on_edge_rel: f64,
     /// The same at a beam-off edge passed moving: the speed the lit stretch ends at.
     off_edge_rel: f64,
+    /// Largest relative error of the joints' speed, sample by sample, over the five samples
+    /// lit at each edge passed moving ([`LIT_SAMPLES`]: from an on-edge's switch on, up to
+    /// an off-edge's), against the speed the plan passes the edge at: what the beam sees
+    /// where a blend of a few periods (an arm's) still settles as it switches.
+    lit_rel: f64,
     /// Where the executed edges fall along the path from the planned ones, in servo periods
     /// of the edge's speed (negative: early), least, mean and greatest over the edges passed
     /// moving ([`MOVING_EDGE`]).
@@ -179,6 +184,9 @@ fn dump(example: &str, nc: &str, samples: &[Sample], model_starts: &[(usize, f64
 /// the arm's joints pass its edges at 0.75-1.2 °/s.
 const MOVING_EDGE: f64 = 0.3;
 
+/// Samples about an edge counted lit (`Measured::lit_rel`), the switch's included.
+const LIT_SAMPLES: usize = 5;
+
 /// `example` names a recipe in `examples/`, or one elsewhere by its path from the project's
 /// root (`tests/linuxcnc/arm_short`).
 fn measure(lcnc: &mut Headless, example: &str) -> Measured {
@@ -221,6 +229,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
     let mut edge_speed: f64 = 0.0;
     let mut on_edge_rel: f64 = 0.0;
     let mut off_edge_rel: f64 = 0.0;
+    let mut lit_rel: f64 = 0.0;
     let mut along: Vec<f64> = Vec::new();
     for (&(pi, pon), &(ri, ron)) in plan_edges.iter().zip(&run_edges) {
         assert_eq!(pon, ron, "{example}: the edges alternate alike");
@@ -234,6 +243,16 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
             } else {
                 off_edge_rel = off_edge_rel.max((vr / vp - 1.0).abs());
             }
+            let lit = if pon {
+                ri..ri + LIT_SAMPLES
+            } else {
+                ri.saturating_sub(LIT_SAMPLES - 1)..ri + 1
+            };
+            let edge_lit = lit
+                .filter(|&k| k >= 1 && k < run_q.len())
+                .map(|k| (dist(&run_q[k - 1], &run_q[k]) / dt / vp - 1.0).abs())
+                .fold(0.0, f64::max);
+            lit_rel = lit_rel.max(edge_lit);
             // Signed along the planned direction of travel there.
             let (a, b) = (
                 &plan_q[pi.saturating_sub(1)],
@@ -253,12 +272,13 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
                     // Every edge passed moving: where, how far along, at what speeds.
                     eprintln!(
                         "{example} edge {} {}: planned {edge:.4?} executed {:.4?} along {:+.4} mm \
-                         ({:+.2} periods) v {vp:.2}/{vr:.2} line {}",
+                         ({:+.2} periods) v {vp:.2}/{vr:.2} lit ±{:.1} % line {}",
                         along.len(),
                         if pon { "on" } else { "off" },
                         run_q[ri],
                         s,
                         s / (vp * dt),
+                        100.0 * edge_lit,
                         run[ri].line
                     );
                 }
@@ -348,6 +368,7 @@ fn measure(lcnc: &mut Headless, example: &str) -> Measured {
         edge_speed,
         on_edge_rel,
         off_edge_rel,
+        lit_rel,
         edge_periods,
         pulses_planned: summary.pulses,
         pulses_executed,
@@ -766,14 +787,18 @@ fn arm_example_on_linuxcnc() {
     //
     // Its switches are timed by tp.c's replay since (`emit::writer::timing`: the arm's blends
     // last 2 servo periods, too short for the cams' rule): junctions moved 0-4 periods on,
-    // lead-ins from rest slowed, for the joints' speed at the switch (the cubic
-    // interpolator's) at the lit speed with the beam within half a period of its place.
-    // Real LinuxCNC, `LASE_LINUXCNC_LONG=1 LASE_LINUXCNC_EDGES=1 cargo test --test linuxcnc
-    // arm_example -- --nocapture`, 2026-12-03: arm_short's edges −2.05/−1.76/−1.08 →
-    // −0.33/−0.09/+0.10 periods (least/mean/most), place 0.0022 → 0.0002, speed 0.050 →
-    // 0.010 (its last off-edge 1.23 → 1.18 of 1.18); surface_hardening_arm's 12 edges
-    // −2.15..−1.44 → −0.17..+0.17 periods, place 0.0024 → 0.0002, speed 0.012 (on-edges
-    // 1.10, off-edges 1.11-1.12 of 1.11 and 1.06), cycle and beam-on 1.0000 of the model.
+    // lead-ins from rest slowed, so that the joints' speed at each lit sample about the switch
+    // (the cubic interpolator's, `ChainRun::switch_window`) is the lit speed with the beam
+    // within half a period of its place. Real LinuxCNC, `LASE_LINUXCNC_LONG=1
+    // LASE_LINUXCNC_EDGES=1 cargo test --test linuxcnc arm_example -- --nocapture`,
+    // 2026-12-03, before → after: arm_short's edges −2.05/−1.76/−1.08 → −0.10/+0.10/+0.40
+    // periods (least/mean/most), place 0.0022 → 0.0003, edge speed 0.050 → 0.010, lit speed
+    // about the edges (`lit_rel`) ±10.4 % → ±3.0 %, off-edge at the switch sample +4.2 % →
+    // +1.4 % (that sample's central difference takes in the lead-out's blend, beam off);
+    // surface_hardening_arm's 12 edges −2.15..−1.44 → −0.49..+0.17 periods, place 0.0024 →
+    // 0.0005, lit ±2.7 %, on-edges 1.29 → 1.03-1.11 of 1.06-1.11 °/s, cycle and beam-on
+    // 1.0000 of the model. Ranked instead by the speed at the switch sample alone, a lead-in
+    // ran at 0.83 of the lit speed and the joints, lit, at +21 % in the blend after it.
     let examples: &[&str] = if long_examples() {
         &["tests/linuxcnc/arm_short", "surface_hardening_arm"]
     } else {
@@ -783,11 +808,12 @@ fn arm_example_on_linuxcnc() {
     for m in &run_all("arm_3r", examples) {
         // The lit path within 0.02° of the plan's (LinuxCNC's blends round the 5 ms blocks
         // where the section bends: 0.0106° on arm_short, 0.0039° on the example), every edge
-        // within 0.0005.
-        assert_close(m, Bounds::new(0.02, 0.03));
-        assert!(m.edge_place <= 0.0005, "edge place: {m:?}");
-        assert!(m.on_edge_rel <= 0.02, "on-edge speed: {m:?}");
-        assert!(m.off_edge_rel <= 0.02, "off-edge speed: {m:?}");
+        // within 0.001 and half a period of its place.
+        assert_close(m, Bounds::new(0.02, 0.05));
+        assert!(m.edge_place <= 0.001, "edge place: {m:?}");
+        assert!(m.on_edge_rel <= 0.03, "on-edge speed: {m:?}");
+        assert!(m.off_edge_rel <= 0.03, "off-edge speed: {m:?}");
+        assert!(m.lit_rel <= 0.04, "lit speed about the edges: {m:?}");
         let [least, _, most] = m.edge_periods;
         assert!(least >= -0.5 && most <= 0.5, "edge places: {m:?}");
     }

@@ -78,12 +78,12 @@ impl Link {
 /// of parabolic blends the replay models).
 /// Where and how fast tp.c switches a block's synchronized outputs, in tp's length unit
 /// (`Block::len`): `motion::parabolic::chain::ChainRun`'s `switch_speed`, `switch_past` and
-/// `switch_joint_speed` for that block.
+/// `switch_window` for that block.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Switch {
     pub speed: f64,
     pub past: f64,
-    pub joint_speed: f64,
+    pub window: [f64; tp::SWITCH_WINDOW],
 }
 
 #[derive(Debug, Default)]
@@ -186,7 +186,7 @@ impl Chain {
         Some(Switch {
             speed: run.switch_speed[n],
             past: run.switch_past[n],
-            joint_speed: run.switch_joint_speed[n],
+            window: run.switch_window[n],
         })
     }
 }

@@ -1,8 +1,13 @@
 //! Beam edges on LinuxCNC timed by tp.c's own arithmetic, where the servo clock is known:
 //! the chain of G93 blocks since tp last stopped (`chain`) replayed servo period by servo
 //! period (`motion::parabolic::chain`) with each candidate lead-in or lit block and lead-out,
-//! and the one kept whose summed speed at the switch is nearest the plan's, with the beam
-//! within half a servo period of travel of its planned place.
+//! and the one kept whose speed at the switch is nearest the plan's, with the beam within
+//! half a servo period of travel of its planned place. Where a blend lasts five servo
+//! periods or more (the rotary attachment's, a cam's) that speed is tp's summed speed in the
+//! switching period; where it lasts two (an arm's), the joints, two periods behind tp, are
+//! still at the finishing block's speed as tp switches and show the blend's after it, so the
+//! speeds that count are the joints' at each sample the beam is on about the switch
+//! (`ChainRun::switch_window`, which the real machine's samples match to 0.001 °/s).
 //!
 //! The joints follow tp's point two servo periods late (control.c's cubic interpolator,
 //! `lead::LEAD_PERIODS`), so a beam switches where the joints are then: `d + past − 2·v·T`
@@ -13,6 +18,7 @@ use super::block::part_way;
 use super::{Out, lead};
 use crate::axes::Axes;
 use crate::motion::Job;
+use crate::motion::parabolic::chain::SWITCH_WINDOW;
 use crate::program::{OpKind, P3};
 
 /// The speed, mm/s, at which lead-in op `i` (from spot `from` at axes `from_q` to its moved
@@ -80,10 +86,12 @@ pub(super) fn lead_in_speed(
 /// From rest the servo clock is known, so tp.c's arithmetic replays the lead-in and the lit
 /// block (`motion::parabolic::chain::run_chain`) with the junction moved 0 to
 /// [`MAX_ON_SHIFT_PERIODS`] periods of travel into the lit block and the lead-in 0 to 3
-/// blend gains slower, and keeps the one whose summed speed at the switch is nearest the
-/// lit block's with the beam within [`MAX_PLACE_PERIODS`] of its planned place. Unmoved,
-/// the arm's beam came on 1.4-2.2 periods early on the real LinuxCNC, at up to 16 % over its
-/// joint speed.
+/// blend gains slower, and keeps the one whose joints run nearest the lit block's speed at
+/// the switch's sample and the four after it ([`lit_error`]) with the beam within
+/// [`MAX_PLACE_PERIODS`] of its planned place. Unmoved, the arm's beam came on 1.4-2.2
+/// periods early on the real LinuxCNC, at up to 16 % over its joint speed. (Ranked by tp's
+/// summed speed at the switch instead, a lead-in ran at 0.83 of the lit speed and the
+/// joints, lit, at +21 % in the blend after it.)
 pub(super) fn timed_lead_in(
     job: &Job,
     i: usize,
@@ -151,8 +159,8 @@ pub(super) fn timed_lead_in(
         let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
         let mm = run_len / lit.seg().len;
         let place = (d + run.switch_past[1] * mm - 2.0 * step) / step;
-        let v_at = run.switch_joint_speed[1];
-        Some(((v_at / lit.seg().v - 1.0).abs(), place, d, speed))
+        let err = lit_error(&run.switch_window[1], lit.seg().v, true);
+        Some((err, place, d, speed))
     };
     let (base_err, base_place, ..) = try_one(0.0, v)?;
     let mut best: Option<(f64, f64, f64, f64)> = None;
@@ -169,7 +177,9 @@ pub(super) fn timed_lead_in(
             let Some(c) = try_one(d, speed) else {
                 continue;
             };
-            if c.1.abs() <= MAX_PLACE_PERIODS && best.is_none_or(|b| c.0 < b.0 - 1e-12) {
+            if c.1.abs() <= MAX_PLACE_PERIODS
+                && best.is_none_or(|b| score((c.0, c.1)) < score((b.0, b.1)))
+            {
                 best = Some(c);
             }
         }
@@ -180,6 +190,25 @@ pub(super) fn timed_lead_in(
     }
     let p = std::array::from_fn(|k| to[k] + w[k] * d);
     Some((p, q_to.lerp(&q_end, d / lit_len), speed))
+}
+
+/// The largest relative error of the joints' speeds from the lit speed `v` (tp's units) at the
+/// samples of a switch window (`ChainRun::switch_window`) while the beam is on: from the
+/// switch's sample on at an on-edge (`on`), up to it at an off-edge.
+fn lit_error(window: &[f64; SWITCH_WINDOW], v: f64, on: bool) -> f64 {
+    let half = SWITCH_WINDOW / 2;
+    let lit = if on {
+        &window[half..]
+    } else {
+        &window[..=half]
+    };
+    lit.iter().map(|w| (w / v - 1.0).abs()).fold(0.0, f64::max)
+}
+
+/// How a short blend's timing is ranked: the speed error (`lit_error`), and where two are
+/// alike to a tenth of a per mille, the place nearer the planned one (periods).
+fn score((err, place): (f64, f64)) -> f64 {
+    err + 2e-4 * place.abs()
 }
 
 /// The farthest a lead-in's junction is moved into the lit block (`timed_lead_in`), in servo
@@ -215,6 +244,12 @@ fn lit_after_rest(ops: &[crate::program::Op], i: usize) -> Option<usize> {
 /// of its planned place ([`MAX_PLACE_PERIODS`]). `None` (written as it was, the lead-out split by the mean
 /// gain, `lead::split_at`) where the replay does not model the chain or finds nothing better
 /// than that.
+///
+/// `short`: the junction `to` is where `lead::shift` would move it but for a blend too short
+/// for its rule (an arm's): the lead-out stays whole, the junction moves 0 to
+/// [`MAX_SHORT_SHIFT_PERIODS`] periods of travel past the edge, and the speeds that count are
+/// the joints' at the lit samples up to the switch's ([`lit_error`]), the nearer place
+/// breaking ties ([`score`]); `None` leaves the junction unmoved.
 ///
 /// The place: the joints follow tp's point two servo periods late (control.c's cubic
 /// interpolator, `lead::LEAD_PERIODS`), so the beam goes off where the joints are then:
@@ -345,10 +380,13 @@ pub(super) fn off_edge_timing(
             for (len1, blocks) in &endings {
                 if let Some(s) = out.chain.replay_off(&prefix, (&lit, blocks)) {
                     let place = (d + s.past * mm - 2.0 * step) / step;
-                    // A blend of a few periods: the joints' speed, still the lit block's as
-                    // tp switches (`ChainRun::switch_joint_speed`).
-                    let v = if short { s.joint_speed } else { s.speed };
-                    found.push(((v / want - 1.0).abs(), place, trim, *len1));
+                    // A blend of a few periods: the joints' speeds while lit about the switch.
+                    let err = if short {
+                        lit_error(&s.window, want, false)
+                    } else {
+                        (s.speed / want - 1.0).abs()
+                    };
+                    found.push((err, place, trim, *len1));
                 }
             }
         }
@@ -380,7 +418,13 @@ pub(super) fn off_edge_timing(
             if place.abs() > bound {
                 continue;
             }
-            if best.is_none_or(|(e, ..)| err < e - 1e-12) {
+            // Short: speeds alike to a tenth of a per mille, the nearer place.
+            let better = match best {
+                None => true,
+                Some((e, p, ..)) if short => score((err, place)) < score((e, p)),
+                Some((e, ..)) => err < e - 1e-12,
+            };
+            if better {
                 best = Some((err, place, d, trim, len1));
             }
         }

@@ -43,14 +43,30 @@ pub struct ChainRun {
     /// segment's progress less what the finishing one has left where the switch falls in a
     /// blend (in line, the point summed along the path), else its own progress.
     pub switch_past: Vec<f64>,
-    /// Per segment, the joints' speed as its outputs switch, as sampled positions show it
-    /// (the central difference over the switching period's sample): control.c's cubic
-    /// interpolator puts the joints at the way point `(p[n−3] + 4·p[n−2] + p[n−1]) / 6` of
-    /// tp's points, so that difference is `(s[n−3] + 5·s[n−2] + 5·s[n−1] + s[n]) / 12T`,
-    /// `s` tp's travel in each period (summed where a blend runs two segments), `n` the
-    /// switching one. Where a blend lasts a few periods (an arm's), the joints still run at
-    /// the finishing segment's speed as tp switches.
-    pub switch_joint_speed: Vec<f64>,
+    /// Per segment, the joints' speeds about its outputs' switch, as sampled positions show
+    /// them: over the periods ending at samples `n − 4 ..= n + 4`, `n` the switching period
+    /// (its sample the first to show the output switched). control.c's cubic interpolator
+    /// puts the joints at the way point `(p[k−3] + 4·p[k−2] + p[k−1]) / 6` of tp's points,
+    /// so the joints move `(s[k−3] + 4·s[k−2] + s[k−1]) / 6` in period `k`, `s` tp's travel
+    /// in each period (summed where a blend runs two segments). Where a blend lasts a few
+    /// periods (an arm's), the joints still run at the finishing segment's speed as tp
+    /// switches, and its blend's speeds show two periods later.
+    pub switch_window: Vec<[f64; SWITCH_WINDOW]>,
+}
+
+/// Samples in [`ChainRun::switch_window`]: four before the switch's, it, and four after.
+pub const SWITCH_WINDOW: usize = 9;
+
+/// tp's periods a switch window needs: three before the first sample's, to the last's.
+const TRAVEL_SPAN: usize = SWITCH_WINDOW + 2;
+
+impl ChainRun {
+    /// Segment `i`'s joints' speed at its switch as a central difference over the switching
+    /// sample shows it (`(x[n+1] − x[n−1]) / 2T`).
+    pub fn switch_joint_speed(&self, i: usize) -> f64 {
+        let w = &self.switch_window[i];
+        (w[4] + w[5]) / 2.0
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -196,11 +212,13 @@ pub struct Replay {
     switch_s: Vec<f64>,
     switch_speed: Vec<f64>,
     switch_past: Vec<f64>,
-    switch_joint_speed: Vec<f64>,
-    /// tp's travel in each of the last four periods, the latest last.
-    travel: [f64; 4],
+    switch_window: Vec<[f64; SWITCH_WINDOW]>,
+    /// tp's travel in each of the last periods, the latest last.
+    travel: [f64; TRAVEL_SPAN],
     /// The segment whose outputs switched in this period.
     switched_now: Option<usize>,
+    /// Switches whose windows still wait for periods: the segment and the periods to come.
+    open: Vec<(usize, usize)>,
 }
 
 impl Replay {
@@ -216,9 +234,10 @@ impl Replay {
             switch_s: Vec::new(),
             switch_speed: Vec::new(),
             switch_past: Vec::new(),
-            switch_joint_speed: Vec::new(),
-            travel: [0.0; 4],
+            switch_window: Vec::new(),
+            travel: [0.0; TRAVEL_SPAN],
             switched_now: None,
+            open: Vec::new(),
         };
         r.push(segs, parabolic_end);
         r
@@ -251,7 +270,7 @@ impl Replay {
         self.switch_s.resize(m, 0.0);
         self.switch_speed.resize(m, 0.0);
         self.switch_past.resize(m, 0.0);
-        self.switch_joint_speed.resize(m, 0.0);
+        self.switch_window.resize(m, [0.0; SWITCH_WINDOW]);
     }
 
     /// `segs` run from rest up to the first servo period in which tp would look at a segment
@@ -270,14 +289,43 @@ impl Replay {
         r.finish()
     }
 
-    fn finish(self) -> ChainRun {
+    fn finish(mut self) -> ChainRun {
+        // Windows past the chain's end: the joints come to rest.
+        while !self.open.is_empty() {
+            self.record(0.0);
+        }
         ChainRun {
             switch_s: self.switch_s,
             total_s: self.last_moving as f64 * self.period,
             switch_speed: self.switch_speed,
             switch_past: self.switch_past,
-            switch_joint_speed: self.switch_joint_speed,
+            switch_window: self.switch_window,
         }
+    }
+
+    /// Keeps tp's travel `step` in the period just run, and fills the switch windows
+    /// ([`ChainRun::switch_window`]) that have all their periods.
+    fn record(&mut self, step: f64) {
+        self.travel.rotate_left(1);
+        self.travel[TRAVEL_SPAN - 1] = step;
+        if let Some(i) = self.switched_now.take() {
+            // The last sample's joints move on tp's travel up to three periods after the
+            // switch's.
+            self.open.push((i, 3));
+        }
+        let period = self.period;
+        let s = self.travel;
+        let windows = &mut self.switch_window;
+        self.open.retain_mut(|(i, left)| {
+            if *left > 0 {
+                *left -= 1;
+                return true;
+            }
+            for (k, w) in windows[*i].iter_mut().enumerate() {
+                *w = (s[k] + 4.0 * s[k + 1] + s[k + 2]) / (6.0 * period);
+            }
+            false
+        });
     }
 
     fn switch(&mut self, i: usize, (speed, past): (f64, f64)) {
@@ -363,12 +411,7 @@ impl Replay {
         let step: f64 = (0..2.min(n - head))
             .map(|k| self.tcs[head + k].progress - before[k])
             .sum();
-        self.travel.rotate_left(1);
-        self.travel[3] = step;
-        if let Some(i) = self.switched_now.take() {
-            let s = self.travel;
-            self.switch_joint_speed[i] = (s[0] + 5.0 * s[1] + 5.0 * s[2] + s[3]) / (12.0 * period);
-        }
+        self.record(step);
         // Moving, as a sampled position shows it: a step above a millionth of the segment
         // (a split period's landing on the end is below).
         let moved = (0..2.min(n - head))
@@ -457,11 +500,24 @@ mod tests {
         let lit = chain[1].v;
         assert!((lit - 1.18).abs() < 0.005, "{lit}");
         assert!((run.switch_speed[1] / lit - 1.0).abs() < 0.02, "{run:?}");
-        let joints = run.switch_joint_speed[1];
+        let joints = run.switch_joint_speed(1);
         assert!(
             (joints - 0.8179).abs() < 0.002,
             "replay {joints:.4}, LinuxCNC 0.8179 °/s"
         );
+        // Sample by sample from four before the switch's to four after: the blend's speeds
+        // show in the joints from the sample after the switch's on.
+        let real = [
+            0.80221, 0.80229, 0.80221, 0.80221, 0.80287, 0.83283, 0.97841, 1.10065, 1.16537,
+        ];
+        let window = run.switch_window[1];
+        for (k, (w, r)) in window.iter().zip(real).enumerate() {
+            let at = k as i32 - 4;
+            assert!(
+                (w - r).abs() < 0.001,
+                "sample {at}: replay {window:?}, LinuxCNC {real:?}"
+            );
+        }
     }
 
     #[test]
