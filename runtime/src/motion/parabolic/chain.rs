@@ -60,15 +60,6 @@ pub const SWITCH_WINDOW: usize = 9;
 /// tp's periods a switch window needs: three before the first sample's, to the last's.
 const TRAVEL_SPAN: usize = SWITCH_WINDOW + 2;
 
-impl ChainRun {
-    /// Segment `i`'s joints' speed at its switch as a central difference over the switching
-    /// sample shows it (`(x[n+1] − x[n−1]) / 2T`).
-    pub fn switch_joint_speed(&self, i: usize) -> f64 {
-        let w = &self.switch_window[i];
-        (w[4] + w[5]) / 2.0
-    }
-}
-
 #[derive(Debug, Clone)]
 struct Tc {
     progress: f64,
@@ -213,8 +204,10 @@ pub struct Replay {
     switch_speed: Vec<f64>,
     switch_past: Vec<f64>,
     switch_window: Vec<[f64; SWITCH_WINDOW]>,
-    /// tp's travel in each of the last periods, the latest last.
+    /// tp's travel in each of the last periods, a ring: the latest at `recorded %
+    /// TRAVEL_SPAN`, `recorded` the periods recorded (`record`).
     travel: [f64; TRAVEL_SPAN],
+    recorded: usize,
     /// The segment whose outputs switched in this period.
     switched_now: Option<usize>,
     /// Switches whose windows still wait for periods: the segment and the periods to come.
@@ -236,6 +229,7 @@ impl Replay {
             switch_past: Vec::new(),
             switch_window: Vec::new(),
             travel: [0.0; TRAVEL_SPAN],
+            recorded: 0,
             switched_now: None,
             open: Vec::new(),
         };
@@ -306,15 +300,22 @@ impl Replay {
     /// Keeps tp's travel `step` in the period just run, and fills the switch windows
     /// ([`ChainRun::switch_window`]) that have all their periods.
     fn record(&mut self, step: f64) {
-        self.travel.rotate_left(1);
-        self.travel[TRAVEL_SPAN - 1] = step;
+        // Every period, on the replay's hot path: one store, the rest only about a switch.
+        self.recorded += 1;
+        let latest = self.recorded % TRAVEL_SPAN;
+        self.travel[latest] = step;
         if let Some(i) = self.switched_now.take() {
             // The last sample's joints move on tp's travel up to three periods after the
             // switch's.
             self.open.push((i, 3));
         }
+        if self.open.is_empty() {
+            return;
+        }
         let period = self.period;
-        let s = self.travel;
+        // Oldest first.
+        let s: [f64; TRAVEL_SPAN] =
+            std::array::from_fn(|k| self.travel[(latest + 1 + k) % TRAVEL_SPAN]);
         let windows = &mut self.switch_window;
         self.open.retain_mut(|(i, left)| {
             if *left > 0 {
@@ -408,14 +409,16 @@ impl Replay {
             }
         }
         self.cycles += 1;
-        let step: f64 = (0..2.min(n - head))
-            .map(|k| self.tcs[head + k].progress - before[k])
-            .sum();
+        // tp's travel this period, and whether it moved as a sampled position shows it: a
+        // step above a millionth of the segment (a split period's landing on the end is
+        // below). One pass over the (at most two) segments: this runs every period.
+        let (mut step, mut moved) = (0.0, false);
+        for (k, b) in before.iter().enumerate().take(n - head) {
+            let d = self.tcs[head + k].progress - b;
+            step += d;
+            moved |= d > 1e-6 * self.segs[head + k].len;
+        }
         self.record(step);
-        // Moving, as a sampled position shows it: a step above a millionth of the segment
-        // (a split period's landing on the end is below).
-        let moved = (0..2.min(n - head))
-            .any(|k| self.tcs[head + k].progress - before[k] > 1e-6 * self.segs[head + k].len);
         if moved {
             self.last_moving = self.cycles;
         }
@@ -473,7 +476,7 @@ mod tests {
     /// tp's summed speed). The blend lasts about two servo periods: tp switched the beam as
     /// its summed speed reached the lit speed (1.18 °/s), while the sampled joints, two
     /// periods behind, still ran at the lead-in's 0.80: their central difference over the
-    /// switching sample was 0.8179 °/s, which `switch_joint_speed` gives.
+    /// switching sample was 0.8179 °/s, which the replay's switch window gives.
     #[test]
     fn the_joints_speed_at_a_short_blends_switch_is_the_real_linuxcncs() {
         let p0 = [-133.087689, 99.466378, -61.135992];
@@ -500,7 +503,9 @@ mod tests {
         let lit = chain[1].v;
         assert!((lit - 1.18).abs() < 0.005, "{lit}");
         assert!((run.switch_speed[1] / lit - 1.0).abs() < 0.02, "{run:?}");
-        let joints = run.switch_joint_speed(1);
+        // The central difference over the switching sample, (x[n+1] − x[n−1]) / 2T.
+        let window = run.switch_window[1];
+        let joints = (window[4] + window[5]) / 2.0;
         assert!(
             (joints - 0.8179).abs() < 0.002,
             "replay {joints:.4}, LinuxCNC 0.8179 °/s"
@@ -510,7 +515,6 @@ mod tests {
         let real = [
             0.80221, 0.80229, 0.80221, 0.80221, 0.80287, 0.83283, 0.97841, 1.10065, 1.16537,
         ];
-        let window = run.switch_window[1];
         for (k, (w, r)) in window.iter().zip(real).enumerate() {
             let at = k as i32 - 4;
             assert!(
