@@ -484,13 +484,16 @@ pub(super) fn write(
                     _ => None,
                 };
                 let shifted = shifted.or(timed.map(|(p, q, _)| (p, q)));
-                // A lit op's junction with its lead-out, where the blend is too short for
-                // that rule: its last block is timed about it (`timing::off_edge_timing`).
-                let short_off = match (shifted, servo_s) {
-                    (None, Some(_)) if shifts && n_pieces == 1 && op.laser().is_some() => {
-                        lead::shift(job, i, (m.pos, &m.q), edge_lead_at, true)
+                // A lit op's junction with its lead-out its last block is timed about
+                // (`timing::off_edge_timing`): the one moved, or where the blend is too short
+                // for that rule (`short`), where it would be.
+                let off_at = match (shifted, servo_s) {
+                    _ if !(shifts && n_pieces == 1 && op.laser().is_some()) => None,
+                    (Some(at), Some(_)) => Some((at, false)),
+                    (None, Some(_)) => {
+                        lead::shift(job, i, (m.pos, &m.q), edge_lead_at, true).map(|at| (at, true))
                     }
-                    _ => None,
+                    (_, None) => None,
                 };
                 // A lead-out after a lit move, before a stop: in two blocks (`lead::split`).
                 let split = shifts
@@ -598,14 +601,10 @@ pub(super) fn write(
                             _ => cap,
                         };
                         // A lit block before a split lead-out: timed by tp.c's arithmetic.
-                        let (to, q_end, cap) = match (servo_s, shifted, short_off) {
-                            (Some(t), Some(_), _) | (Some(t), None, Some(_))
-                                if op.laser().is_some() =>
-                            {
-                                let (p, qp) = shifted.or(short_off).unwrap_or((to, q_end));
+                        let (to, q_end, cap) = match (servo_s, off_at) {
+                            (Some(t), Some(((p, qp), short))) => {
                                 let at = ((m.pos, &m.q), (p, &qp));
                                 let held = cap.unwrap_or(f64::INFINITY);
-                                let short = shifted.is_none();
                                 timing::off_edge_timing(&mut out, job, i, at, held, t, short)
                                     .map_or((to, q_end, cap), |(p, q, c)| (p, q, Some(c)))
                             }
@@ -749,13 +748,9 @@ pub(super) fn write(
                                 Some(v) if k + 1 == blocks.len() => b.v_cap.max(v),
                                 _ => b.v_cap,
                             };
-                            let (to, q, cap) = match (servo_s, shifted, short_off) {
-                                (Some(t), Some(_), _) | (Some(t), None, Some(_))
-                                    if k + 1 == blocks.len() =>
-                                {
-                                    let (p, qp) = shifted.or(short_off).unwrap_or((to, q));
+                            let (to, q, cap) = match (servo_s, off_at) {
+                                (Some(t), Some(((p, qp), short))) if k + 1 == blocks.len() => {
                                     let at = ((m.pos, &m.q), (p, &qp));
-                                    let short = shifted.is_none();
                                     timing::off_edge_timing(&mut out, job, i, at, cap, t, short)
                                         .unwrap_or((to, q, cap))
                                 }

@@ -341,7 +341,6 @@ pub(super) fn off_edge_timing(
     } else {
         vec![rest0]
     };
-    let mean_len = lead::split_at(machine, (q, &q_out), rest0, out_feed, period) * rest0;
     // The junction moves ±½ period about `lead::shift`'s place, or, where its blend is too
     // short for that rule, from the edge to [`MAX_SHORT_SHIFT_PERIODS`] past it.
     let (d_lo, d_span, d_steps) = if short {
@@ -396,6 +395,7 @@ pub(super) fn off_edge_timing(
     let base = if short {
         scan(0.0, &[0.0], &lens)
     } else {
+        let mean_len = lead::split_at(machine, (q, &q_out), rest0, out_feed, period) * rest0;
         scan(d0, &[0.0], &[mean_len])
     };
     let &(base_err, base_place, ..) = base.first()?;
@@ -450,12 +450,12 @@ const TRIM_REL: f64 = 5e-4;
 /// Steps over the period of travel the junction is moved by, and over the lit block's time
 /// (`off_edge_timing`).
 const D_STEPS: usize = 8;
+const TRIM_STEPS: usize = 8;
 
 /// The farthest an off-edge's junction is moved into the lead-out where the blend is too
 /// short for `lead::shift`'s rule, in servo periods of travel, and the steps over it.
 const MAX_SHORT_SHIFT_PERIODS: f64 = 4.0;
 const SHORT_D_STEPS: usize = 32;
-const TRIM_STEPS: usize = 8;
 
 /// The most servo periods of travel the beam goes off from its planned place where the
 /// off-edge is timed (`off_edge_timing`), unless it went off farther before: half a period,
