@@ -67,6 +67,7 @@ impl Link {
                 acc: b.acc,
                 u: unit_xyz(machine, from, to),
                 tolerance,
+                tangent: None,
             },
             xyz,
             turns: super::lead::turns(machine, from, to),
@@ -117,6 +118,9 @@ impl Chain {
             (OpKind::Rapid { .. }, _) => Some(Vec::new()),
             (OpKind::Line { .. }, Some(t)) => self.0.take().and_then(|mut links| {
                 let link = Link::of(machine, (from, to), t, tolerance)?;
+                if let Some(last) = links.last_mut() {
+                    last.seg.tangent = join(machine, last, &link)?;
+                }
                 (links.len() < MAX_LINKS).then(|| {
                     links.push(link);
                     links
@@ -133,17 +137,20 @@ impl Chain {
         })
     }
 
-    /// The chain replayed up to where tp first looks past it (`replay_off` runs each ending
-    /// on from there).
-    pub(super) fn prefix(&self, period: f64) -> Option<tp::Replay> {
+    /// The chain replayed up to where tp first looks past it, block `lit` to follow it
+    /// (`replay_off` runs each ending on from there).
+    pub(super) fn prefix(&self, machine: &Machine, lit: &Link) -> Option<tp::Replay> {
         let links = self.0.as_ref()?;
-        let segs: Vec<tp::ChainSeg> = links.iter().map(|l| l.seg.clone()).collect();
-        Some(tp::Replay::prefix(&segs, period))
+        let mut segs: Vec<tp::ChainSeg> = links.iter().map(|l| l.seg.clone()).collect();
+        if let (Some(last), Some(l)) = (segs.last_mut(), links.last()) {
+            last.tangent = join(machine, l, lit)?;
+        }
+        Some(tp::Replay::prefix(&segs, machine.servo_period_s()))
     }
 
     /// Whether the chain, followed by block `lit`, is one the replay models: known from rest,
-    /// every junction a parabolic blend (one of its two blocks turns a rotary axis), short
-    /// enough to replay.
+    /// every junction a parabolic blend (one of its two blocks turns a rotary axis) or a
+    /// tangent join ([`join`]), the first parabolic, short enough to replay.
     pub(super) fn replayable(&self, machine: &Machine, lit: &Link) -> bool {
         let Some(links) = self.0.as_ref() else {
             return false;
@@ -151,7 +158,13 @@ impl Chain {
         let all = || links.iter().chain(std::iter::once(lit));
         let period = machine.servo_period_s();
         let periods: f64 = all().map(|l| l.seg.len / l.seg.v / period).sum();
-        all().zip(all().skip(1)).all(|(a, b)| a.turns || b.turns)
+        let first_parabolic = links
+            .first()
+            .is_none_or(|a| a.turns || links.get(1).unwrap_or(lit).turns);
+        all()
+            .zip(all().skip(1))
+            .all(|(a, b)| join(machine, a, b).is_some())
+            && first_parabolic
             && period > 0.0
             && periods <= MAX_REPLAY_PERIODS
     }
@@ -170,17 +183,20 @@ impl Chain {
     /// this replay gives to 0.001 °/s (`motion::parabolic::chain`'s test).
     pub(super) fn replay_off(
         &self,
+        machine: &Machine,
         prefix: &tp::Replay,
         (lit, out): (&Link, &[Link]),
     ) -> Option<Switch> {
         let links = self.0.as_ref()?;
         let a = out.first()?;
-        let blends = out.windows(2).all(|w| w[0].turns || w[1].turns);
-        if a.xyz != lit.xyz || !(lit.turns || a.turns) || !blends {
+        if a.xyz != lit.xyz {
             return None;
         }
-        let mut tail = vec![lit.seg.clone()];
-        tail.extend(out.iter().map(|l| l.seg.clone()));
+        let blocks: Vec<&Link> = std::iter::once(lit).chain(out).collect();
+        let mut tail: Vec<tp::ChainSeg> = blocks.iter().map(|l| l.seg.clone()).collect();
+        for (k, w) in blocks.windows(2).enumerate() {
+            tail[k].tangent = join(machine, w[0], w[1])?;
+        }
         let run = prefix.then(&tail);
         let n = links.len() + 1;
         Some(Switch {
@@ -188,6 +204,42 @@ impl Chain {
             past: run.switch_past[n],
             window: run.switch_window[n],
         })
+    }
+}
+
+/// How tp.c joins block `a` to block `b`: `Some(None)` by a parabolic blend (one of them
+/// turns a rotary axis), `Some(Some(r))` tangentially, the kink taking the share `r` of both
+/// blocks' acceleration (`motion::parabolic::chain::tangent_join`: lines in X Y Z whose
+/// directions agree, as a rotary attachment's X-only stroke), `None` where it makes what the
+/// replay does not model (a blend arc, a kink it slows for, a stop at a reversal).
+fn join(machine: &Machine, a: &Link, b: &Link) -> Option<Option<f64>> {
+    if a.turns || b.turns {
+        return Some(None);
+    }
+    let mut bound = [0.0; 3];
+    for x in machine.axes.iter().filter(|x| x.kind != AxisKind::Rotary) {
+        if let Some(slot) = xyz_slot(&x.name) {
+            bound[slot] = x.a_max;
+        }
+    }
+    let v_max = a.seg.v.min(b.seg.v);
+    let r = tp::tangent_join(
+        (a.seg.u, b.seg.u),
+        v_max,
+        b.seg.acc,
+        bound,
+        machine.servo_period_s(),
+    )?;
+    Some(Some(r))
+}
+
+/// The slot of an axis named X, Y or Z in an X Y Z vector.
+fn xyz_slot(name: &str) -> Option<usize> {
+    match name.chars().next() {
+        Some('X') => Some(0),
+        Some('Y') => Some(1),
+        Some('Z') => Some(2),
+        _ => None,
     }
 }
 
@@ -243,11 +295,8 @@ fn unit_xyz(machine: &Machine, a: &Axes, b: &Axes) -> [f64; 3] {
         if x.kind == AxisKind::Rotary {
             continue;
         }
-        let slot = match x.name.chars().next() {
-            Some('X') => 0,
-            Some('Y') => 1,
-            Some('Z') => 2,
-            _ => continue,
+        let Some(slot) = xyz_slot(&x.name) else {
+            continue;
         };
         u[slot] = b[k] - a[k];
     }

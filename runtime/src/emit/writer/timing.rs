@@ -67,7 +67,8 @@ pub(super) fn lead_in_speed(
     for k in 0..=STEPS {
         let speed = v - 3.0 * gain * k as f64 / STEPS as f64;
         let lead = link(from_q, q_to, lead_len / speed)?;
-        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
+        // The lit block blends on into what follows it: its term condition stays parabolic.
+        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], true, servo_s);
         let err = (run.switch_speed[1] / lit.seg().v - 1.0).abs();
         if best.is_none_or(|(e, _)| err < e) {
             best = Some((err, speed));
@@ -156,7 +157,8 @@ pub(super) fn timed_lead_in(
         if lead.xyz() != lit.xyz() {
             return None;
         }
-        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], false, servo_s);
+        // The lit block blends on into what follows it: its term condition stays parabolic.
+        let run = chain::run_chain(&[lead.seg().clone(), lit.seg().clone()], true, servo_s);
         let mm = run_len / lit.seg().len;
         let place = (d + run.switch_past[1] * mm - 2.0 * step) / step;
         let err = lit_error(&run.switch_window[1], lit.seg().v, true);
@@ -355,7 +357,7 @@ pub(super) fn off_edge_timing(
     if budget > MAX_SCAN_PERIODS {
         return None;
     }
-    let prefix = out.chain.prefix(period)?;
+    let prefix = out.chain.prefix(machine, &base)?;
     // Each (speed error, place in periods, trim, first block's length) for the junction at
     // `d`: where it is, the lit speed and mm per tp unit depend on `d` only, the lead-out's
     // two blocks on `d` and the length, the lit block on `d` and the trim.
@@ -377,7 +379,7 @@ pub(super) fn off_edge_timing(
                 continue;
             };
             for (len1, blocks) in &endings {
-                if let Some(s) = out.chain.replay_off(&prefix, (&lit, blocks)) {
+                if let Some(s) = out.chain.replay_off(machine, &prefix, (&lit, blocks)) {
                     let place = (d + s.past * mm - 2.0 * step) / step;
                     // A blend of a few periods: the joints' speeds while lit about the switch.
                     let err = if short {

@@ -56,11 +56,15 @@
 //!     period by servo period ([`servo`]): that is where a cam's 20–40 ms G93 blocks gain
 //!     ~0.4 ms each on continuous trapezoids. Elsewhere the path runs as if at the blend
 //!     speed there.
-//!   - A parabolic term condition halves the acceleration of both its segments
-//!     (`tcGetOverallMaxAccel`: `blend_prev`, or the segment's own term condition
-//!     PARABOLIC). `G64` makes PARABOLIC every segment's default (`tcSetupState`), and only a
-//!     successor changes it, so the segment the queue ends on keeps it and ramps at half the
-//!     acceleration too: where the task waits for motion to end before a dwell, an immediate
+//!   - A parabolic term condition halves the acceleration of the segment it ends
+//!     (`tcGetOverallMaxAccel`). Of the segment after it, only where that one's own term
+//!     condition is PARABOLIC too: the real LinuxCNC 2.9 ran a lead-out ending in a stop
+//!     after a parabolic blend (rotary_engrave's rings) and an X-only block joined
+//!     tangentially to the next (its "S") at their full acceleration from the blend's first
+//!     period on, where tc.c's `blend_prev` would halve it; with that, the model's NC line
+//!     starts of the whole program land on the real ones' servo periods. `G64` makes
+//!     PARABOLIC every segment's default (`tcSetupState`), and only a successor changes it,
+//!     so the segment the queue ends on keeps it and ramps at half the acceleration too: where the task waits for motion to end before a dwell, an immediate
 //!     output (`M64`/`M65`/`M68`), another M-code or the program's end (conrod_notch's first
 //!     move). Each such drain rests the machine for about `DRAIN_CYCLES` servo periods.
 //! - **Ramps** (`tpActivateSegment`, `tpCalculateRampAccel`): a feed with term condition
@@ -89,8 +93,7 @@ use crate::machine::{AxisKind, Machine};
 /// The model's name, as `lase plan` prints it.
 pub const MODEL: &str = "LinuxCNC 2.9 trajectory planner model";
 
-/// `ARC_BLEND_KINK_RATIO`'s default.
-const KINK_RATIO: f64 = 0.1;
+use crate::motion::parabolic::chain::KINK_RATIO;
 /// Servo periods the machine rests where the queue drains (the task waits for motion to end,
 /// then runs an immediate output, a dwell or an M-code and queues the next move): measured
 /// (milltask's polling and NML round trip, not tp.c's arithmetic),
@@ -290,17 +293,8 @@ fn junction(a: &Seg, b: &Seg, tol: f64, cycle: f64) -> Kind {
     // measured as a factor of 1.081 on dial_marks' 25 mm/s chords (2000 mm/s² along an axis:
     // 1 + 2000 / 25000 = 1.08).
     let v_max = a.vmax.min(a.req).min(b.vmax.min(b.req));
-    let a_inst = v_max / cycle + b.acc;
-    let mut scale: f64 = (0..3)
-        .map(|k| {
-            let diff = a_inst * (b.u0[k] - a.u1[k]);
-            if a.acc_bound[k] > 0.0 {
-                (diff / a.acc_bound[k]).abs()
-            } else {
-                0.0
-            }
-        })
-        .fold(0.0, f64::max);
+    let mut scale =
+        crate::motion::parabolic::chain::kink_scale((a.u1, b.u0), v_max, b.acc, a.acc_bound, cycle);
     if a.arc || b.arc {
         scale /= ACC_RATIO_TANGENTIAL;
     }
@@ -582,8 +576,8 @@ pub fn run_program_from(nc: &str, limits: &TpLimits, start: &[f64]) -> Result<Tp
                 acc[i + 1] *= keep;
             }
             Some(Kind::Parabolic { .. }) => {
+                // The next one only where its own term condition is parabolic (module doc).
                 half[i] = true;
-                half[i + 1] = true;
             }
             // A segment the queue ends on (the task waits for motion before a dwell, an
             // immediate output or any M-code, or the program ends) keeps its default,

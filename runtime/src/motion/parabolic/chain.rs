@@ -1,8 +1,42 @@
 //! LinuxCNC 2.9's trajectory planner servo period by servo period (`tpRunCycle`) for a chain
-//! of lines joined by parabolic blends (see `link::linuxcnc::tp::servo`, which times programs
-//! with it). Here, before the emitter, so that the writer can ask what tp does at a beam
-//! switch in such a chain (`emit::writer::lead`): the summed speed when the next segment's
-//! synchronized outputs switch.
+//! of lines from rest to rest, each joined to the next by a parabolic blend (one of the two
+//! turns a rotary axis: `tpSetupTangent` gives up on A B C motion) or tangentially (lines
+//! without rotary motion whose directions agree: `TC_TERM_COND_TANGENT`, the speed carried
+//! through the junction). `link::linuxcnc::tp::servo` times programs with it; the writer asks
+//! it what tp does at a beam switch (`emit::writer::timing`): the summed speed when the next
+//! segment's synchronized outputs switch, and the joints' speeds about it.
+//!
+//! What a tangent join adds to the parabolic replay (tp.c, tc.c and blendmath.c of 2.9):
+//! - the look-ahead's final speeds (`tpRunOptimization` as each segment is queued: backward
+//!   over at most `ARC_BLEND_OPTIMIZATION_DEPTH` segments, across at most one junction that
+//!   is not tangent, stopping past `TP_OPTIMIZATION_CUTOFF` segments at their limit;
+//!   `tpComputeOptimalVelocity`, `tpCalculateOptimizationInitialVel` for the last queued,
+//!   not yet finalized), capped by both segments' speeds (`tpGetRealFinalVel`);
+//! - a trapezoid toward that final speed (`findTrapezoidalDesiredVel`'s `v_f²` term), and the
+//!   end condition solved for it (`checkEndCondition`): the split period carries the
+//!   terminal speed into the next segment, which runs the rest of the period
+//!   (`tpHandleSplitCycle`), and takes over the outputs only where that rest is the larger
+//!   part of the period;
+//! - a segment shorter than `1 / ARC_BLEND_RAMP_FREQ` at its entry and final speeds runs at
+//!   one acceleration from one to the other (`tpActivateSegment`'s `TC_ACCEL_RAMP`,
+//!   `tpCalculateRampAccel`);
+//! - a segment whose predecessor joins it tangentially runs at most its length in 1.02 servo
+//!   periods (`TP_MIN_SEGMENT_CYCLES`), and a kink's acceleration share is taken from both
+//!   (`tcSetKinkProperties`, `tcGetOverallMaxAccel`).
+//!
+//! Where the real LinuxCNC 2.9 (Debian's, headless) ran otherwise than the sources read, the
+//! replay follows the machine: a segment after a parabolic blend ramps at half its
+//! acceleration only where its own term condition is PARABOLIC (a lead-out ending in a stop,
+//! an X-only block joined tangentially to the next, run at their full acceleration from the
+//! blend's first period on: `blend_prev` does not halve them), and a tangent split period
+//! switches the next segment's outputs however little of the period it ran. With both, every
+//! NC line of rotary_engrave (parabolic chains with tangent X-only strokes in them, rapids
+//! between) started in the model in the servo period the real machine started it, and the
+//! model's cycle came to 1.0002 of the real one (0.9929 before).
+//!
+//! The replay queues the whole chain before it runs it: the look-ahead's passes are those of
+//! a queue filled ahead of motion (the task queues a segment a millisecond; a pass that a
+//! segment already under way would stop is not modelled).
 
 /// `TP_VEL_EPSILON`.
 const VEL_EPSILON: f64 = 1e-8;
@@ -12,10 +46,20 @@ const POS_EPSILON: f64 = 1e-12;
 const TIME_EPSILON: f64 = 1e-12;
 /// `TP_MIN_ARC_ANGLE`.
 const MIN_ARC_ANGLE: f64 = 1e-3;
+/// `TP_MIN_SEGMENT_CYCLES`.
+const MIN_SEGMENT_CYCLES: f64 = 1.02;
+/// `[TRAJ] ARC_BLEND_OPTIMIZATION_DEPTH`'s default.
+const OPTIMIZATION_DEPTH: usize = 50;
+/// `TP_OPTIMIZATION_CUTOFF`.
+const OPTIMIZATION_CUTOFF: usize = 4;
+/// `[TRAJ] ARC_BLEND_RAMP_FREQ`'s default, Hz.
+const RAMP_FREQ: f64 = 100.0;
+/// `[TRAJ] ARC_BLEND_KINK_RATIO`'s default.
+pub const KINK_RATIO: f64 = 0.1;
 
 /// One line of the chain as the planner queued it (its own length unit: X Y Z length, or the
 /// rotary length when X Y Z stay).
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct ChainSeg {
     pub len: f64,
     /// `tpGetRealTargetVel`: the requested speed within the segment's own limits.
@@ -26,6 +70,56 @@ pub struct ChainSeg {
     pub u: [f64; 3],
     /// `G64 P` in force for it.
     pub tolerance: f64,
+    /// How tp joins it to the next segment: `None` by a parabolic blend, `Some(r)`
+    /// tangentially, both segments losing the share `r` of their acceleration to the kink
+    /// ([`tangent_join`]). The chain's last segment's is not read.
+    pub tangent: Option<f64>,
+}
+
+/// `tpSetupTangent`: whether two lines without rotary motion, the first ending along `u0`,
+/// the second starting along `u1`, join tangentially, and the share of acceleration the kink
+/// takes from both ([`kink_scale`], under `ARC_BLEND_KINK_RATIO`). `None`: tp stops there (a
+/// reversal, within `SHARP_CORNER_DEG` = 2°: `pmCartCartAntiParallel`), or makes a blend arc
+/// or a kink at reduced speed, which the replay does not model.
+pub fn tangent_join(
+    (u0, u1): ([f64; 3], [f64; 3]),
+    v_max: f64,
+    acc: f64,
+    acc_bound: [f64; 3],
+    cycle: f64,
+) -> Option<f64> {
+    let dot: f64 = (0..3).map(|k| u0[k] * u1[k]).sum();
+    let sharp = (std::f64::consts::PI * 2.0 / 180.0).powi(2);
+    if 1.0 + dot < sharp {
+        return None;
+    }
+    let scale = kink_scale((u0, u1), v_max, acc, acc_bound, cycle);
+    (scale < KINK_RATIO).then_some(scale)
+}
+
+/// `tpSetupTangent`'s kink: the X Y Z acceleration that turns from direction `u0` to `u1`
+/// within a servo period `cycle` at `v_max` (the slower segment's requested speed within its
+/// limits), plus the second segment's own `acc` ("acceleration past final velocity during a
+/// split cycle"), as a share of the axes' limits `acc_bound` (zero: no such axis), the
+/// largest over the axes.
+pub fn kink_scale(
+    (u0, u1): ([f64; 3], [f64; 3]),
+    v_max: f64,
+    acc: f64,
+    acc_bound: [f64; 3],
+    cycle: f64,
+) -> f64 {
+    let a_inst = v_max / cycle + acc;
+    (0..3)
+        .map(|k| {
+            let diff = a_inst * (u1[k] - u0[k]);
+            if acc_bound[k] > 0.0 {
+                (diff / acc_bound[k]).abs()
+            } else {
+                0.0
+            }
+        })
+        .fold(0.0, f64::max)
 }
 
 /// What the chain does: when each segment's synced outputs switch, and when motion ends.
@@ -60,7 +154,16 @@ pub const SWITCH_WINDOW: usize = 9;
 /// tp's periods a switch window needs: three before the first sample's, to the last's.
 const TRAVEL_SPAN: usize = SWITCH_WINDOW + 2;
 
-#[derive(Debug, Clone)]
+/// A segment's terminal condition.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Term {
+    Parabolic,
+    Tangent,
+    /// The chain's end where the planner stops there.
+    Stop,
+}
+
+#[derive(Debug, Clone, PartialEq)]
 struct Tc {
     progress: f64,
     vel: f64,
@@ -70,15 +173,23 @@ struct Tc {
     splitting: bool,
     cycle_time: f64,
     remove: bool,
-    /// Term condition PARABOLIC (else STOP: the chain's end when the planner stops there).
-    parabolic: bool,
+    term: Term,
+    /// Joined parabolically to the one before, and its own term PARABOLIC: halves its
+    /// acceleration (module doc).
     blend_prev: bool,
     switched: bool,
+    /// The look-ahead's final speed (`finalvel`; read only where the term is TANGENT).
+    finalvel: f64,
+    /// `TC_ACCEL_RAMP`.
+    ramp: bool,
+    active: bool,
+    /// The speed a split period carries into the next segment.
+    term_vel: f64,
 }
 
-/// `tcGetTangentialMaxAccel` for a line.
+/// `tcGetTangentialMaxAccel` for a line (its kink's share already taken from `s.acc`).
 fn tangential_acc(s: &ChainSeg, tc: &Tc) -> f64 {
-    if tc.blend_prev || tc.parabolic {
+    if tc.blend_prev || tc.term == Term::Parabolic {
         s.acc * 0.5
     } else {
         s.acc
@@ -105,21 +216,46 @@ fn blend_velocity(a: &ChainSeg, ta: &Tc, b: &ChainSeg, tb: &Tc) -> (f64, f64) {
     (va, vb)
 }
 
-/// `tpUpdateCycle` without its ramp mode (parabolic segments never ramp): one servo period of
-/// trapezoidal motion toward a stop at the segment's end, then `tpCheckEndCondition`.
-fn update(s: &ChainSeg, tc: &mut Tc, period: f64) {
+/// `tpGetRealFinalVel`: where a TANGENT segment `s` is headed, the look-ahead's final speed
+/// within its own and the next segment's speeds (`v_next`: none, as `tpUpdateBlend` runs the
+/// next segment of a parabolic blend, is zero); any other ends at rest.
+fn final_vel(s: &ChainSeg, tc: &Tc, v_next: f64) -> f64 {
+    match tc.term {
+        Term::Tangent => tc.finalvel.min(s.v).min(v_next),
+        _ => 0.0,
+    }
+}
+
+/// `tpUpdateCycle`: one servo period (or its rest, `tc.cycle_time`) toward the final speed
+/// `v_f`: a ramp where `tpActivateSegment` chose one, else the trapezoid; then
+/// `tpCheckEndCondition`.
+fn update(s: &ChainSeg, tc: &mut Tc, v_f: f64, period: f64) {
     let dt = tc.cycle_time;
     let dx = s.len - tc.progress;
     let a = tangential_acc(s, tc);
     let v = tc.vel;
-    let half_step = a * dt * 0.5;
-    let discr = a * (2.0 * dx - v * dt) + half_step * half_step;
-    let mut max_new = -half_step;
-    if discr > half_step * half_step {
-        max_new += discr.sqrt();
-    }
-    let new_vel = max_new.clamp(-s.v, s.v);
-    let acc = ((new_vel - v) / dt.max(TIME_EPSILON)).clamp(-a, a);
+    let ramp = tc.ramp && tc.term == Term::Tangent && v_f >= VEL_EPSILON;
+    let (acc, desired) = if ramp {
+        // tpCalculateRampAccel.
+        let v_avg = (v + v_f) / 2.0;
+        let t = if v_avg > VEL_EPSILON {
+            (dx / v_avg).max(1e-16)
+        } else {
+            1e-16
+        };
+        (((v_f - v) / t).clamp(-a, a), v_f)
+    } else {
+        // tpCalculateTrapezoidalAccel, findTrapezoidalDesiredVel.
+        let step = dt.max(TIME_EPSILON);
+        let half_step = a * step * 0.5;
+        let discr = v_f * v_f + a * (2.0 * dx - v * step) + half_step * half_step;
+        let mut max_new = -half_step;
+        if discr > half_step * half_step {
+            max_new += discr.sqrt();
+        }
+        let new_vel = max_new.clamp(-s.v, s.v);
+        (((new_vel - v) / step).clamp(-a, a), max_new)
+    };
     // tcUpdateDistFromAccel: trapezoidal integration, never past the end.
     let mut next = v + acc * dt;
     if next < 0.0 {
@@ -131,60 +267,79 @@ fn update(s: &ChainSeg, tc: &mut Tc, period: f64) {
         tc.progress = (tc.progress + (next + v) * 0.5 * dt).min(s.len);
     }
     tc.vel = next;
-    tc.on_final_decel = (max_new - next).abs() < VEL_EPSILON && acc < 0.0;
-    end_condition(s, tc, period);
+    tc.on_final_decel = (desired - next).abs() < VEL_EPSILON && acc < 0.0;
+    end_condition(s, tc, v_f, period);
 }
 
-/// `tpCheckEndCondition` for a segment whose final speed is zero (parabolic or stop): flags
-/// the period in which it will reach its end.
-fn end_condition(s: &ChainSeg, tc: &mut Tc, period: f64) {
+/// `tpCheckEndCondition` (`checkEndCondition`): flags the period in which the segment will
+/// reach its end at final speed `v_f`, and the speed it carries on.
+fn end_condition(s: &ChainSeg, tc: &mut Tc, v_f: f64, period: f64) {
     tc.cycle_time = period;
     let dx = s.len - tc.progress;
     if dx <= POS_EPSILON {
         tc.progress = s.len;
         tc.splitting = true;
         tc.cycle_time = 0.0;
-        tc.remove |= !tc.parabolic;
+        tc.term_vel = tc.vel;
+        tc.remove |= tc.term == Term::Stop;
         return;
     }
-    if !tc.parabolic {
+    if tc.term == Term::Stop {
         return;
     }
-    let v_avg = tc.vel / 2.0;
+    let v_avg = (tc.vel + v_f) / 2.0;
     let mut dt = TIME_EPSILON / 2.0;
     if v_avg > VEL_EPSILON {
         dt = dt.max(dx / v_avg);
     } else if dx > v_avg * period && dx > POS_EPSILON {
         return;
     }
-    let a_f = -tc.vel / dt;
+    let a_f = (v_f - tc.vel) / dt.max(TIME_EPSILON);
     let a_max = tangential_acc(s, tc);
-    if a_f < -a_max {
-        let a = -a_max;
+    let mut end_vel = v_f;
+    if a_f.abs() > a_max {
+        let a = a_f.clamp(-a_max, a_max);
         let disc = (tc.vel / a).powi(2) + 2.0 / a * dx;
         if disc < 0.0 {
             return;
         }
         dt = if disc < TIME_EPSILON * TIME_EPSILON {
             -tc.vel / a
+        } else if a > 0.0 {
+            -tc.vel / a + disc.sqrt()
         } else {
             -tc.vel / a - disc.sqrt()
         };
+        end_vel = tc.vel + dt * a;
     }
     if dt < TIME_EPSILON {
         tc.progress = s.len;
         tc.splitting = true;
         tc.cycle_time = 0.0;
+        tc.term_vel = end_vel;
     } else if dt < period {
         tc.splitting = true;
         tc.cycle_time = dt;
+        tc.term_vel = end_vel;
     }
 }
 
-/// Runs `segs` from rest to rest, every junction a parabolic blend; `parabolic_end`: the last
-/// segment keeps the PARABOLIC term condition (the queue ends there), else STOP.
+/// How the chain ends.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum End {
+    /// The planner stops there (a rapid or `G61` next).
+    Stop,
+    /// The queue ends there: its last segment keeps the PARABOLIC default, not finalized.
+    Queue,
+    /// A prefix: segments follow, joined as its last segment's [`ChainSeg::tangent`] says.
+    Open,
+}
+
+/// Runs `segs` from rest to rest; `parabolic_end`: the last segment keeps the PARABOLIC term
+/// condition (the queue ends there), else STOP.
 pub fn run_chain(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> ChainRun {
-    let mut r = Replay::start(segs, parabolic_end, period);
+    let end = if parabolic_end { End::Queue } else { End::Stop };
+    let mut r = Replay::start(segs, end, period);
     r.run(usize::MAX);
     r.finish()
 }
@@ -194,6 +349,9 @@ pub fn run_chain(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> ChainRu
 /// ([`Replay::then`]) without replaying the start again.
 #[derive(Debug, Clone)]
 pub struct Replay {
+    /// The segments as given.
+    given: Vec<ChainSeg>,
+    /// As tp runs them: each one's speed and acceleration after the tangent joins' caps.
     segs: Vec<ChainSeg>,
     tcs: Vec<Tc>,
     period: f64,
@@ -215,11 +373,11 @@ pub struct Replay {
 }
 
 impl Replay {
-    fn start(segs: &[ChainSeg], parabolic_end: bool, period: f64) -> Replay {
-        let n = segs.len();
+    fn start(segs: &[ChainSeg], end: End, period: f64) -> Replay {
         let mut r = Replay {
-            segs: Vec::with_capacity(n + 3),
-            tcs: Vec::with_capacity(n + 3),
+            given: segs.to_vec(),
+            segs: Vec::new(),
+            tcs: Vec::new(),
             period,
             head: 0,
             cycles: 0,
@@ -233,52 +391,64 @@ impl Replay {
             switched_now: None,
             open: Vec::new(),
         };
-        r.push(segs, parabolic_end);
+        let (segs, tcs) = queue(&r.given, end, period);
+        r.segs = segs;
+        r.tcs = tcs;
+        let m = r.segs.len();
+        r.switch_s.resize(m, 0.0);
+        r.switch_speed.resize(m, 0.0);
+        r.switch_past.resize(m, 0.0);
+        r.switch_window.resize(m, [0.0; SWITCH_WINDOW]);
         r
-    }
-
-    /// Appends `segs` to the chain (the one before them now blends into them).
-    fn push(&mut self, segs: &[ChainSeg], parabolic_end: bool) {
-        if let Some(last) = self.tcs.last_mut() {
-            last.parabolic = true;
-        }
-        let n = segs.len();
-        for (i, s) in segs.iter().enumerate() {
-            let first = self.tcs.is_empty();
-            self.tcs.push(Tc {
-                progress: 0.0,
-                vel: 0.0,
-                blending_next: false,
-                on_final_decel: false,
-                blend_vel: 0.0,
-                splitting: false,
-                cycle_time: self.period,
-                remove: false,
-                parabolic: i + 1 < n || parabolic_end,
-                blend_prev: !first,
-                switched: false,
-            });
-            self.segs.push(s.clone());
-        }
-        let m = self.segs.len();
-        self.switch_s.resize(m, 0.0);
-        self.switch_speed.resize(m, 0.0);
-        self.switch_past.resize(m, 0.0);
-        self.switch_window.resize(m, [0.0; SWITCH_WINDOW]);
     }
 
     /// `segs` run from rest up to the first servo period in which tp would look at a segment
     /// after them (their last is the head, or the chain has ended).
     pub fn prefix(segs: &[ChainSeg], period: f64) -> Replay {
-        let mut r = Replay::start(segs, true, period);
+        let mut r = Replay::start(segs, End::Open, period);
         r.run(segs.len().saturating_sub(1));
         r
     }
 
     /// The prefix run on into `tail` (its last segment ending in STOP): the whole chain's run.
+    /// Where the tail changes what the prefix already ran on (the look-ahead's final speeds
+    /// of segments joined tangentially into it, or a split period that read its first
+    /// segment), the whole chain is run again from rest.
     pub fn then(&self, tail: &[ChainSeg]) -> ChainRun {
+        let mut all = self.given.clone();
+        all.extend_from_slice(tail);
+        let (segs, tcs) = queue(&all, End::Stop, self.period);
+        let n = self.segs.len();
+        let last_read =
+            n > 0 && self.tcs[n - 1].term == Term::Tangent && self.tcs[n - 1].progress > 0.0;
+        let same = !last_read
+            && (0..n).all(|k| {
+                let (a, b) = (&self.tcs[k], &tcs[k]);
+                segs[k] == self.segs[k]
+                    && a.term == b.term
+                    && a.blend_prev == b.blend_prev
+                    && a.finalvel == b.finalvel
+            });
+        if !same {
+            let mut r = Replay::start(&all, End::Stop, self.period);
+            r.run(usize::MAX);
+            return r.finish();
+        }
         let mut r = self.clone();
-        r.push(tail, false);
+        r.given = all;
+        for (k, (s, t)) in segs.into_iter().zip(tcs).enumerate() {
+            if k < n {
+                r.tcs[k].finalvel = t.finalvel;
+            } else {
+                r.segs.push(s);
+                r.tcs.push(t);
+            }
+        }
+        let m = r.segs.len();
+        r.switch_s.resize(m, 0.0);
+        r.switch_speed.resize(m, 0.0);
+        r.switch_past.resize(m, 0.0);
+        r.switch_window.resize(m, [0.0; SWITCH_WINDOW]);
         r.run(usize::MAX);
         r.finish()
     }
@@ -356,34 +526,67 @@ impl Replay {
         }
     }
 
+    /// The final speed segment `i` heads for with `next` after it.
+    fn v_f(&self, i: usize, next: Option<usize>) -> f64 {
+        final_vel(
+            &self.segs[i],
+            &self.tcs[i],
+            next.map_or(0.0, |j| self.segs[j].v),
+        )
+    }
+
+    /// `tpActivateSegment`, the first period segment `i` is the head: a TANGENT segment
+    /// shorter than `1 / ARC_BLEND_RAMP_FREQ` at its entry and final speeds ramps.
+    fn activate(&mut self, i: usize) {
+        let (s, tc) = (&self.segs[i], &mut self.tcs[i]);
+        if tc.active {
+            return;
+        }
+        tc.active = true;
+        let t = 2.0 * (s.len - tc.progress) / (tc.vel + tc.finalvel.min(s.v));
+        tc.ramp = t < 1.0 / RAMP_FREQ && tc.term == Term::Tangent;
+        tc.blending_next = false;
+        tc.on_final_decel = false;
+    }
+
     /// One servo period of `tpRunCycle`.
     fn cycle(&mut self) {
         let (n, period, head) = (self.segs.len(), self.period, self.head);
-        let segs = &self.segs;
+        self.activate(head);
         let mut before = [0.0; 2];
         for (k, b) in before.iter_mut().enumerate().take(n - head) {
             *b = self.tcs[head + k].progress;
         }
         let next = (head + 1 < n).then_some(head + 1);
         if self.tcs[head].splitting {
-            // tpHandleSplitCycle: the segment lands on its end; the next one gets the period.
-            self.tcs[head].progress = segs[head].len;
+            // tpHandleSplitCycle: the segment lands on its end; the next one gets the period
+            // (the rest of it, entering at the carried speed, after a tangent join) and its
+            // outputs switch (after a tangent join too, however short the rest: measured).
+            self.tcs[head].progress = self.segs[head].len;
             self.tcs[head].remove = true;
             if let Some(j) = next {
-                update(&segs[j], &mut self.tcs[j], period);
+                if self.tcs[head].term == Term::Tangent {
+                    self.tcs[j].cycle_time = period - self.tcs[head].cycle_time;
+                    self.tcs[j].vel = self.tcs[head].term_vel;
+                }
+                let v_f = self.v_f(j, (j + 1 < n).then_some(j + 1));
+                update(&self.segs[j], &mut self.tcs[j], v_f, period);
                 let at = (self.tcs[j].vel, self.tcs[j].progress);
                 self.switch(j, at);
             }
         } else {
+            let v_f = self.v_f(head, next);
+            let segs = &self.segs;
             let tcs = &mut self.tcs;
             tcs[head].cycle_time = period;
-            update(&segs[head], &mut tcs[head], period);
+            update(&segs[head], &mut tcs[head], v_f, period);
             if let Some(j) = next {
                 let (va, vb) = blend_velocity(&segs[head], &tcs[head], &segs[j], &tcs[j]);
                 tcs[head].blend_vel = va;
                 tcs[j].blend_vel = vb;
                 let t = &mut tcs[head];
-                t.blending_next |= t.parabolic && t.on_final_decel && t.vel < t.blend_vel;
+                t.blending_next |=
+                    t.term == Term::Parabolic && t.on_final_decel && t.vel < t.blend_vel;
             } else {
                 tcs[head].blend_vel = 0.0;
             }
@@ -392,7 +595,8 @@ impl Replay {
                     // tpUpdateBlend: the next segment accelerates on its own (its target
                     // speed is its requested one; the blend's scaling touches only
                     // synchronized motion), with no segment after it.
-                    update(&segs[j], &mut tcs[j], period);
+                    let v_f = final_vel(&segs[j], &tcs[j], 0.0);
+                    update(&segs[j], &mut tcs[j], v_f, period);
                     let faster = if tcs[head].vel > tcs[j].vel { head } else { j };
                     let v = tcs[head].vel + tcs[j].vel;
                     let past = if faster == j {
@@ -428,122 +632,116 @@ impl Replay {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The real LinuxCNC 2.9 (Debian's linuxcnc-uspace, headless, 1 ms servo period, the
-    /// xy_rotary INI lase generates: A at 3600 °/s²) ran rotary_engrave's first ring with its
-    /// lit block 0, ¼, ½, ¾ and 1 ms longer (hand-edited F words; lead-in and lead-out as
-    /// lase writes them). Through the parabolic blend into the lead-out the summed A speed,
-    /// recomputed from the sampled joint positions, sat at 113.8655, 112.5055, 112.9455,
-    /// 113.3885 and 113.8295 °/s: a sawtooth over the phase in which the lit block's final
-    /// deceleration turns, one servo period wide and `A·T` = 1.8 °/s high. The replay gives the
-    /// same speed at the lead-out's switch.
-    #[test]
-    fn the_replay_matches_the_real_linuxcncs_off_edge_blend_over_the_servo_phase() {
-        let seg = |len: f64, f_per_min: f64| ChainSeg {
-            len,
-            v: len * f_per_min / 60.0,
-            acc: 3600.0,
-            u: [1.0, 0.0, 0.0],
-            tolerance: 0.01,
-        };
-        let measured = [113.8655, 112.5055, 112.9455, 113.3885, 113.8295];
-        for (k, real) in measured.into_iter().enumerate() {
-            let lit_s = 60.0 / 19.09859 + k as f64 * 0.00025;
-            let f = (60.0 / lit_s * 1e6).round() / 1e6;
-            let chain = [
-                seg(7.868083, 857.3745),
-                seg(360.0, f),
-                seg(6.980599, 984.9432),
-                seg(8.068018, 852.1912),
-            ];
-            let run = run_chain(&chain, false, 0.001);
-            // The on-edge as the real machine crossed it too (114.20 of 114.59 °/s).
-            assert!((run.switch_speed[1] - 114.20).abs() < 0.005, "{run:?}");
-            let model = run.switch_speed[2];
-            assert!(
-                (model - real).abs() < 0.002,
-                "{k}/4 ms longer: replay {model:.4}, LinuxCNC {real:.4} °/s"
-            );
-        }
-    }
-
-    /// The real LinuxCNC 2.9 (the arm_3r INI lase generates: A and B at 900 °/s², C at
-    /// 1800) ran a lead-in from rest at F1190.8894 into a lit block at F426.1399 in line in
-    /// the joints (tests/linuxcnc/arm_short.lase as written while its timing was tuned on
-    /// tp's summed speed). The blend lasts about two servo periods: tp switched the beam as
-    /// its summed speed reached the lit speed (1.18 °/s), while the sampled joints, two
-    /// periods behind, still ran at the lead-in's 0.80: their central difference over the
-    /// switching sample was 0.8179 °/s, which the replay's switch window gives.
-    #[test]
-    fn the_joints_speed_at_a_short_blends_switch_is_the_real_linuxcncs() {
-        let p0 = [-133.087689, 99.466378, -61.135992];
-        let p1 = [-133.060975, 99.463241, -61.166172];
-        let p2 = [-132.951481, 99.450385, -61.289873];
-        let seg = |a: [f64; 3], b: [f64; 3], f_per_min: f64| {
-            let d: Vec<f64> = (0..3).map(|k| (b[k] - a[k]).abs()).collect();
-            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            let acc = [900.0, 900.0, 1800.0]
-                .iter()
-                .zip(&d)
-                .map(|(a, d)| a * len / d)
-                .fold(f64::INFINITY, f64::min);
-            ChainSeg {
-                len,
-                v: len * f_per_min / 60.0,
-                acc,
-                u: [1.0, 0.0, 0.0],
-                tolerance: 0.01,
+/// The chain as tp queues it: each segment's speed and acceleration after its joins
+/// (`tcClampVelocityByLength`; a tangent join's kink share from both sides, and its
+/// successor's speed within its length in `TP_MIN_SEGMENT_CYCLES` periods), its term
+/// condition, and the look-ahead's final speeds.
+fn queue(given: &[ChainSeg], end: End, period: f64) -> (Vec<ChainSeg>, Vec<Tc>) {
+    let n = given.len();
+    let term = |i: usize| {
+        if i + 1 < n || end == End::Open {
+            if given[i].tangent.is_some() {
+                Term::Tangent
+            } else {
+                Term::Parabolic
             }
-        };
-        let chain = [seg(p0, p1, 1190.8894), seg(p1, p2, 426.1399)];
-        let run = run_chain(&chain, false, 0.001);
-        let lit = chain[1].v;
-        assert!((lit - 1.18).abs() < 0.005, "{lit}");
-        assert!((run.switch_speed[1] / lit - 1.0).abs() < 0.02, "{run:?}");
-        // The central difference over the switching sample, (x[n+1] − x[n−1]) / 2T.
-        let window = run.switch_window[1];
-        let joints = (window[4] + window[5]) / 2.0;
-        assert!(
-            (joints - 0.8179).abs() < 0.002,
-            "replay {joints:.4}, LinuxCNC 0.8179 °/s"
-        );
-        // Sample by sample from four before the switch's to four after: the blend's speeds
-        // show in the joints from the sample after the switch's on.
-        let real = [
-            0.80221, 0.80229, 0.80221, 0.80221, 0.80287, 0.83283, 0.97841, 1.10065, 1.16537,
-        ];
-        for (k, (w, r)) in window.iter().zip(real).enumerate() {
-            let at = k as i32 - 4;
-            assert!(
-                (w - r).abs() < 0.001,
-                "sample {at}: replay {window:?}, LinuxCNC {real:?}"
-            );
+        } else if end == End::Queue {
+            Term::Parabolic
+        } else {
+            Term::Stop
         }
-    }
-
-    #[test]
-    fn a_prefix_run_on_into_its_ending_is_the_whole_chains_run() {
-        let seg = |len: f64, v: f64, u: [f64; 3]| ChainSeg {
-            len,
+    };
+    let kink = |i: usize| match term(i) {
+        Term::Tangent => given[i].tangent.unwrap_or(0.0),
+        _ => 0.0,
+    };
+    let mut segs = Vec::with_capacity(n);
+    let mut tcs = Vec::with_capacity(n);
+    for (i, g) in given.iter().enumerate() {
+        let prev_tangent = i > 0 && term(i - 1) == Term::Tangent;
+        let mut v = g.v.min(g.len / period);
+        if prev_tangent {
+            v = v.min(g.len / (period * MIN_SEGMENT_CYCLES));
+        }
+        let reduce = kink(i).max(if i > 0 { kink(i - 1) } else { 0.0 });
+        segs.push(ChainSeg {
             v,
-            acc: 2000.0,
-            u,
-            tolerance: 0.01,
-        };
-        let x = [1.0, 0.0, 0.0];
-        let head = [
-            seg(3.0, 40.0, x),
-            seg(0.8, 55.0, x),
-            seg(0.05, 30.0, [0.6, 0.8, 0.0]),
-        ];
-        let tail = [seg(2.0, 50.0, x), seg(0.4, 50.0, x), seg(1.2, 50.0, x)];
-        let all: Vec<ChainSeg> = head.iter().chain(&tail).cloned().collect();
-        let whole = run_chain(&all, false, 0.001);
-        let parts = Replay::prefix(&head, 0.001).then(&tail);
-        assert_eq!(whole, parts);
-        assert!(whole.total_s > 0.0 && whole.switch_s.windows(2).all(|w| w[0] <= w[1]));
+            acc: g.acc * (1.0 - reduce),
+            ..g.clone()
+        });
+        tcs.push(Tc {
+            progress: 0.0,
+            vel: 0.0,
+            blending_next: false,
+            on_final_decel: false,
+            blend_vel: 0.0,
+            splitting: false,
+            cycle_time: period,
+            remove: false,
+            term: term(i),
+            blend_prev: i > 0 && term(i - 1) == Term::Parabolic && term(i) == Term::Parabolic,
+            switched: false,
+            finalvel: 0.0,
+            ramp: false,
+            active: false,
+            term_vel: 0.0,
+        });
+    }
+    optimize(&segs, &mut tcs, end);
+    (segs, tcs)
+}
+
+/// `tpRunOptimization` after each segment is queued (the chain's last is finalized only
+/// where something follows it): each TANGENT segment's final speed, the highest from which
+/// the segments after it can still reach theirs.
+fn optimize(segs: &[ChainSeg], tcs: &mut [Tc], end: End) {
+    let n = segs.len();
+    if !tcs.iter().any(|t| t.term == Term::Tangent) {
+        return;
+    }
+    let mut at_max = vec![false; n];
+    let last_len = if end == End::Stop { n + 1 } else { n };
+    for len in 2..=last_len {
+        let (mut peaks, mut crossed) = (0, false);
+        for x in 1..OPTIMIZATION_DEPTH + 2 {
+            let Some(prev) = len.checked_sub(x + 1) else {
+                break;
+            };
+            let tc = prev + 1;
+            if tcs[prev].term != Term::Tangent {
+                if crossed {
+                    break;
+                }
+                crossed = true;
+                continue;
+            }
+            let finalized = tc + 1 < len;
+            if finalized {
+                // tpComputeOptimalVelocity.
+                let acc = tangential_acc(&segs[tc], &tcs[tc]);
+                let back = (tcs[tc].finalvel.powi(2) + 2.0 * acc * segs[tc].len).sqrt();
+                let limit = segs[tc].v.min(segs[prev].v);
+                if back >= limit {
+                    at_max[prev] = true;
+                }
+                tcs[prev].finalvel = back.min(limit);
+            } else {
+                // tpCalculateOptimizationInitialVel: the last queued may lose half its
+                // length to a blend.
+                let acc = tangential_acc(&segs[tc], &tcs[tc]);
+                let v0 = (acc * segs[tc].len).sqrt().min(segs[tc].v);
+                tcs[prev].finalvel = v0.min(segs[prev].v);
+                tcs[tc].finalvel = 0.0;
+            }
+            if at_max[tc] {
+                peaks += 1;
+            }
+            if peaks > OPTIMIZATION_CUTOFF {
+                break;
+            }
+        }
     }
 }
+
+#[cfg(test)]
+mod tests;

@@ -1,7 +1,8 @@
 //! LinuxCNC 2.9's planner servo period by servo period (`tpRunCycle`), for a chain of lines
-//! joined by parabolic blends: rotary motion, where tp.c makes neither tangent nor arc
-//! blends (`tpSetupTangent` gives up on ABC motion), so every junction of a cam or rotary
-//! section is one.
+//! joined by parabolic blends (rotary motion, where tp.c makes neither tangent nor arc
+//! blends: `tpSetupTangent` gives up on ABC motion, so every junction of a cam or rotary
+//! section is one), and, among them, by tangent joins (lines without rotary motion in line,
+//! such as a rotary attachment's X-only strokes between blocks that turn A).
 //!
 //! Why not the continuous trapezoids the rest of the model uses: a parabolic blend starts in
 //! the servo period in which the finishing segment begins its final deceleration
@@ -22,8 +23,9 @@
 
 pub(super) use crate::motion::parabolic::chain::{ChainSeg, run_chain};
 
-/// A queue segment as the chain replay reads it, under `G64 P` `tolerance`.
-pub(super) fn chain_seg(s: &super::Seg, tolerance: f64) -> ChainSeg {
+/// A queue segment as the chain replay reads it, under `G64 P` `tolerance`, joined to the
+/// next tangentially with the kink's share `tangent` of acceleration, else parabolically.
+pub(super) fn chain_seg(s: &super::Seg, tolerance: f64, tangent: Option<f64>) -> ChainSeg {
     ChainSeg {
         len: s.len,
         v: s.req.min(s.vmax),
@@ -34,6 +36,20 @@ pub(super) fn chain_seg(s: &super::Seg, tolerance: f64) -> ChainSeg {
             s.u0
         },
         tolerance,
+        tangent,
+    }
+}
+
+/// The kink's share of acceleration where a segment joins the next tangentially within
+/// `ARC_BLEND_KINK_RATIO` (`None` elsewhere, and at a kink tp slows for, which the replay does
+/// not model).
+pub(super) fn tangent_share(joint: Option<super::Joint>, kind: Option<super::Kind>) -> Option<f64> {
+    use crate::motion::parabolic::chain::KINK_RATIO;
+    match (joint, kind) {
+        (None, Some(super::Kind::Tangent { keep, .. })) if keep > 1.0 - KINK_RATIO => {
+            Some(1.0 - keep)
+        }
+        _ => None,
     }
 }
 
@@ -44,7 +60,10 @@ pub(super) fn replayable(s: &super::Seg) -> bool {
 }
 
 /// Where the model runs chains here instead of its trapezoids: every maximal run of lines
-/// from a stop to a stop whose junctions are all parabolic blends. Returns, per piece of the
+/// from a stop to a stop whose first junction is a parabolic blend and the others parabolic
+/// blends or tangent joins (a run of tangent joins alone is left to the trapezoids, which the
+/// flat-bed programs were measured against; `TpStream` opens a chain at its first junction).
+/// Returns, per piece of the
 /// model's queue (`piece_of_seg[i]` is segment `i`'s), the time from its outputs' switch to
 /// the next piece's (the chain's last: to the end of its motion).
 pub(super) fn chain_times(
@@ -67,20 +86,22 @@ pub(super) fn chain_times(
     };
     let parabolic =
         |i: usize| joints[i].is_none() && matches!(kinds[i], Some(Kind::Parabolic { .. }));
+    let tangent = |i: usize| tangent_share(joints[i], kinds[i]);
     let mut i = 0;
     while i < n {
         let starts_at_rest = i == 0 || stops_after(i - 1);
         let mut j = i;
-        while j + 1 < n && parabolic(j) {
+        while j + 1 < n && (parabolic(j) || tangent(j).is_some()) {
             j += 1;
         }
-        let simulate =
-            starts_at_rest && j > i && stops_after(j) && segs[i..=j].iter().all(replayable);
+        let simulate = starts_at_rest
+            && j > i
+            && stops_after(j)
+            && parabolic(i)
+            && segs[i..=j].iter().all(replayable);
         if simulate {
-            let chain: Vec<ChainSeg> = segs[i..=j]
-                .iter()
-                .zip(&tolerances[i..=j])
-                .map(|(s, &tolerance)| chain_seg(s, tolerance))
+            let chain: Vec<ChainSeg> = (i..=j)
+                .map(|k| chain_seg(&segs[k], tolerances[k], tangent(k)))
                 .collect();
             // The queue's last segment keeps its default PARABOLIC term condition; one the
             // planner must stop after (a rapid next, G61) is STOP.

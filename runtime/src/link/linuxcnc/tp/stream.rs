@@ -9,7 +9,8 @@
 //! plans to a stop 50 pieces on), so no more than about 51 pieces and two segments are held
 //! (three while canon's naive-CAM detector may still lengthen the last:
 //! [`super::read::Reader::chain_open`]).
-//! The one exception is a chain of parabolic blends from rest to rest, which
+//! The one exception is a chain of parabolic blends (and tangent joins after its first
+//! junction) from rest to rest, which
 //! [`super::servo::run_chain`] replays whole: whether a chain is replayed is known only at its
 //! end (every segment a line that can move, ending at a stop), so its segments and pieces wait
 //! there, one [`ChainSeg`] and one piece a line. Such chains are the rotary and cam sections
@@ -20,7 +21,7 @@
 //! example and on random programs.
 
 use super::read::{Queue, Reader};
-use super::servo::{ChainSeg, chain_seg, replayable, run_chain};
+use super::servo::{ChainSeg, chain_seg, replayable, run_chain, tangent_share};
 use super::{
     ACC_RATIO_TANGENTIAL, DRAIN_CYCLES, Joint, Kind, OPTIMIZATION_DEPTH, Piece, TpLimits, TpTime,
     junction, piece_time, quantised, seg_pieces,
@@ -37,7 +38,8 @@ struct Waiting {
     line: usize,
 }
 
-/// A run of segments joined by parabolic blends, from rest: a chain [`run_chain`] may replay.
+/// A run of segments joined by parabolic blends and tangent joins, from rest, its first
+/// junction parabolic: a chain [`run_chain`] may replay.
 #[derive(Debug)]
 struct Chain {
     /// Index of its first piece.
@@ -172,17 +174,19 @@ impl<'a> TpStream<'a> {
         if let Some(Kind::Tangent { keep, .. }) = kind {
             acc *= keep;
         }
-        let half = matches!(self.prev_kind, Some(Kind::Parabolic { .. }))
-            || match kind {
-                Some(Kind::Parabolic { .. }) => true,
-                None => last || matches!(joint, Some(Joint::Stop { drain: true, .. })),
-                _ => false,
-            };
+        // Halved by its own parabolic term condition only (`super`'s module doc).
+        let half = match kind {
+            Some(Kind::Parabolic { .. }) => true,
+            None => last || matches!(joint, Some(Joint::Stop { drain: true, .. })),
+            _ => false,
+        };
         let a = if half { acc * 0.5 } else { acc };
-        // Chains of parabolic blends (`servo::chain_times`): a run starts where the last one
-        // ended, and is replayed when it starts and ends at rest.
+        // Chains of parabolic blends and tangent joins (`servo::chain_times`): a run starts
+        // where the last one ended, at a parabolic blend, and is replayed when it starts and
+        // ends at rest.
         let first_piece = self.piece_base + self.pieces.len();
         let parabolic = matches!(kind, Some(Kind::Parabolic { .. }));
+        let tangent = tangent_share(joint, kind);
         let stops_after =
             last || matches!(joint, Some(Joint::Stop { .. })) || matches!(kind, Some(Kind::Stop));
         if self.chain.is_none() && self.prev_stops_after && parabolic {
@@ -195,7 +199,7 @@ impl<'a> TpStream<'a> {
         let line = s.line;
         if let Some(c) = &mut self.chain {
             c.ok &= replayable(&s);
-            c.segs.push(chain_seg(&s, tolerance));
+            c.segs.push(chain_seg(&s, tolerance, tangent));
         }
         let mut made = Vec::with_capacity(2);
         self.trim_start = seg_pieces(i, &s, (kind, joint), a, self.trim_start, cycle, &mut made);
@@ -207,7 +211,10 @@ impl<'a> TpStream<'a> {
                 line,
             });
         }
-        if !parabolic && let Some(c) = self.chain.take() {
+        if !parabolic
+            && tangent.is_none()
+            && let Some(c) = self.chain.take()
+        {
             // The run ends here: replayed if it ends at a stop and every line can move.
             let times = (stops_after && c.ok).then(|| {
                 let parabolic_end = last || matches!(joint, Some(Joint::Stop { drain: true, .. }));
