@@ -150,7 +150,8 @@ impl Chain {
 
     /// Whether the chain, followed by block `lit`, is one the replay models: known from rest,
     /// every junction a parabolic blend (one of its two blocks turns a rotary axis) or a
-    /// tangent join ([`join`]), the first parabolic, short enough to replay.
+    /// tangent join ([`join`]; the chain's own were judged as it grew, `after_block`), the
+    /// first parabolic, short enough to replay.
     pub(super) fn replayable(&self, machine: &Machine, lit: &Link) -> bool {
         let Some(links) = self.0.as_ref() else {
             return false;
@@ -161,9 +162,9 @@ impl Chain {
         let first_parabolic = links
             .first()
             .is_none_or(|a| a.turns || links.get(1).unwrap_or(lit).turns);
-        all()
-            .zip(all().skip(1))
-            .all(|(a, b)| join(machine, a, b).is_some())
+        links
+            .last()
+            .is_none_or(|last| join(machine, last, lit).is_some())
             && first_parabolic
             && period > 0.0
             && periods <= MAX_REPLAY_PERIODS

@@ -64,9 +64,9 @@
 //!     period on, where tc.c's `blend_prev` would halve it; with that, the model's NC line
 //!     starts of the whole program land on the real ones' servo periods. `G64` makes
 //!     PARABOLIC every segment's default (`tcSetupState`), and only a successor changes it,
-//!     so the segment the queue ends on keeps it and ramps at half the acceleration too: where the task waits for motion to end before a dwell, an immediate
-//!     output (`M64`/`M65`/`M68`), another M-code or the program's end (conrod_notch's first
-//!     move). Each such drain rests the machine for about `DRAIN_CYCLES` servo periods.
+//!     so the segment the queue ends on keeps it and ramps at half the acceleration too:
+//!     where the task waits for motion to end before a dwell, an immediate output
+//!     (`M64`/`M65`/`M68`), another M-code or the program's end (conrod_notch's first move). Each such drain rests the machine for about `DRAIN_CYCLES` servo periods.
 //! - **Ramps** (`tpActivateSegment`, `tpCalculateRampAccel`): a feed with term condition
 //!   TANGENT that would take under `1 / ARC_BLEND_RAMP_FREQ` (10 ms) runs at one constant
 //!   acceleration from its entry to its final speed, not a trapezoid ([`piece_time`]).
@@ -93,14 +93,14 @@ use crate::machine::{AxisKind, Machine};
 /// The model's name, as `lase plan` prints it.
 pub const MODEL: &str = "LinuxCNC 2.9 trajectory planner model";
 
-use crate::motion::parabolic::chain::KINK_RATIO;
+use crate::motion::parabolic::chain::{
+    KINK_RATIO, MIN_ARC_ANGLE, OPTIMIZATION_DEPTH, RAMP_FREQ, kink_scale,
+};
 /// Servo periods the machine rests where the queue drains (the task waits for motion to end,
 /// then runs an immediate output, a dwell or an M-code and queues the next move): measured
 /// (milltask's polling and NML round trip, not tp.c's arithmetic),
 /// 2 and 3 ms on conrod_notch.
 const DRAIN_CYCLES: f64 = 2.5;
-/// `ARC_BLEND_OPTIMIZATION_DEPTH`'s default.
-const OPTIMIZATION_DEPTH: usize = 50;
 /// `BLEND_ACC_RATIO_TANGENTIAL`: the share of acceleration an arc may use along its path.
 const ACC_RATIO_TANGENTIAL: f64 = 0.5;
 /// `BLEND_ACC_RATIO_NORMAL`: sqrt(1 − 0.5²), the share left for the turn.
@@ -111,10 +111,6 @@ const BLEND_DIST_FRACTION: f64 = 0.5;
 /// between two blend arcs is swallowed by the second (`blendCheckConsume`) when it would take
 /// fewer servo periods than this at the blend's speed.
 const GAP_CYCLES: f64 = 4.0;
-/// `TP_MIN_ARC_ANGLE`.
-const MIN_ARC_ANGLE: f64 = 1e-3;
-/// `[TRAJ] ARC_BLEND_RAMP_FREQ`'s default (`arcBlendRampFreq`, Hz).
-const RAMP_FREQ: f64 = 100.0;
 /// `TP_MIN_ARC_LENGTH`: a shorter blend arc is given up (`blendComputeParameters`).
 const MIN_ARC_LENGTH: f64 = 1e-6;
 /// `tolerance_ratio` in `tcFindBlendTolerance`: a blend strays at most this share of either
@@ -293,8 +289,7 @@ fn junction(a: &Seg, b: &Seg, tol: f64, cycle: f64) -> Kind {
     // measured as a factor of 1.081 on dial_marks' 25 mm/s chords (2000 mm/s² along an axis:
     // 1 + 2000 / 25000 = 1.08).
     let v_max = a.vmax.min(a.req).min(b.vmax.min(b.req));
-    let mut scale =
-        crate::motion::parabolic::chain::kink_scale((a.u1, b.u0), v_max, b.acc, a.acc_bound, cycle);
+    let mut scale = kink_scale((a.u1, b.u0), v_max, b.acc, a.acc_bound, cycle);
     if a.arc || b.arc {
         scale /= ACC_RATIO_TANGENTIAL;
     }

@@ -15,8 +15,7 @@
 //! - a trapezoid toward that final speed (`findTrapezoidalDesiredVel`'s `v_f²` term), and the
 //!   end condition solved for it (`checkEndCondition`): the split period carries the
 //!   terminal speed into the next segment, which runs the rest of the period
-//!   (`tpHandleSplitCycle`), and takes over the outputs only where that rest is the larger
-//!   part of the period;
+//!   (`tpHandleSplitCycle`);
 //! - a segment shorter than `1 / ARC_BLEND_RAMP_FREQ` at its entry and final speeds runs at
 //!   one acceleration from one to the other (`tpActivateSegment`'s `TC_ACCEL_RAMP`,
 //!   `tpCalculateRampAccel`);
@@ -45,15 +44,15 @@ const POS_EPSILON: f64 = 1e-12;
 /// `TP_TIME_EPSILON`.
 const TIME_EPSILON: f64 = 1e-12;
 /// `TP_MIN_ARC_ANGLE`.
-const MIN_ARC_ANGLE: f64 = 1e-3;
+pub const MIN_ARC_ANGLE: f64 = 1e-3;
 /// `TP_MIN_SEGMENT_CYCLES`.
 const MIN_SEGMENT_CYCLES: f64 = 1.02;
 /// `[TRAJ] ARC_BLEND_OPTIMIZATION_DEPTH`'s default.
-const OPTIMIZATION_DEPTH: usize = 50;
+pub const OPTIMIZATION_DEPTH: usize = 50;
 /// `TP_OPTIMIZATION_CUTOFF`.
 const OPTIMIZATION_CUTOFF: usize = 4;
-/// `[TRAJ] ARC_BLEND_RAMP_FREQ`'s default, Hz.
-const RAMP_FREQ: f64 = 100.0;
+/// `[TRAJ] ARC_BLEND_RAMP_FREQ`'s default (`arcBlendRampFreq`), Hz.
+pub const RAMP_FREQ: f64 = 100.0;
 /// `[TRAJ] ARC_BLEND_KINK_RATIO`'s default.
 pub const KINK_RATIO: f64 = 0.1;
 
@@ -174,9 +173,6 @@ struct Tc {
     cycle_time: f64,
     remove: bool,
     term: Term,
-    /// Joined parabolically to the one before, and its own term PARABOLIC: halves its
-    /// acceleration (module doc).
-    blend_prev: bool,
     switched: bool,
     /// The look-ahead's final speed (`finalvel`; read only where the term is TANGENT).
     finalvel: f64,
@@ -187,9 +183,11 @@ struct Tc {
     term_vel: f64,
 }
 
-/// `tcGetTangentialMaxAccel` for a line (its kink's share already taken from `s.acc`).
+/// `tcGetTangentialMaxAccel` for a line (its kink's share already taken from `s.acc`): half
+/// where its own term condition is PARABOLIC. A parabolic blend from the segment before does
+/// not halve a STOP or TANGENT one (`blend_prev`, as the real machine ran it: module doc).
 fn tangential_acc(s: &ChainSeg, tc: &Tc) -> f64 {
-    if tc.blend_prev || tc.term == Term::Parabolic {
+    if tc.term == Term::Parabolic {
         s.acc * 0.5
     } else {
         s.acc
@@ -391,15 +389,18 @@ impl Replay {
             switched_now: None,
             open: Vec::new(),
         };
-        let (segs, tcs) = queue(&r.given, end, period);
-        r.segs = segs;
-        r.tcs = tcs;
-        let m = r.segs.len();
-        r.switch_s.resize(m, 0.0);
-        r.switch_speed.resize(m, 0.0);
-        r.switch_past.resize(m, 0.0);
-        r.switch_window.resize(m, [0.0; SWITCH_WINDOW]);
+        (r.segs, r.tcs) = queue(&r.given, end, period);
+        r.size_switches();
         r
+    }
+
+    /// One switch record per queued segment.
+    fn size_switches(&mut self) {
+        let m = self.segs.len();
+        self.switch_s.resize(m, 0.0);
+        self.switch_speed.resize(m, 0.0);
+        self.switch_past.resize(m, 0.0);
+        self.switch_window.resize(m, [0.0; SWITCH_WINDOW]);
     }
 
     /// `segs` run from rest up to the first servo period in which tp would look at a segment
@@ -424,31 +425,19 @@ impl Replay {
         let same = !last_read
             && (0..n).all(|k| {
                 let (a, b) = (&self.tcs[k], &tcs[k]);
-                segs[k] == self.segs[k]
-                    && a.term == b.term
-                    && a.blend_prev == b.blend_prev
-                    && a.finalvel == b.finalvel
+                segs[k] == self.segs[k] && a.term == b.term && a.finalvel == b.finalvel
             });
         if !same {
             let mut r = Replay::start(&all, End::Stop, self.period);
             r.run(usize::MAX);
             return r.finish();
         }
+        // The prefix's segments as queued are the whole chain's: the tail's follow them.
         let mut r = self.clone();
         r.given = all;
-        for (k, (s, t)) in segs.into_iter().zip(tcs).enumerate() {
-            if k < n {
-                r.tcs[k].finalvel = t.finalvel;
-            } else {
-                r.segs.push(s);
-                r.tcs.push(t);
-            }
-        }
-        let m = r.segs.len();
-        r.switch_s.resize(m, 0.0);
-        r.switch_speed.resize(m, 0.0);
-        r.switch_past.resize(m, 0.0);
-        r.switch_window.resize(m, [0.0; SWITCH_WINDOW]);
+        r.segs.extend(segs.into_iter().skip(n));
+        r.tcs.extend(tcs.into_iter().skip(n));
+        r.size_switches();
         r.run(usize::MAX);
         r.finish()
     }
@@ -679,7 +668,6 @@ fn queue(given: &[ChainSeg], end: End, period: f64) -> (Vec<ChainSeg>, Vec<Tc>) 
             cycle_time: period,
             remove: false,
             term: term(i),
-            blend_prev: i > 0 && term(i - 1) == Term::Parabolic && term(i) == Term::Parabolic,
             switched: false,
             finalvel: 0.0,
             ramp: false,
@@ -715,10 +703,9 @@ fn optimize(segs: &[ChainSeg], tcs: &mut [Tc], end: End) {
                 crossed = true;
                 continue;
             }
-            let finalized = tc + 1 < len;
-            if finalized {
-                // tpComputeOptimalVelocity.
-                let acc = tangential_acc(&segs[tc], &tcs[tc]);
+            let acc = tangential_acc(&segs[tc], &tcs[tc]);
+            if tc + 1 < len {
+                // tpComputeOptimalVelocity (the segment is finalized).
                 let back = (tcs[tc].finalvel.powi(2) + 2.0 * acc * segs[tc].len).sqrt();
                 let limit = segs[tc].v.min(segs[prev].v);
                 if back >= limit {
@@ -728,7 +715,6 @@ fn optimize(segs: &[ChainSeg], tcs: &mut [Tc], end: End) {
             } else {
                 // tpCalculateOptimizationInitialVel: the last queued may lose half its
                 // length to a blend.
-                let acc = tangential_acc(&segs[tc], &tcs[tc]);
                 let v0 = (acc * segs[tc].len).sqrt().min(segs[tc].v);
                 tcs[prev].finalvel = v0.min(segs[prev].v);
                 tcs[tc].finalvel = 0.0;

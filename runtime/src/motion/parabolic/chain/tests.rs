@@ -227,3 +227,36 @@ X-1.776982 A53.375517 F3038.6522";
         );
     }
 }
+
+/// With tangent joins the tail can change what the prefix ran on (the look-ahead's final
+/// speeds of the segments joined tangentially into it): run on, or run again from rest, the
+/// prefix gives the whole chain's run.
+#[test]
+fn a_prefix_joined_tangentially_into_its_ending_is_the_whole_chains_run() {
+    let seg = |len: f64, v: f64, tangent: Option<f64>| ChainSeg {
+        len,
+        v,
+        acc: 2000.0,
+        u: [1.0, 0.0, 0.0],
+        tolerance: 0.01,
+        tangent,
+    };
+    let t = Some(0.0);
+    for (head_end, tail_first) in [(None, t), (t, t), (t, None)] {
+        let head = [
+            seg(0.6, 30.0, None),
+            seg(0.1, 25.0, t),
+            seg(0.2, 28.0, head_end),
+        ];
+        let tail = [
+            seg(0.05, 20.0, tail_first),
+            seg(0.3, 30.0, None),
+            seg(0.4, 30.0, None),
+        ];
+        let all: Vec<ChainSeg> = head.iter().chain(&tail).cloned().collect();
+        let whole = run_chain(&all, false, 0.001);
+        let parts = Replay::prefix(&head, 0.001).then(&tail);
+        assert_eq!(whole, parts, "{head_end:?} {tail_first:?}");
+        assert!(whole.total_s > 0.0 && whole.switch_s.windows(2).all(|w| w[0] <= w[1]));
+    }
+}
